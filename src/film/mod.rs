@@ -1,0 +1,132 @@
+//! The film: per-pixel CIE XYZ estimates accumulated in f64 with their variance, and its
+//! conversion to EXR layers and PNG previews.
+//!
+//! Each pixel keeps, per channel (X, Y, Z and linear sRGB R, G, B), the running mean of its
+//! sample estimates and the running sum of squared deviations (Welford's update, the stable
+//! form of "sum and sum of squares"), plus the sample count. The pixel filter is a box: every
+//! sample's film position is uniform in its own pixel and counts only there, so pixels are
+//! independent estimates and the per-pixel variance is exact for that estimator.
+//!
+//! EXR channels (32-bit float): `R`, `G`, `B` linear sRGB (D65 white, XYZ_TO_SRGB of
+//! `spectrum::color`); `X`, `Y`, `Z` CIE 1931 normalised so that a constant spectral
+//! radiance of 1 W·sr⁻¹·m⁻²·nm⁻¹ reads Y = 1; `variance.R` … `variance.Z`: the estimated
+//! variance of each pixel mean (s²/n); header attributes `furnace.spp`, `furnace.seed` etc.
+
+pub mod io;
+
+use crate::spectrum::color::xyz_to_linear_srgb;
+use crate::stats::MeanVar;
+
+/// Channel names in storage order: X, Y, Z, then linear sRGB R, G, B.
+pub const CHANNELS: [&str; 6] = ["X", "Y", "Z", "R", "G", "B"];
+
+/// One pixel's accumulators.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Pixel {
+    /// Running statistics per channel in [`CHANNELS`] order.
+    pub channels: [MeanVar; 6],
+}
+
+impl Pixel {
+    /// Adds one sample's XYZ estimate (R, G, B derived from it).
+    #[inline]
+    pub fn add_xyz(&mut self, xyz: [f64; 3]) {
+        let rgb = xyz_to_linear_srgb(xyz);
+        for k in 0..3 {
+            self.channels[k].push(xyz[k]);
+            self.channels[k + 3].push(rgb[k]);
+        }
+    }
+}
+
+/// A width×height grid of pixels, row-major from the top-left.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Film {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Pixels, row-major.
+    pub pixels: Vec<Pixel>,
+}
+
+impl Film {
+    /// An empty film.
+    pub fn new(width: usize, height: usize) -> Self {
+        Film {
+            width,
+            height,
+            pixels: vec![Pixel::default(); width * height],
+        }
+    }
+
+    /// Pixel means of channel `c` (index into [`CHANNELS`]).
+    pub fn means(&self, c: usize) -> Vec<f64> {
+        self.pixels.iter().map(|p| p.channels[c].mean()).collect()
+    }
+
+    /// Variance of each pixel mean (s²/n) for channel `c`.
+    pub fn mean_variances(&self, c: usize) -> Vec<f64> {
+        self.pixels
+            .iter()
+            .map(|p| {
+                let m = &p.channels[c];
+                if m.count() == 0 {
+                    0.0
+                } else {
+                    m.variance() / m.count() as f64
+                }
+            })
+            .collect()
+    }
+
+    /// Linear sRGB means per pixel.
+    pub fn linear_srgb(&self) -> Vec<[f64; 3]> {
+        self.pixels
+            .iter()
+            .map(|p| {
+                [
+                    p.channels[3].mean(),
+                    p.channels[4].mean(),
+                    p.channels[5].mean(),
+                ]
+            })
+            .collect()
+    }
+
+    /// Number of pixels containing a NaN or infinite mean in any channel.
+    pub fn non_finite_pixels(&self) -> usize {
+        self.pixels
+            .iter()
+            .filter(|p| {
+                p.channels
+                    .iter()
+                    .any(|m| !m.mean().is_finite() || !m.variance().is_finite())
+            })
+            .count()
+    }
+
+    /// The EXR layers (see the module doc for channel names), with string attributes.
+    pub fn to_layers(&self, attributes: Vec<(String, String)>) -> io::Layers {
+        let mut channels = Vec::with_capacity(12);
+        for (c, name) in CHANNELS.iter().enumerate() {
+            channels.push((
+                name.to_string(),
+                self.means(c).into_iter().map(|v| v as f32).collect(),
+            ));
+            channels.push((
+                format!("variance.{name}"),
+                self.mean_variances(c)
+                    .into_iter()
+                    .map(|v| v as f32)
+                    .collect(),
+            ));
+        }
+        io::Layers {
+            width: self.width,
+            height: self.height,
+            channels,
+            attributes,
+        }
+    }
+}

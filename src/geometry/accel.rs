@@ -1,0 +1,267 @@
+//! The scene aggregate: all shapes under one `obvhs` BVH2 (the only home of `obvhs`).
+//!
+//! The BVH works in f32 and only culls: its boxes are built in coordinates relative to the
+//! scene centre and padded by 1e-5 of the scene extent, far more than the f32 rounding of
+//! boxes, ray origin and direction (≈ 1e-7 of the extent), and rays are clipped to the scene
+//! box in f64 before conversion, so the culling is conservative at any scale or offset.
+//! Every candidate is then intersected exactly, in f64. BVH2 is used rather than obvhs's
+//! CWBVH because the CWBVH node test clamps t to an absolute 1e-4, which would skip nearby
+//! geometry in small scenes.
+
+use super::{Hit, Ray, Shape};
+use crate::math::Vec3;
+use obvhs::{aabb::Aabb, bvh2::Bvh2, ray::Ray as BvhRay, BvhBuildParams};
+use std::time::Duration;
+
+/// Relative padding of BVH boxes (fraction of the scene extent).
+const PAD: f64 = 1e-5;
+
+/// Shapes plus their BVH.
+#[derive(Clone)]
+pub struct Aggregate {
+    shapes: Vec<Shape>,
+    /// (shape, primitive) per BVH primitive.
+    prims: Vec<(u32, u32)>,
+    bvh: Bvh2,
+    center: Vec3,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+impl std::fmt::Debug for Aggregate {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Aggregate")
+            .field("shapes", &self.shapes.len())
+            .field("primitives", &self.prims.len())
+            .field("bvh_nodes", &self.bvh.nodes.len())
+            .finish()
+    }
+}
+
+impl Aggregate {
+    /// Builds the BVH over every primitive of `shapes`.
+    pub fn new(shapes: Vec<Shape>) -> Self {
+        let mut prims = Vec::new();
+        let mut lo = Vec3::INFINITY;
+        let mut hi = Vec3::NEG_INFINITY;
+        let mut boxes = Vec::new();
+        for (si, s) in shapes.iter().enumerate() {
+            for p in 0..s.primitive_count() {
+                let (a, b) = s.primitive_bounds(p);
+                lo = lo.min(a);
+                hi = hi.max(b);
+                boxes.push((a, b));
+                prims.push((si as u32, p as u32));
+            }
+        }
+        let (center, pad) = if prims.is_empty() {
+            (Vec3::ZERO, 0.0)
+        } else {
+            let extent = (hi - lo).max_element().max(f64::MIN_POSITIVE);
+            ((lo + hi) * 0.5, PAD * extent)
+        };
+        let aabbs: Vec<Aabb> = boxes
+            .iter()
+            .map(|(a, b)| Aabb::new(to_f32_down(*a - center - pad), to_f32_up(*b - center + pad)))
+            .collect();
+        let bvh = if aabbs.is_empty() {
+            Bvh2::default()
+        } else {
+            let mut build_time = Duration::ZERO;
+            obvhs::bvh2::builder::build_bvh2(
+                &aabbs,
+                BvhBuildParams::medium_build(),
+                &mut build_time,
+            )
+        };
+        Aggregate {
+            shapes,
+            prims,
+            bvh,
+            center,
+            lo: lo - pad * 2.0,
+            hi: hi + pad * 2.0,
+        }
+    }
+
+    /// The shapes, indexed by [`Hit::shape`].
+    pub fn shapes(&self) -> &[Shape] {
+        &self.shapes
+    }
+
+    /// Clips the ray to the padded scene box in f64; returns the BVH ray and the f64 entry
+    /// distance, or None when the ray misses the box before `t_max`.
+    fn clip(&self, ray: &Ray, t_max: f64) -> Option<(BvhRay, f64)> {
+        if self.prims.is_empty() {
+            return None;
+        }
+        let inv = ray.d.recip();
+        let t1 = (self.lo - ray.o) * inv;
+        let t2 = (self.hi - ray.o) * inv;
+        // NaN from 0·inf (origin on a slab with a parallel ray) is dropped by max/min.
+        let t_near = t1.min(t2).max_element().max(0.0);
+        let t_far = t1.max(t2).min_element().min(t_max);
+        if t_near.is_nan() || t_far.is_nan() || t_near > t_far {
+            return None;
+        }
+        let o = ray.at(t_near) - self.center;
+        let len = ((t_far - t_near) * (1.0 + 1e-6)) as f32;
+        let r = BvhRay::new(
+            o.as_vec3().into(),
+            ray.d.as_vec3().into(),
+            0.0,
+            if len.is_finite() { len } else { f32::INFINITY },
+        );
+        Some((r, t_near))
+    }
+
+    /// Nearest hit with 0 < t < t_max.
+    pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
+        let (bray, t0) = self.clip(ray, t_max)?;
+        let mut best: Option<Hit> = None;
+        let mut best_t = t_max;
+        let mut hit = obvhs::ray::RayHit::none();
+        self.bvh.ray_traverse(bray, &mut hit, |_, i| {
+            let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
+            match self.shapes[si as usize].intersect_primitive(p as usize, ray, best_t) {
+                Some((t, point)) => {
+                    best_t = t;
+                    best = Some(Hit {
+                        t,
+                        point,
+                        shape: si,
+                    });
+                    // Conservative f32 distance for the BVH's own culling.
+                    (((t - t0) * (1.0 + 1e-6)) as f32).next_up()
+                }
+                None => f32::INFINITY,
+            }
+        });
+        best
+    }
+
+    /// True when something lies on the ray with 0 < t < t_max.
+    pub fn occluded(&self, ray: &Ray, t_max: f64) -> bool {
+        let Some((bray, _)) = self.clip(ray, t_max) else {
+            return false;
+        };
+        !self.bvh.ray_traverse_miss(bray, |_, i| {
+            let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
+            match self.shapes[si as usize].intersect_primitive(p as usize, ray, t_max) {
+                Some(_) => 0.0,
+                None => f32::INFINITY,
+            }
+        })
+    }
+}
+
+fn to_f32_down(v: Vec3) -> glam::Vec3A {
+    glam::Vec3A::new(down(v.x), down(v.y), down(v.z))
+}
+fn to_f32_up(v: Vec3) -> glam::Vec3A {
+    glam::Vec3A::new(up(v.x), up(v.y), up(v.z))
+}
+fn down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+fn up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{mesh::TriangleMesh, quad::Quad, sphere::Sphere};
+    use crate::math::rng::SampleStream;
+    use crate::math::warp;
+
+    fn cube(scale: f64, shift: Vec3) -> TriangleMesh {
+        let p: Vec<Vec3> = (0..8)
+            .map(|i| {
+                Vec3::new((i & 1) as f64, ((i >> 1) & 1) as f64, ((i >> 2) & 1) as f64) * scale
+                    + shift
+            })
+            .collect();
+        let faces = [
+            [0, 2, 3, 1],
+            [4, 5, 7, 6],
+            [0, 1, 5, 4],
+            [2, 6, 7, 3],
+            [0, 4, 6, 2],
+            [1, 3, 7, 5],
+        ];
+        let tris = faces
+            .iter()
+            .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
+            .collect();
+        TriangleMesh::new(p, tris, false)
+    }
+
+    #[test]
+    fn rays_from_inside_a_closed_cube_never_escape_at_any_scale() {
+        for scale in [1e-4, 1.0, 1e5] {
+            for shift in [0.0, 1e6] {
+                let agg = Aggregate::new(vec![Shape::Mesh(cube(scale, Vec3::splat(shift)))]);
+                let mut s = SampleStream::new(1, 0, 0);
+                let centre = Vec3::splat(shift + 0.5 * scale);
+                for _ in 0..20_000 {
+                    let d = warp::uniform_sphere(s.next_2d());
+                    // origins anywhere inside, including very near the walls
+                    let o = centre
+                        + (Vec3::new(s.next_f64(), s.next_f64(), s.next_f64()) - 0.5)
+                            * scale
+                            * 0.999_999;
+                    let hit = agg.intersect(&Ray { o, d }, f64::INFINITY);
+                    assert!(
+                        hit.is_some(),
+                        "escaped: scale {scale} shift {shift} o {o:?} d {d:?}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn aggregate_finds_nearest_of_mixed_shapes_and_occlusion_respects_t_max() {
+        let shapes = vec![
+            Shape::Sphere(Sphere {
+                center: Vec3::new(0.0, 0.0, 5.0),
+                radius: 1.0,
+                flip_normals: false,
+            }),
+            Shape::Quad(Quad {
+                corner: Vec3::new(-1.0, -1.0, 2.0),
+                edge_u: Vec3::X * 2.0,
+                edge_v: Vec3::Y * 2.0,
+                flip_normals: false,
+            }),
+        ];
+        let agg = Aggregate::new(shapes);
+        let r = Ray {
+            o: Vec3::ZERO,
+            d: Vec3::Z,
+        };
+        let h = agg.intersect(&r, f64::INFINITY).unwrap();
+        assert_eq!(h.shape, 1);
+        assert!((h.t - 2.0).abs() < 1e-12);
+        assert!(agg.occluded(&r, 3.0));
+        assert!(!agg.occluded(&r, 1.5));
+        let side = Ray {
+            o: Vec3::new(0.0, 3.0, 5.0),
+            d: -Vec3::Y,
+        };
+        let h = agg.intersect(&side, f64::INFINITY).unwrap();
+        assert_eq!(h.shape, 0);
+        assert!((h.t - 2.0).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,91 @@
+//! Triangle meshes: vertex positions in scene units, triangles by index, an area CDF for
+//! uniform area sampling.
+
+use super::{triangle, SurfacePoint};
+use crate::math::{warp, Vec3};
+
+/// A triangle mesh; the geometric normal of triangle (a, b, c) is normalize((b−a)×(c−a)),
+/// reversed when `flip_normals`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TriangleMesh {
+    /// Vertex positions.
+    pub positions: Vec<Vec3>,
+    /// Vertex indices per triangle (validated in range, non-degenerate).
+    pub triangles: Vec<[u32; 3]>,
+    /// Reverse every normal.
+    pub flip_normals: bool,
+    /// Running sum of triangle areas (last entry = total area).
+    area_cdf: Vec<f64>,
+}
+
+impl TriangleMesh {
+    /// Builds the mesh and its area table. Callers validate indices and areas first
+    /// (see `scene`); an index out of range here is a programming error.
+    pub fn new(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, flip_normals: bool) -> Self {
+        let mut mesh = TriangleMesh {
+            positions,
+            triangles,
+            flip_normals,
+            area_cdf: Vec::new(),
+        };
+        let mut acc = 0.0;
+        mesh.area_cdf = (0..mesh.triangles.len())
+            .map(|i| {
+                acc += mesh.triangle_area(i);
+                acc
+            })
+            .collect();
+        mesh
+    }
+
+    /// Vertices of triangle `i`.
+    #[inline]
+    pub fn vertices(&self, i: usize) -> [Vec3; 3] {
+        self.triangles[i].map(|k| self.positions[k as usize])
+    }
+
+    /// Area of triangle `i`.
+    pub fn triangle_area(&self, i: usize) -> f64 {
+        let [a, b, c] = self.vertices(i);
+        0.5 * (b - a).cross(c - a).length()
+    }
+
+    /// Total area.
+    pub fn area(&self) -> f64 {
+        self.area_cdf.last().copied().unwrap_or(0.0)
+    }
+
+    /// Unit geometric normal of triangle `i`.
+    pub fn normal(&self, i: usize) -> Vec3 {
+        let [a, b, c] = self.vertices(i);
+        let n = (b - a).cross(c - a).normalize();
+        if self.flip_normals {
+            -n
+        } else {
+            n
+        }
+    }
+
+    /// Bounds of triangle `i`.
+    pub fn triangle_bounds(&self, i: usize) -> (Vec3, Vec3) {
+        let [a, b, c] = self.vertices(i);
+        (a.min(b).min(c), a.max(b).max(c))
+    }
+
+    /// Surface point at barycentrics `b` of triangle `i`.
+    pub fn surface_point(&self, i: usize, b: [f64; 3]) -> SurfacePoint {
+        triangle::surface_point(b, self.vertices(i), self.normal(i))
+    }
+
+    /// A point uniformly distributed over the whole mesh area (triangle chosen by area with
+    /// `u_select`, position by the sqrt warp); pdf 1/area.
+    pub fn sample(&self, u_select: f64, u: [f64; 2]) -> SurfacePoint {
+        let target = u_select * self.area();
+        let i = self
+            .area_cdf
+            .partition_point(|&c| c <= target)
+            .min(self.triangles.len() - 1);
+        let [b1, b2] = warp::uniform_triangle(u);
+        self.surface_point(i, [1.0 - b1 - b2, b1, b2])
+    }
+}

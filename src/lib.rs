@@ -1,0 +1,18 @@
+//! furnace: a predictive-rendering validation harness with a compact spectral reference
+//! renderer.
+//!
+//! Module chain (a module uses only those to its left):
+//! `math, stats ← spectrum ← geometry ← {scattering, lights, camera, film} ← scene ←
+//! integrators ← render`.
+
+pub mod camera;
+pub mod film;
+pub mod geometry;
+pub mod integrators;
+pub mod lights;
+pub mod math;
+pub mod render;
+pub mod scattering;
+pub mod scene;
+pub mod spectrum;
+pub mod stats;

@@ -1,0 +1,151 @@
+//! Emitters: diffuse area lights on shapes, point lights and a uniform environment.
+//! Radiance in W·sr⁻¹·m⁻²·nm⁻¹, point intensity in W·sr⁻¹·nm⁻¹.
+
+use crate::geometry::{Shape, SurfacePoint};
+use crate::math::{warp, Vec3};
+use crate::spectrum::{SampledSpectrum, Spectrum, Wavelengths};
+
+/// A light source.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Light {
+    /// Diffuse emission from the surface of shape `shape`.
+    Area {
+        /// Index of the emitting shape.
+        shape: u32,
+        /// Emitted radiance.
+        radiance: Spectrum,
+        /// Emit on both sides (otherwise only towards the geometric normal).
+        two_sided: bool,
+    },
+    /// Isotropic point source.
+    Point {
+        /// Position, scene units.
+        position: Vec3,
+        /// Radiant intensity.
+        intensity: Spectrum,
+    },
+    /// Radiance arriving from every direction at infinity.
+    Environment {
+        /// Radiance, the same in every direction.
+        radiance: Spectrum,
+    },
+}
+
+/// A sampled light direction as seen from a shading point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightSample {
+    /// Unit direction from the shading point towards the light (world).
+    pub wi: Vec3,
+    /// Incident radiance along `wi` (for a point light: I/d², the irradiance normal to wi).
+    pub radiance: SampledSpectrum,
+    /// Pdf per unit solid angle (1 for the delta of a point light).
+    pub pdf: f64,
+    /// The point on the light, or None for a light at infinity.
+    pub point: Option<SurfacePoint>,
+    /// True for a point light (no MIS with BSDF sampling).
+    pub delta: bool,
+}
+
+/// Radiance leaving an area emitter's surface point with normal `n` in direction `w`.
+pub fn area_radiance(
+    radiance: &Spectrum,
+    two_sided: bool,
+    n: Vec3,
+    w: Vec3,
+    wl: &Wavelengths,
+) -> SampledSpectrum {
+    if two_sided || n.dot(w) > 0.0 {
+        radiance.sample(wl)
+    } else {
+        SampledSpectrum::ZERO
+    }
+}
+
+impl Light {
+    /// Samples a direction towards the light from `p`; `u_select` picks a mesh triangle.
+    pub fn sample(
+        &self,
+        p: Vec3,
+        u_select: f64,
+        u: [f64; 2],
+        shapes: &[Shape],
+        wl: &Wavelengths,
+    ) -> Option<LightSample> {
+        match self {
+            Light::Area {
+                shape,
+                radiance,
+                two_sided,
+            } => {
+                let s = &shapes[*shape as usize];
+                let sp = s.sample(u_select, u);
+                let v = sp.p - p;
+                let d2 = v.length_squared();
+                if d2 == 0.0 {
+                    return None;
+                }
+                let wi = v / d2.sqrt();
+                let cos_l = sp.n.dot(-wi).abs();
+                if cos_l == 0.0 {
+                    return None;
+                }
+                // area pdf 1/A converted to solid angle: d²/(|cos θl| A)
+                let pdf = d2 / (cos_l * s.area());
+                let radiance = area_radiance(radiance, *two_sided, sp.n, -wi, wl);
+                Some(LightSample {
+                    wi,
+                    radiance,
+                    pdf,
+                    point: Some(sp),
+                    delta: false,
+                })
+            }
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let v = *position - p;
+                let d2 = v.length_squared();
+                if d2 == 0.0 {
+                    return None;
+                }
+                let point = SurfacePoint {
+                    p: *position,
+                    p_error: Vec3::ZERO,
+                    n: -v / d2.sqrt(),
+                };
+                Some(LightSample {
+                    wi: v / d2.sqrt(),
+                    radiance: intensity.sample(wl) / d2,
+                    pdf: 1.0,
+                    point: Some(point),
+                    delta: true,
+                })
+            }
+            Light::Environment { radiance } => Some(LightSample {
+                wi: warp::uniform_sphere(u),
+                radiance: radiance.sample(wl),
+                pdf: warp::UNIFORM_SPHERE_PDF,
+                point: None,
+                delta: false,
+            }),
+        }
+    }
+
+    /// Solid-angle pdf that [`Light::sample`] from `p` produces the emitter point `hit`
+    /// (area lights) — used for MIS when a BSDF-sampled ray finds the light.
+    pub fn pdf_area_hit(&self, p: Vec3, hit: &SurfacePoint, shapes: &[Shape]) -> f64 {
+        match self {
+            Light::Area { shape, .. } => {
+                let v = hit.p - p;
+                let d2 = v.length_squared();
+                let cos_l = hit.n.dot(v).abs() / d2.sqrt();
+                if cos_l == 0.0 {
+                    return 0.0;
+                }
+                d2 / (cos_l * shapes[*shape as usize].area())
+            }
+            _ => 0.0,
+        }
+    }
+}

@@ -1,0 +1,130 @@
+//! The pixel loop: square tiles rendered in parallel with rayon; each sample's random
+//! numbers depend only on (seed, pixel, sample index), and each pixel accumulates its
+//! samples in order, so the image is bit-identical for any thread count.
+
+use crate::film::Film;
+use crate::integrators::PathTracer;
+use crate::math::rng::SampleStream;
+use crate::scene::Scene;
+use crate::spectrum::{cie, Wavelengths, N_WAVELENGTHS};
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Tile edge, pixels.
+pub const TILE: usize = 16;
+
+/// What to render.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderSettings {
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Samples per pixel.
+    pub spp: u64,
+    /// Run seed.
+    pub seed: u64,
+    /// Worker threads; 0 = rayon's default (all cores).
+    pub threads: usize,
+    /// The estimator.
+    pub integrator: PathTracer,
+}
+
+/// Why a render could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum RenderError {
+    /// The settings do not fit the scene (e.g. image aspect vs film aspect).
+    #[error("{0}")]
+    Settings(String),
+    /// The thread pool could not be built.
+    #[error("cannot start {threads} worker threads: {message}")]
+    Threads {
+        /// Requested thread count.
+        threads: usize,
+        /// The pool builder's message.
+        message: String,
+    },
+}
+
+/// Renders `scene`; `progress` is called with the number of samples finished so far
+/// (from worker threads, once per tile).
+pub fn render(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Film, RenderError> {
+    let (w, h) = (settings.width, settings.height);
+    if w == 0 || h == 0 || settings.spp == 0 {
+        return Err(RenderError::Settings(format!(
+            "width, height and spp must be >= 1 (got {w}x{h}, {} spp)",
+            settings.spp
+        )));
+    }
+    let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
+    let cie = cie::tables();
+    let y_norm = 1.0 / cie.y_integral();
+    let tiles_x = w.div_ceil(TILE);
+    let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
+        .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
+        .collect();
+    let done = AtomicU64::new(0);
+    let work = || {
+        tiles
+            .par_iter()
+            .map(|&(tx, ty)| {
+                let (x0, y0) = (tx * TILE, ty * TILE);
+                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+                let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0));
+                for y in y0..y1 {
+                    for x in x0..x1 {
+                        let mut px = crate::film::Pixel::default();
+                        let pixel_index = (y * w + x) as u64;
+                        for s in 0..settings.spp {
+                            let mut rng = SampleStream::new(settings.seed, pixel_index, s);
+                            let wl = Wavelengths::sample_visible(rng.next_f64());
+                            let [jx, jy] = rng.next_2d();
+                            let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                            let l = settings.integrator.radiance(scene, ray, &wl, &mut rng);
+                            // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::cie).
+                            let mut xyz = [0.0; 3];
+                            for i in 0..N_WAVELENGTHS {
+                                let c = cie.cmf(wl.lambda[i]);
+                                let k = l.0[i] / wl.pdf[i];
+                                for j in 0..3 {
+                                    xyz[j] += k * c[j];
+                                }
+                            }
+                            px.add_xyz(xyz.map(|v| v * y_norm / N_WAVELENGTHS as f64));
+                        }
+                        pixels.push(px);
+                    }
+                }
+                let n = done.fetch_add(pixels.len() as u64 * settings.spp, Ordering::Relaxed)
+                    + pixels.len() as u64 * settings.spp;
+                progress(n);
+                (tx, ty, pixels)
+            })
+            .collect::<Vec<_>>()
+    };
+    let results = if settings.threads == 0 {
+        work()
+    } else {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(settings.threads)
+            .build()
+            .map_err(|e| RenderError::Threads {
+                threads: settings.threads,
+                message: e.to_string(),
+            })?
+            .install(work)
+    };
+    let mut film = Film::new(w, h);
+    for (tx, ty, pixels) in results {
+        let (x0, y0) = (tx * TILE, ty * TILE);
+        let tw = (x0 + TILE).min(w) - x0;
+        for (i, p) in pixels.into_iter().enumerate() {
+            film.pixels[(y0 + i / tw) * w + x0 + i % tw] = p;
+        }
+    }
+    Ok(film)
+}

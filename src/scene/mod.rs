@@ -1,0 +1,735 @@
+//! Scenes: the TOML description (`desc`), its validation into the renderable [`Scene`], and
+//! the errors that name file, line, column, key and the allowed values.
+//!
+//! Lengths are in scene units (any unit; radiance does not depend on it; point-light
+//! irradiance I/d² is per scene unit²). Radiance in W·sr⁻¹·m⁻²·nm⁻¹, wavelengths in nm.
+
+pub mod desc;
+pub mod error;
+mod spectra;
+
+pub use error::{SceneError, Source};
+
+use crate::camera::{fov_from_film, Camera};
+use crate::geometry::{mesh::TriangleMesh, meshio, quad::Quad, sphere::Sphere, Aggregate, Shape};
+use crate::lights::Light;
+use crate::math::Vec3;
+use crate::scattering::{Bsdf, Lambertian};
+use crate::spectrum::Spectrum;
+use desc::{CameraDesc, LightDesc, MaterialDesc, RenderDesc, SceneDesc, ShapeDesc};
+use spectra::{Role, SpectrumParser};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// Default image width and height when `[render]` does not set them, pixels.
+pub const DEFAULT_SIZE: usize = 256;
+/// Default samples per pixel when `[render]` does not set it.
+pub const DEFAULT_SPP: u64 = 16;
+
+/// Render settings stored in the scene file (the CLI may override each).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RenderDefaults {
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+    /// Samples per pixel.
+    pub spp: u64,
+    /// Maximum number of bounces; None = unlimited (Russian roulette ends paths).
+    pub max_depth: Option<u32>,
+}
+
+/// The camera as described; the image aspect is only known at render time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CameraSpec {
+    /// Eye position.
+    pub position: Vec3,
+    /// Point looked at.
+    pub look_at: Vec3,
+    /// Up hint.
+    pub up: Vec3,
+    /// Vertical field of view, degrees.
+    pub fov_y: f64,
+    /// Film width/height when given by `film_size`; the image must have this aspect.
+    pub film_aspect: Option<f64>,
+}
+
+impl CameraSpec {
+    /// The camera for a `width`×`height` image, or a message when the image aspect does not
+    /// match the film's.
+    pub fn build(&self, width: usize, height: usize) -> Result<Camera, String> {
+        let aspect = width as f64 / height as f64;
+        if let Some(film) = self.film_aspect {
+            if (film / aspect - 1.0).abs() > 1e-6 {
+                return Err(format!(
+                    "the image is {width}x{height} (aspect {aspect:.6}) but camera.film_size has aspect {film:.6}; \
+                     choose a resolution with the film's aspect"
+                ));
+            }
+        }
+        Ok(Camera::new(
+            self.position,
+            self.look_at,
+            self.up,
+            self.fov_y,
+            aspect,
+        ))
+    }
+}
+
+/// A validated, renderable scene.
+#[derive(Debug, Clone)]
+pub struct Scene {
+    /// Shapes and their BVH.
+    pub aggregate: Aggregate,
+    /// BSDF of each shape.
+    pub bsdfs: Vec<Bsdf>,
+    /// Index into `lights` of each shape's area light, if it emits.
+    pub shape_light: Vec<Option<u32>>,
+    /// All lights (area lights first, in shape order, then `[[light]]` entries).
+    pub lights: Vec<Light>,
+    /// Camera.
+    pub camera: CameraSpec,
+    /// Render defaults.
+    pub render: RenderDefaults,
+}
+
+impl Scene {
+    /// Reads and validates a scene file.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
+            file: path.to_path_buf(),
+            line: 0,
+            column: 0,
+            key: String::new(),
+            message: format!("cannot read the scene file: {e}"),
+        })?;
+        Scene::parse(&text, path)
+    }
+
+    /// Validates scene text; `path` names it in errors and its folder resolves relative files.
+    pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
+        let src = Source { path, text };
+        let desc: SceneDesc = toml::from_str(text).map_err(|e| {
+            let span = e.span().unwrap_or(0..0);
+            src.error(span, "", e.message().trim_end().to_string())
+        })?;
+        Builder {
+            src,
+            base: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+        }
+        .build(desc)
+    }
+}
+
+/// A validated shape, its BSDF and its emission (radiance, two-sided) if it emits.
+type BuiltShape = (Shape, Bsdf, Option<(Spectrum, bool)>);
+
+struct Builder<'a> {
+    src: Source<'a>,
+    base: PathBuf,
+}
+
+const SHAPE_COMMON: [&str; 5] = ["type", "material", "emission", "two_sided", "flip_normals"];
+const SHAPE_TYPES: [(&str, &[&str]); 4] = [
+    ("sphere", &["center", "radius"]),
+    ("quad", &["corner", "edge_u", "edge_v"]),
+    ("triangles", &["vertices", "indices"]),
+    ("mesh", &["file"]),
+];
+const LIGHT_TYPES: [(&str, &[&str]); 2] = [
+    ("point", &["position", "intensity"]),
+    ("environment", &["radiance"]),
+];
+
+impl Builder<'_> {
+    fn err(
+        &self,
+        span: Range<usize>,
+        key: impl Into<String>,
+        msg: impl Into<String>,
+    ) -> SceneError {
+        self.src.error(span, key, msg)
+    }
+
+    fn build(&self, desc: SceneDesc) -> Result<Scene, SceneError> {
+        let render = self.render(desc.render.as_ref())?;
+        let camera = match &desc.camera {
+            Some(c) => self.camera(c)?,
+            None => {
+                return Err(self.err(
+                    0..0,
+                    "camera",
+                    "missing [camera] table; a scene needs a camera",
+                ))
+            }
+        };
+        let parser = SpectrumParser::new(self.src, &self.base, &desc.spectra)?;
+        let mut materials = BTreeMap::new();
+        for (name, m) in &desc.materials {
+            materials.insert(name.clone(), self.material(name, m, &parser)?);
+        }
+        let mut shapes = Vec::new();
+        let mut bsdfs = Vec::new();
+        let mut shape_light = Vec::new();
+        let mut lights = Vec::new();
+        for (i, s) in desc.shape.iter().enumerate() {
+            let key = format!("shape[{i}]");
+            let (shape, material, emission) = self.shape(&key, s, &materials, &parser)?;
+            if let Some((radiance, two_sided)) = emission {
+                shape_light.push(Some(lights.len() as u32));
+                lights.push(Light::Area {
+                    shape: shapes.len() as u32,
+                    radiance,
+                    two_sided,
+                });
+            } else {
+                shape_light.push(None);
+            }
+            shapes.push(shape);
+            bsdfs.push(material);
+        }
+        let mut env_seen = false;
+        for (i, l) in desc.light.iter().enumerate() {
+            let light = self.light(&format!("light[{i}]"), l, &parser)?;
+            if matches!(light, Light::Environment { .. }) {
+                if env_seen {
+                    return Err(self.err(
+                        l.span(),
+                        format!("light[{i}]"),
+                        "a scene may have at most one environment light",
+                    ));
+                }
+                env_seen = true;
+            }
+            lights.push(light);
+        }
+        if lights.is_empty() {
+            return Err(self.err(
+                0..0,
+                "",
+                "the scene has no light: give a shape an `emission` or add a [[light]] (point or environment)",
+            ));
+        }
+        Ok(Scene {
+            aggregate: Aggregate::new(shapes),
+            bsdfs,
+            shape_light,
+            lights,
+            camera,
+            render,
+        })
+    }
+
+    fn render(&self, r: Option<&Spanned<RenderDesc>>) -> Result<RenderDefaults, SceneError> {
+        let mut out = RenderDefaults {
+            width: DEFAULT_SIZE,
+            height: DEFAULT_SIZE,
+            spp: DEFAULT_SPP,
+            max_depth: None,
+        };
+        let Some(r) = r else { return Ok(out) };
+        let r = r.get_ref();
+        let int = |v: &Spanned<i64>, key: &str, lo: i64, hi: i64| -> Result<i64, SceneError> {
+            let x = *v.get_ref();
+            if x < lo || x > hi {
+                return Err(self.err(
+                    v.span(),
+                    format!("render.{key}"),
+                    format!("{x} is out of range; allowed {lo}..={hi}"),
+                ));
+            }
+            Ok(x)
+        };
+        if let Some(v) = &r.width {
+            out.width = int(v, "width", 1, 1 << 16)? as usize;
+        }
+        if let Some(v) = &r.height {
+            out.height = int(v, "height", 1, 1 << 16)? as usize;
+        }
+        if let Some(v) = &r.spp {
+            out.spp = int(v, "spp", 1, 1 << 40)? as u64;
+        }
+        if let Some(v) = &r.max_depth {
+            out.max_depth = Some(int(v, "max_depth", 0, 1 << 20)? as u32);
+        }
+        if let Some(f) = &r.filter {
+            if f.get_ref() != "box" {
+                return Err(self.err(
+                    f.span(),
+                    "render.filter",
+                    format!("unknown filter {:?}; allowed: \"box\"", f.get_ref()),
+                ));
+            }
+        }
+        Ok(out)
+    }
+
+    fn vec3(&self, v: &Spanned<[f64; 3]>, key: &str) -> Result<Vec3, SceneError> {
+        let a = *v.get_ref();
+        if a.iter().any(|x| !x.is_finite()) {
+            return Err(self.err(
+                v.span(),
+                key,
+                format!("{a:?} has a non-finite component; coordinates must be finite numbers"),
+            ));
+        }
+        Ok(Vec3::from_array(a))
+    }
+
+    fn required<'b, T>(
+        &self,
+        v: &'b Option<Spanned<T>>,
+        span: Range<usize>,
+        key: &str,
+        what: &str,
+    ) -> Result<&'b Spanned<T>, SceneError> {
+        v.as_ref()
+            .ok_or_else(|| self.err(span, key, format!("missing; {what}")))
+    }
+
+    fn camera(&self, c: &Spanned<CameraDesc>) -> Result<CameraSpec, SceneError> {
+        let span = c.span();
+        let d = c.get_ref();
+        let position = self.vec3(
+            self.required(
+                &d.position,
+                span.clone(),
+                "camera.position",
+                "the camera needs a position [x, y, z]",
+            )?,
+            "camera.position",
+        )?;
+        let look_at = self.vec3(
+            self.required(
+                &d.look_at,
+                span.clone(),
+                "camera.look_at",
+                "the camera needs a look_at point [x, y, z]",
+            )?,
+            "camera.look_at",
+        )?;
+        let up_s = self.required(
+            &d.up,
+            span.clone(),
+            "camera.up",
+            "the camera needs an up vector [x, y, z]",
+        )?;
+        let up = self.vec3(up_s, "camera.up")?;
+        let forward = look_at - position;
+        if forward.length_squared() == 0.0 {
+            return Err(self.err(
+                span,
+                "camera.look_at",
+                "look_at equals position; the view direction is undefined",
+            ));
+        }
+        if forward.normalize().cross(up).length() < 1e-9 {
+            return Err(self.err(
+                up_s.span(),
+                "camera.up",
+                format!(
+                    "{:?} is zero or parallel to the view direction; it must not be",
+                    up.to_array()
+                ),
+            ));
+        }
+        let (fov_y, film_aspect) = match (&d.fov, &d.focal_length, &d.film_size) {
+            (Some(f), None, None) => {
+                let v = *f.get_ref();
+                if !(v > 0.0 && v < 180.0) {
+                    return Err(self.err(f.span(), "camera.fov", format!("{v} degrees is out of range; allowed (0, 180)")));
+                }
+                (v, None)
+            }
+            (None, Some(fl), Some(fs)) => {
+                let f = *fl.get_ref();
+                let [w, h] = *fs.get_ref();
+                if !(f.is_finite() && f > 0.0) {
+                    return Err(self.err(fl.span(), "camera.focal_length", format!("{f} must be a finite length > 0 (metres)")));
+                }
+                if !(w.is_finite() && h.is_finite() && w > 0.0 && h > 0.0) {
+                    return Err(self.err(fs.span(), "camera.film_size", format!("[{w}, {h}] must be two finite lengths > 0 (metres)")));
+                }
+                (fov_from_film(f, h), Some(w / h))
+            }
+            _ => {
+                return Err(self.err(
+                    span,
+                    "camera",
+                    "give either `fov` (vertical, degrees) or both `focal_length` and `film_size` (metres), not both forms",
+                ))
+            }
+        };
+        Ok(CameraSpec {
+            position,
+            look_at,
+            up,
+            fov_y,
+            film_aspect,
+        })
+    }
+
+    fn material(
+        &self,
+        name: &str,
+        m: &Spanned<MaterialDesc>,
+        parser: &SpectrumParser,
+    ) -> Result<Bsdf, SceneError> {
+        let key = format!("materials.{name}");
+        let d = m.get_ref();
+        let kind = self.required(
+            &d.kind,
+            m.span(),
+            &format!("{key}.type"),
+            "allowed types: \"diffuse\"",
+        )?;
+        match kind.get_ref().as_str() {
+            "diffuse" => {
+                let r = self.required(
+                    &d.reflectance,
+                    m.span(),
+                    &format!("{key}.reflectance"),
+                    "a diffuse material needs a reflectance spectrum in [0, 1]",
+                )?;
+                let reflectance =
+                    parser.parse(r, &format!("{key}.reflectance"), Role::Reflectance)?;
+                Ok(Bsdf::Diffuse(Lambertian { reflectance }))
+            }
+            other => Err(self.err(
+                kind.span(),
+                format!("{key}.type"),
+                format!("unknown material type {other:?}; allowed: \"diffuse\""),
+            )),
+        }
+    }
+
+    /// Rejects keys present in a flat table that its type does not use.
+    fn check_keys(
+        &self,
+        key: &str,
+        kind: &str,
+        allowed: &[&str],
+        common: &[&str],
+        present: &[(&str, Option<Range<usize>>)],
+    ) -> Result<(), SceneError> {
+        for (name, span) in present {
+            if let Some(span) = span {
+                if !allowed.contains(name) && !common.contains(name) {
+                    let mut all: Vec<&str> = common.to_vec();
+                    all.extend_from_slice(allowed);
+                    return Err(self.err(
+                        span.clone(),
+                        format!("{key}.{name}"),
+                        format!(
+                            "`{name}` is not a key of type {kind:?}; its keys are: {}",
+                            all.join(", ")
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    fn shape(
+        &self,
+        key: &str,
+        s: &Spanned<ShapeDesc>,
+        materials: &BTreeMap<String, Bsdf>,
+        parser: &SpectrumParser,
+    ) -> Result<BuiltShape, SceneError> {
+        let d = s.get_ref();
+        let types: Vec<&str> = SHAPE_TYPES.iter().map(|t| t.0).collect();
+        let kind = self.required(
+            &d.kind,
+            s.span(),
+            &format!("{key}.type"),
+            &format!("allowed types: {}", types.join(", ")),
+        )?;
+        let Some((kind_name, allowed)) = SHAPE_TYPES.iter().find(|t| t.0 == kind.get_ref()) else {
+            return Err(self.err(
+                kind.span(),
+                format!("{key}.type"),
+                format!(
+                    "unknown shape type {:?}; allowed: {}",
+                    kind.get_ref(),
+                    types.join(", ")
+                ),
+            ));
+        };
+        let sp = |o: &Option<Spanned<[f64; 3]>>| o.as_ref().map(|v| v.span());
+        self.check_keys(
+            key,
+            kind_name,
+            allowed,
+            &SHAPE_COMMON,
+            &[
+                ("center", sp(&d.center)),
+                ("radius", d.radius.as_ref().map(|v| v.span())),
+                ("corner", sp(&d.corner)),
+                ("edge_u", sp(&d.edge_u)),
+                ("edge_v", sp(&d.edge_v)),
+                ("vertices", d.vertices.as_ref().map(|v| v.span())),
+                ("indices", d.indices.as_ref().map(|v| v.span())),
+                ("file", d.file.as_ref().map(|v| v.span())),
+            ],
+        )?;
+        let names: Vec<&str> = materials.keys().map(String::as_str).collect();
+        let mat = self.required(
+            &d.material,
+            s.span(),
+            &format!("{key}.material"),
+            &format!(
+                "every shape needs a material; defined: {}",
+                names.join(", ")
+            ),
+        )?;
+        let bsdf = materials.get(mat.get_ref()).cloned().ok_or_else(|| {
+            self.err(
+                mat.span(),
+                format!("{key}.material"),
+                format!(
+                    "unknown material {:?}; defined materials: [{}]",
+                    mat.get_ref(),
+                    names.join(", ")
+                ),
+            )
+        })?;
+        let flip = d.flip_normals.as_ref().is_some_and(|f| *f.get_ref());
+        let need = |field: &str| format!("shape type {kind_name:?} needs `{field}`");
+        let shape = match *kind_name {
+            "sphere" => {
+                let center = self.vec3(
+                    self.required(
+                        &d.center,
+                        s.span(),
+                        &format!("{key}.center"),
+                        &need("center"),
+                    )?,
+                    &format!("{key}.center"),
+                )?;
+                let r = self.required(
+                    &d.radius,
+                    s.span(),
+                    &format!("{key}.radius"),
+                    &need("radius"),
+                )?;
+                let radius = *r.get_ref();
+                if !(radius.is_finite() && radius > 0.0) {
+                    return Err(self.err(
+                        r.span(),
+                        format!("{key}.radius"),
+                        format!("{radius} must be a finite length > 0"),
+                    ));
+                }
+                Shape::Sphere(Sphere {
+                    center,
+                    radius,
+                    flip_normals: flip,
+                })
+            }
+            "quad" => {
+                let corner = self.vec3(
+                    self.required(
+                        &d.corner,
+                        s.span(),
+                        &format!("{key}.corner"),
+                        &need("corner"),
+                    )?,
+                    &format!("{key}.corner"),
+                )?;
+                let eu = self.required(
+                    &d.edge_u,
+                    s.span(),
+                    &format!("{key}.edge_u"),
+                    &need("edge_u"),
+                )?;
+                let edge_u = self.vec3(eu, &format!("{key}.edge_u"))?;
+                let edge_v = self.vec3(
+                    self.required(
+                        &d.edge_v,
+                        s.span(),
+                        &format!("{key}.edge_v"),
+                        &need("edge_v"),
+                    )?,
+                    &format!("{key}.edge_v"),
+                )?;
+                let q = Quad {
+                    corner,
+                    edge_u,
+                    edge_v,
+                    flip_normals: flip,
+                };
+                if !(q.area() > 0.0 && q.area().is_finite()) {
+                    return Err(self.err(eu.span(), format!("{key}.edge_u"), "degenerate quad: edge_u x edge_v is zero (edges zero or parallel); the area must be > 0"));
+                }
+                Shape::Quad(q)
+            }
+            "triangles" => {
+                let v = self.required(
+                    &d.vertices,
+                    s.span(),
+                    &format!("{key}.vertices"),
+                    &need("vertices"),
+                )?;
+                let ix = self.required(
+                    &d.indices,
+                    s.span(),
+                    &format!("{key}.indices"),
+                    &need("indices"),
+                )?;
+                let positions = v
+                    .get_ref()
+                    .iter()
+                    .map(|p| Vec3::from_array(*p))
+                    .collect::<Vec<_>>();
+                if let Some(p) = positions.iter().find(|p| !p.is_finite()) {
+                    return Err(self.err(
+                        v.span(),
+                        format!("{key}.vertices"),
+                        format!(
+                            "vertex {:?} has a non-finite component; coordinates must be finite",
+                            p.to_array()
+                        ),
+                    ));
+                }
+                let n = positions.len() as i64;
+                let mut tris = Vec::with_capacity(ix.get_ref().len());
+                for (t, tri) in ix.get_ref().iter().enumerate() {
+                    if let Some(bad) = tri.iter().find(|&&k| k < 0 || k >= n) {
+                        return Err(self.err(
+                            ix.span(),
+                            format!("{key}.indices[{t}]"),
+                            format!(
+                                "index {bad} is out of range; allowed 0..={} ({n} vertices)",
+                                n - 1
+                            ),
+                        ));
+                    }
+                    tris.push(tri.map(|k| k as u32));
+                }
+                if tris.is_empty() {
+                    return Err(self.err(
+                        ix.span(),
+                        format!("{key}.indices"),
+                        "no triangles; give at least one [i, j, k]",
+                    ));
+                }
+                Shape::Mesh(TriangleMesh::new(positions, tris, flip))
+            }
+            _ => {
+                let f = self.required(&d.file, s.span(), &format!("{key}.file"), &need("file"))?;
+                let path = self.base.join(f.get_ref());
+                let data = meshio::load_mesh(&path)
+                    .map_err(|e| self.err(f.span(), format!("{key}.file"), e.to_string()))?;
+                let positions = data
+                    .positions
+                    .iter()
+                    .map(|p| Vec3::from_array(*p))
+                    .collect();
+                Shape::Mesh(TriangleMesh::new(positions, data.triangles, flip))
+            }
+        };
+        let emission = match &d.emission {
+            Some(e) => {
+                let radiance = parser.parse(e, &format!("{key}.emission"), Role::Emission)?;
+                let area = shape.area();
+                if !(area > 0.0 && area.is_finite()) {
+                    return Err(self.err(
+                        e.span(),
+                        format!("{key}.emission"),
+                        format!(
+                            "the emitter's area is {area}; an emitter must have a finite area > 0"
+                        ),
+                    ));
+                }
+                Some((radiance, d.two_sided.as_ref().is_some_and(|t| *t.get_ref())))
+            }
+            None => {
+                if let Some(t) = &d.two_sided {
+                    return Err(self.err(
+                        t.span(),
+                        format!("{key}.two_sided"),
+                        "two_sided only applies to emitters; this shape has no `emission`",
+                    ));
+                }
+                None
+            }
+        };
+        Ok((shape, bsdf, emission))
+    }
+
+    fn light(
+        &self,
+        key: &str,
+        l: &Spanned<LightDesc>,
+        parser: &SpectrumParser,
+    ) -> Result<Light, SceneError> {
+        let d = l.get_ref();
+        let types: Vec<&str> = LIGHT_TYPES.iter().map(|t| t.0).collect();
+        let kind = self.required(
+            &d.kind,
+            l.span(),
+            &format!("{key}.type"),
+            &format!("allowed types: {}", types.join(", ")),
+        )?;
+        let Some((kind_name, allowed)) = LIGHT_TYPES.iter().find(|t| t.0 == kind.get_ref()) else {
+            return Err(self.err(
+                kind.span(),
+                format!("{key}.type"),
+                format!(
+                    "unknown light type {:?}; allowed: {}",
+                    kind.get_ref(),
+                    types.join(", ")
+                ),
+            ));
+        };
+        self.check_keys(
+            key,
+            kind_name,
+            allowed,
+            &["type"],
+            &[
+                ("position", d.position.as_ref().map(|v| v.span())),
+                ("intensity", d.intensity.as_ref().map(|v| v.span())),
+                ("radiance", d.radiance.as_ref().map(|v| v.span())),
+            ],
+        )?;
+        let need = |field: &str| format!("light type {kind_name:?} needs `{field}`");
+        if *kind_name == "point" {
+            let position = self.vec3(
+                self.required(
+                    &d.position,
+                    l.span(),
+                    &format!("{key}.position"),
+                    &need("position"),
+                )?,
+                &format!("{key}.position"),
+            )?;
+            let i = self.required(
+                &d.intensity,
+                l.span(),
+                &format!("{key}.intensity"),
+                &need("intensity"),
+            )?;
+            let intensity = parser.parse(i, &format!("{key}.intensity"), Role::Emission)?;
+            Ok(Light::Point {
+                position,
+                intensity,
+            })
+        } else {
+            let r = self.required(
+                &d.radiance,
+                l.span(),
+                &format!("{key}.radiance"),
+                &need("radiance"),
+            )?;
+            Ok(Light::Environment {
+                radiance: parser.parse(r, &format!("{key}.radiance"), Role::Emission)?,
+            })
+        }
+    }
+}

@@ -1,0 +1,260 @@
+//! Spectrum values in scene files: a number, a name from `[spectra]`, or a table
+//! (`wavelengths`+`values`, `csv`+`column`, or `blackbody`) with optional `scale` and
+//! `outside`. Validated for the role they play (reflectance in [0, 1], emission ≥ 0).
+
+use super::error::{SceneError, Source};
+use crate::spectrum::{curve::SpectrumError, Outside, Spectrum};
+use std::collections::BTreeMap;
+use std::ops::Range;
+use std::path::{Path, PathBuf};
+use toml::{Spanned, Value};
+
+/// What a spectrum is used for, which fixes its allowed range.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Role {
+    /// Unitless reflectance in [0, 1].
+    Reflectance,
+    /// Radiance or intensity, ≥ 0.
+    Emission,
+}
+
+const TABLE_KEYS: [&str; 7] = [
+    "wavelengths",
+    "values",
+    "csv",
+    "column",
+    "blackbody",
+    "scale",
+    "outside",
+];
+
+/// Parses spectrum values against the scene's named spectra.
+pub struct SpectrumParser<'a> {
+    src: Source<'a>,
+    base: PathBuf,
+    named: BTreeMap<String, Spectrum>,
+}
+
+impl<'a> SpectrumParser<'a> {
+    /// Parses the `[spectra]` table (names may not refer to other names).
+    pub fn new(
+        src: Source<'a>,
+        base: &Path,
+        table: &BTreeMap<String, Spanned<Value>>,
+    ) -> Result<Self, SceneError> {
+        let mut p = SpectrumParser {
+            src,
+            base: base.to_path_buf(),
+            named: BTreeMap::new(),
+        };
+        for (name, v) in table {
+            let key = format!("spectra.{name}");
+            if let Value::String(s) = v.get_ref() {
+                return Err(src.error(v.span(), key, format!("{s:?}: a named spectrum cannot refer to another name; give a number or a table")));
+            }
+            let s = p.value(v.get_ref(), v.span(), &key)?;
+            p.named.insert(name.clone(), s);
+        }
+        Ok(p)
+    }
+
+    /// Parses and validates one spectrum value for `role`.
+    pub fn parse(&self, v: &Spanned<Value>, key: &str, role: Role) -> Result<Spectrum, SceneError> {
+        let span = v.span();
+        let s = match v.get_ref() {
+            Value::String(name) => self.named.get(name).cloned().ok_or_else(|| {
+                let names: Vec<&str> = self.named.keys().map(String::as_str).collect();
+                self.src.error(
+                    span.clone(),
+                    key,
+                    format!(
+                        "unknown spectrum {name:?}; defined in [spectra]: [{}]",
+                        names.join(", ")
+                    ),
+                )
+            })?,
+            other => self.value(other, span.clone(), key)?,
+        };
+        let ((l_lo, lo), (l_hi, hi)) = s.extremes();
+        match role {
+            Role::Reflectance if lo < 0.0 || hi > 1.0 => {
+                let (l, x) = if lo < 0.0 { (l_lo, lo) } else { (l_hi, hi) };
+                Err(self.src.error(span, key, format!("reflectance is {x} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))
+            }
+            Role::Emission if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; emitted radiance and intensity must be >= 0 at every wavelength"))),
+            _ => Ok(s),
+        }
+    }
+
+    fn value(&self, v: &Value, span: Range<usize>, key: &str) -> Result<Spectrum, SceneError> {
+        let err = |msg: String| self.src.error(span.clone(), key, msg);
+        match v {
+            Value::Integer(i) => Ok(Spectrum::Constant(*i as f64)),
+            Value::Float(f) if f.is_finite() => Ok(Spectrum::Constant(*f)),
+            Value::Float(f) => Err(err(format!(
+                "{f} is not a finite number; spectra must be finite"
+            ))),
+            Value::Table(t) => {
+                if let Some(bad) = t.keys().find(|k| !TABLE_KEYS.contains(&k.as_str())) {
+                    return Err(err(format!(
+                        "unknown key `{bad}` in a spectrum table; allowed: {}",
+                        TABLE_KEYS.join(", ")
+                    )));
+                }
+                let scale = match t.get("scale") {
+                    None => 1.0,
+                    Some(s) => match number(s) {
+                        Some(x) if x.is_finite() && x >= 0.0 => x,
+                        _ => return Err(err(format!("scale = {s} must be a finite number >= 0"))),
+                    },
+                };
+                let outside = match t.get("outside").map(|o| o.as_str()) {
+                    None => Outside::Zero,
+                    Some(Some("zero")) => Outside::Zero,
+                    Some(Some("clamp")) => Outside::Clamp,
+                    Some(_) => {
+                        return Err(err(format!(
+                            "outside = {}: allowed \"zero\" (default) or \"clamp\"",
+                            t["outside"]
+                        )))
+                    }
+                };
+                let forms = ["wavelengths", "csv", "blackbody"]
+                    .iter()
+                    .filter(|k| t.contains_key(**k))
+                    .count();
+                if forms != 1 {
+                    return Err(err("a spectrum table needs exactly one of `wavelengths` (with `values`), `csv` (with `column`) or `blackbody`".into()));
+                }
+                let spec_err = |e: SpectrumError| err(e.to_string());
+                if let Some(k) = t.get("blackbody") {
+                    if t.contains_key("outside")
+                        || t.contains_key("values")
+                        || t.contains_key("column")
+                    {
+                        return Err(err(
+                            "a blackbody takes only `blackbody` (kelvin) and `scale`".into(),
+                        ));
+                    }
+                    let kelvin = number(k).ok_or_else(|| {
+                        err(format!("blackbody = {k} must be a temperature in kelvin"))
+                    })?;
+                    return Spectrum::blackbody(kelvin, scale).map_err(spec_err);
+                }
+                if let Some(w) = t.get("wavelengths") {
+                    if t.contains_key("column") {
+                        return Err(err(
+                            "`column` goes with `csv`, not with `wavelengths`".into()
+                        ));
+                    }
+                    let ws = numbers(w).ok_or_else(|| {
+                        err("wavelengths must be an array of numbers (nm)".into())
+                    })?;
+                    let vs = t.get("values").and_then(numbers).ok_or_else(|| {
+                        err(
+                            "`wavelengths` needs `values`, an array of numbers of the same length"
+                                .into(),
+                        )
+                    })?;
+                    return Spectrum::tabulated(ws, vs, outside, scale).map_err(spec_err);
+                }
+                if t.contains_key("values") {
+                    return Err(err(
+                        "`values` goes with `wavelengths`, not with `csv`".into()
+                    ));
+                }
+                let file = t["csv"].as_str().ok_or_else(|| {
+                    err("csv must be a file path (string), relative to the scene file".into())
+                })?;
+                let column = t.get("column").and_then(|c| c.as_str()).ok_or_else(|| {
+                    err("`csv` needs `column`, the header name of the values column".into())
+                })?;
+                let (ws, vs) = self.csv(file, column, span.clone(), key)?;
+                Spectrum::tabulated(ws, vs, outside, scale).map_err(|e| err(format!("{file}: {e}")))
+            }
+            other => Err(err(format!(
+                "{other} is not a spectrum; give a number, a name from [spectra], or a table"
+            ))),
+        }
+    }
+
+    /// Reads column `column` of a CSV whose first column is wavelength in nm.
+    fn csv(
+        &self,
+        file: &str,
+        column: &str,
+        span: Range<usize>,
+        key: &str,
+    ) -> Result<(Vec<f64>, Vec<f64>), SceneError> {
+        let path = self.base.join(file);
+        let (line, col) = self.src.line_column(span.start);
+        let from = format!(
+            "(referenced by {key} at {}:{line}:{col})",
+            self.src.path.display()
+        );
+        let text = std::fs::read_to_string(&path).map_err(|e| {
+            self.src.error(
+                span.clone(),
+                key,
+                format!("cannot read {}: {e}", path.display()),
+            )
+        })?;
+        let at = |line: usize, msg: String| SceneError {
+            file: path.clone(),
+            line,
+            column: 1,
+            key: key.to_string(),
+            message: format!("{msg} {from}"),
+        };
+        let mut lines = text.lines().enumerate();
+        let header: Vec<&str> = match lines.next() {
+            Some((_, h)) => h.split(',').map(str::trim).collect(),
+            None => return Err(at(1, "empty CSV; expected a header row".into())),
+        };
+        let Some(ci) = header.iter().position(|h| *h == column).filter(|&i| i > 0) else {
+            return Err(at(
+                1,
+                format!(
+                    "no column {column:?}; the value columns are: {}",
+                    header.get(1..).unwrap_or(&[]).join(", ")
+                ),
+            ));
+        };
+        let (mut ws, mut vs) = (Vec::new(), Vec::new());
+        for (i, l) in lines {
+            if l.trim().is_empty() {
+                continue;
+            }
+            let cells: Vec<&str> = l.split(',').map(str::trim).collect();
+            let cell = |k: usize| -> Result<f64, SceneError> {
+                let c = cells.get(k).ok_or_else(|| {
+                    at(
+                        i + 1,
+                        format!(
+                            "row has {} cells; column {column:?} is cell {}",
+                            cells.len(),
+                            k + 1
+                        ),
+                    )
+                })?;
+                c.parse::<f64>()
+                    .map_err(|_| at(i + 1, format!("{c:?} is not a number")))
+            };
+            ws.push(cell(0)?);
+            vs.push(cell(ci)?);
+        }
+        Ok((ws, vs))
+    }
+}
+
+fn number(v: &Value) -> Option<f64> {
+    match v {
+        Value::Integer(i) => Some(*i as f64),
+        Value::Float(f) => Some(*f),
+        _ => None,
+    }
+}
+
+fn numbers(v: &Value) -> Option<Vec<f64>> {
+    v.as_array()?.iter().map(number).collect()
+}

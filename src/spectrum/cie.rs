@@ -1,0 +1,141 @@
+//! The CIE 1931 2° standard observer (1 nm, 360–830 nm) and the CIE D65 illuminant (5 nm),
+//! compiled in from `reference/cie/` (provenance in `reference/cie/PROVENANCE.md`).
+//!
+//! XYZ here are normalised so that a constant spectral radiance of 1 W·sr⁻¹·m⁻²·nm⁻¹ has
+//! Y = 1: X = ∫ L x̄ dλ / ∫ ȳ dλ. Multiply Y by [`CieTables::y_integral`] for the
+//! ȳ-weighted radiance in W·sr⁻¹·m⁻², and by a further 683 lm/W for luminance in cd/m².
+
+use super::{Outside, Spectrum, LAMBDA_MIN};
+use std::sync::OnceLock;
+
+const CMF_CSV: &str = include_str!("../../reference/cie/cie1931_2deg_cmf_1nm.csv");
+const D65_CSV: &str = include_str!("../../reference/cie/cie_illuminant_d65_5nm.csv");
+
+/// The colour-matching functions at 1 nm steps from 360 nm.
+#[derive(Debug)]
+pub struct CieTables {
+    xyz: Vec<[f64; 3]>,
+    y_integral: f64,
+}
+
+/// The compiled-in CIE 1931 tables, parsed once.
+pub fn tables() -> &'static CieTables {
+    static TABLES: OnceLock<CieTables> = OnceLock::new();
+    TABLES.get_or_init(|| {
+        let rows = parse_csv(CMF_CSV, 4);
+        let xyz: Vec<[f64; 3]> = rows.iter().map(|r| [r[1], r[2], r[3]]).collect();
+        assert_eq!(rows[0][0], LAMBDA_MIN, "CMF table must start at 360 nm");
+        assert_eq!(xyz.len(), 471, "CMF table must have 471 rows at 1 nm");
+        // Riemann sum at 1 nm: the table's own normalisation (Σ ȳ Δλ ≈ 106.857 nm).
+        let y_integral = xyz.iter().map(|v| v[1]).sum::<f64>();
+        CieTables { xyz, y_integral }
+    })
+}
+
+impl CieTables {
+    /// (x̄, ȳ, z̄) at `lambda` nm by linear interpolation; zero outside 360–830 nm.
+    #[inline]
+    pub fn cmf(&self, lambda: f64) -> [f64; 3] {
+        let x = lambda - LAMBDA_MIN;
+        if !(0.0..=(self.xyz.len() - 1) as f64).contains(&x) {
+            return [0.0; 3];
+        }
+        let i = (x as usize).min(self.xyz.len() - 2);
+        let t = x - i as f64;
+        let (a, b) = (self.xyz[i], self.xyz[i + 1]);
+        [
+            a[0] + t * (b[0] - a[0]),
+            a[1] + t * (b[1] - a[1]),
+            a[2] + t * (b[2] - a[2]),
+        ]
+    }
+
+    /// ∫ ȳ dλ over 360–830 nm in nm (the XYZ normalisation constant).
+    pub fn y_integral(&self) -> f64 {
+        self.y_integral
+    }
+
+    /// XYZ of a spectrum by 1 nm quadrature over 360–830 nm, normalised as in the module doc.
+    pub fn spectrum_to_xyz(&self, s: &Spectrum) -> [f64; 3] {
+        let mut acc = [0.0; 3];
+        for (i, c) in self.xyz.iter().enumerate() {
+            let v = s.eval(LAMBDA_MIN + i as f64);
+            for k in 0..3 {
+                acc[k] += v * c[k];
+            }
+        }
+        acc.map(|a| a / self.y_integral)
+    }
+}
+
+/// The CIE standard illuminant D65, relative spectral power (100 at 560 nm), 300–830 nm.
+pub fn d65() -> Spectrum {
+    let rows = parse_csv(D65_CSV, 2);
+    Spectrum::tabulated(
+        rows.iter().map(|r| r[0]).collect(),
+        rows.iter().map(|r| r[1]).collect(),
+        Outside::Zero,
+        1.0,
+    )
+    .expect("compiled-in D65 table is valid")
+}
+
+/// Parses a compiled-in numeric CSV with a header row; panics only on a corrupt build input.
+fn parse_csv(text: &str, columns: usize) -> Vec<Vec<f64>> {
+    text.lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .map(|l| {
+            let row: Vec<f64> = l
+                .split(',')
+                .take(columns)
+                .map(|v| {
+                    v.trim()
+                        .parse::<f64>()
+                        .expect("compiled-in CIE table is numeric")
+                })
+                .collect();
+            assert_eq!(row.len(), columns, "compiled-in CIE table row is short");
+            row
+        })
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn tables_have_known_values() {
+        let t = tables();
+        // CIE 1931 ȳ(555 nm) = 1.0 and x̄(600 nm) = 1.0622 (CIE 15:2004 table).
+        assert!((t.cmf(555.0)[1] - 1.0).abs() < 1e-4);
+        assert!((t.cmf(600.0)[0] - 1.0622).abs() < 1e-3);
+        assert!(
+            (t.y_integral() - 106.857).abs() < 1e-2,
+            "{}",
+            t.y_integral()
+        );
+        assert_eq!(t.cmf(359.0), [0.0; 3]);
+        assert_eq!(t.cmf(831.0), [0.0; 3]);
+    }
+
+    #[test]
+    fn equal_energy_white_is_neutral() {
+        let xyz = tables().spectrum_to_xyz(&Spectrum::Constant(1.0));
+        assert!((xyz[1] - 1.0).abs() < 1e-12);
+        // illuminant E has chromaticity (1/3, 1/3)
+        let s = xyz[0] + xyz[1] + xyz[2];
+        assert!((xyz[0] / s - 1.0 / 3.0).abs() < 1e-3);
+        assert!((xyz[1] / s - 1.0 / 3.0).abs() < 1e-3);
+    }
+
+    #[test]
+    fn d65_chromaticity() {
+        let xyz = tables().spectrum_to_xyz(&d65());
+        let s = xyz[0] + xyz[1] + xyz[2];
+        // CIE 15:2004 D65 white point, 2° observer: x = 0.31272, y = 0.32903
+        assert!((xyz[0] / s - 0.31272).abs() < 2e-4);
+        assert!((xyz[1] / s - 0.32903).abs() < 2e-4);
+    }
+}

@@ -1,0 +1,259 @@
+//! Spectral curves: constant, piecewise-linear tables and Planck blackbodies, evaluated at
+//! wavelengths in nm.
+
+use super::{SampledSpectrum, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
+
+/// What a table returns outside its first and last wavelength.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Outside {
+    /// Zero outside the table (Mitsuba 3's convention for `wl:value` spectra).
+    Zero,
+    /// Hold the first/last value.
+    Clamp,
+}
+
+/// A spectrum as a function of wavelength in nm; values in the unit of what it describes
+/// (W·sr⁻¹·m⁻²·nm⁻¹ for radiance, W·sr⁻¹·nm⁻¹ for intensity, unitless for reflectance).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Spectrum {
+    /// The same value at every wavelength.
+    Constant(f64),
+    /// Linear interpolation between samples; wavelengths strictly increasing.
+    Tabulated {
+        /// Sample wavelengths, nm, strictly increasing.
+        wavelengths: Vec<f64>,
+        /// Values at the sample wavelengths (already multiplied by any scale).
+        values: Vec<f64>,
+        /// Behaviour outside the table.
+        outside: Outside,
+    },
+    /// Planck's spectral radiance at `kelvin`, times `scale`, in W·sr⁻¹·m⁻²·nm⁻¹.
+    Blackbody {
+        /// Temperature, K.
+        kelvin: f64,
+        /// Multiplier.
+        scale: f64,
+    },
+}
+
+/// Why a spectrum could not be built.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum SpectrumError {
+    /// Table arrays of different length or too short.
+    #[error("wavelengths has {wavelengths} entries but values has {values}; both need the same length, at least 1")]
+    Length {
+        /// Number of wavelengths.
+        wavelengths: usize,
+        /// Number of values.
+        values: usize,
+    },
+    /// Wavelengths not strictly increasing or not finite.
+    #[error("wavelengths must be finite and strictly increasing; entry {index} is {value} nm after {previous} nm")]
+    NotIncreasing {
+        /// Index of the offending entry.
+        index: usize,
+        /// Its value.
+        value: f64,
+        /// The entry before it.
+        previous: f64,
+    },
+    /// A value or wavelength that is NaN or infinite.
+    #[error("entry {index} is {value}; spectra must be finite numbers")]
+    NotFinite {
+        /// Index of the offending entry.
+        index: usize,
+        /// Its value.
+        value: f64,
+    },
+    /// A non-positive blackbody temperature.
+    #[error("blackbody temperature {0} K must be finite and > 0")]
+    Temperature(f64),
+}
+
+impl Spectrum {
+    /// A validated piecewise-linear table; `scale` multiplies every value.
+    pub fn tabulated(
+        wavelengths: Vec<f64>,
+        values: Vec<f64>,
+        outside: Outside,
+        scale: f64,
+    ) -> Result<Self, SpectrumError> {
+        if wavelengths.len() != values.len() || wavelengths.is_empty() {
+            return Err(SpectrumError::Length {
+                wavelengths: wavelengths.len(),
+                values: values.len(),
+            });
+        }
+        for (i, &w) in wavelengths.iter().enumerate() {
+            if !w.is_finite() {
+                return Err(SpectrumError::NotFinite { index: i, value: w });
+            }
+            if i > 0 && w <= wavelengths[i - 1] {
+                return Err(SpectrumError::NotIncreasing {
+                    index: i,
+                    value: w,
+                    previous: wavelengths[i - 1],
+                });
+            }
+        }
+        if let Some((i, &v)) = values.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(SpectrumError::NotFinite { index: i, value: v });
+        }
+        let values = values.into_iter().map(|v| v * scale).collect();
+        Ok(Spectrum::Tabulated {
+            wavelengths,
+            values,
+            outside,
+        })
+    }
+
+    /// A validated blackbody.
+    pub fn blackbody(kelvin: f64, scale: f64) -> Result<Self, SpectrumError> {
+        if !(kelvin.is_finite() && kelvin > 0.0) {
+            return Err(SpectrumError::Temperature(kelvin));
+        }
+        Ok(Spectrum::Blackbody { kelvin, scale })
+    }
+
+    /// Value at `lambda` nm.
+    pub fn eval(&self, lambda: f64) -> f64 {
+        match self {
+            Spectrum::Constant(v) => *v,
+            Spectrum::Tabulated {
+                wavelengths,
+                values,
+                outside,
+            } => {
+                let n = wavelengths.len();
+                if lambda < wavelengths[0] || lambda > wavelengths[n - 1] {
+                    return match outside {
+                        Outside::Zero => 0.0,
+                        Outside::Clamp if lambda < wavelengths[0] => values[0],
+                        Outside::Clamp => values[n - 1],
+                    };
+                }
+                // first index with wavelength > lambda, in 1..=n
+                let hi = wavelengths.partition_point(|&w| w <= lambda);
+                if hi >= n {
+                    return values[n - 1];
+                }
+                let lo = hi - 1;
+                let t = (lambda - wavelengths[lo]) / (wavelengths[hi] - wavelengths[lo]);
+                values[lo] + t * (values[hi] - values[lo])
+            }
+            Spectrum::Blackbody { kelvin, scale } => scale * planck(lambda, *kelvin),
+        }
+    }
+
+    /// Values at the path's wavelengths.
+    pub fn sample(&self, wl: &Wavelengths) -> SampledSpectrum {
+        match self {
+            Spectrum::Constant(v) => SampledSpectrum::splat(*v),
+            _ => SampledSpectrum(wl.lambda.map(|l| self.eval(l))),
+        }
+    }
+
+    /// True when the spectrum is the same at every wavelength in [360, 830] nm.
+    pub fn is_constant(&self) -> bool {
+        matches!(self, Spectrum::Constant(_))
+    }
+
+    /// The smallest and the largest value over [360, 830] nm, each with a wavelength (nm)
+    /// where it occurs: `((λ_min, v_min), (λ_max, v_max))`. Exact for tables (the extremes of a
+    /// piecewise-linear curve lie on its nodes or at the range ends); blackbodies are scanned
+    /// at 0.5 nm (Planck's curve is unimodal).
+    pub fn extremes(&self) -> ((f64, f64), (f64, f64)) {
+        let probes: Vec<f64> = match self {
+            Spectrum::Constant(_) => vec![LAMBDA_MIN],
+            Spectrum::Tabulated { wavelengths, .. } => {
+                let mut p: Vec<f64> = wavelengths
+                    .iter()
+                    .copied()
+                    .filter(|w| (LAMBDA_MIN..=LAMBDA_MAX).contains(w))
+                    .collect();
+                p.push(LAMBDA_MIN);
+                p.push(LAMBDA_MAX);
+                p
+            }
+            Spectrum::Blackbody { .. } => {
+                let n = ((LAMBDA_MAX - LAMBDA_MIN) * 2.0) as usize;
+                (0..=n).map(|i| LAMBDA_MIN + i as f64 * 0.5).collect()
+            }
+        };
+        let mut lo = (probes[0], self.eval(probes[0]));
+        let mut hi = lo;
+        for &l in &probes[1..] {
+            let v = self.eval(l);
+            if v < lo.1 {
+                lo = (l, v);
+            }
+            if v > hi.1 {
+                hi = (l, v);
+            }
+        }
+        (lo, hi)
+    }
+}
+
+/// Planck's law for spectral radiance per unit wavelength, W·sr⁻¹·m⁻²·nm⁻¹
+/// (B_λ = 2hc²/λ⁵ / (exp(hc/(λkT)) − 1), Planck 1901; constants: SI 2019 exact values).
+pub fn planck(lambda_nm: f64, kelvin: f64) -> f64 {
+    const H: f64 = 6.626_070_15e-34; // J s
+    const C: f64 = 299_792_458.0; // m/s
+    const K: f64 = 1.380_649e-23; // J/K
+    let l = lambda_nm * 1e-9;
+    let x = H * C / (l * K * kelvin);
+    let per_metre = 2.0 * H * C * C / (l.powi(5) * x.exp_m1());
+    per_metre * 1e-9
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn table_interpolates_and_handles_outside() {
+        let s = Spectrum::tabulated(
+            vec![400.0, 500.0, 600.0, 700.0],
+            vec![0.0, 8.0, 15.6, 18.4],
+            Outside::Zero,
+            1.0,
+        )
+        .unwrap();
+        assert_eq!(s.eval(400.0), 0.0);
+        assert!((s.eval(550.0) - 11.8).abs() < 1e-12);
+        assert_eq!(s.eval(700.0), 18.4);
+        assert_eq!(s.eval(399.9), 0.0);
+        assert_eq!(s.eval(700.1), 0.0);
+        assert_eq!(s.extremes(), ((400.0, 0.0), (700.0, 18.4)));
+        let c =
+            Spectrum::tabulated(vec![400.0, 700.0], vec![0.2, 0.4], Outside::Clamp, 2.0).unwrap();
+        assert_eq!(c.eval(360.0), 0.4);
+        assert_eq!(c.eval(830.0), 0.8);
+    }
+
+    #[test]
+    fn table_rejects_bad_input_by_name() {
+        let e = Spectrum::tabulated(vec![400.0, 400.0], vec![1.0, 1.0], Outside::Zero, 1.0);
+        assert!(matches!(
+            e,
+            Err(SpectrumError::NotIncreasing { index: 1, .. })
+        ));
+        let e = Spectrum::tabulated(vec![400.0], vec![f64::NAN], Outside::Zero, 1.0);
+        assert!(matches!(e, Err(SpectrumError::NotFinite { index: 0, .. })));
+        let e = Spectrum::tabulated(vec![400.0, 500.0], vec![1.0], Outside::Zero, 1.0);
+        assert!(matches!(e, Err(SpectrumError::Length { .. })));
+        assert!(Spectrum::blackbody(-1.0, 1.0).is_err());
+    }
+
+    #[test]
+    fn planck_matches_wien_peak_and_a_known_value() {
+        // Wien's displacement constant b = 2.897771955e-3 m K.
+        let t = 5000.0;
+        let peak = 2.897_771_955e-3 / t * 1e9;
+        assert!(planck(peak, t) > planck(peak - 1.0, t));
+        assert!(planck(peak, t) > planck(peak + 1.0, t));
+        // B_λ(500 nm, 5000 K) = 1.2107e13 W sr⁻¹ m⁻³ = 1.2107e4 per nm (direct evaluation).
+        assert!((planck(500.0, 5000.0) / 1.2107e4 - 1.0).abs() < 1e-3);
+    }
+}

@@ -1,0 +1,99 @@
+//! Statistics in f64: running mean and variance, and the two-sided z test the checks use.
+//! `statrs` lives only here.
+
+use statrs::distribution::{ContinuousCDF, Normal};
+
+/// Running mean and variance of a stream of f64 values (Welford 1962, "Note on a method
+/// for calculating corrected sums of squares and products", Technometrics 4(3)).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct MeanVar {
+    n: u64,
+    mean: f64,
+    m2: f64,
+}
+
+impl MeanVar {
+    /// Adds one observation.
+    pub fn push(&mut self, x: f64) {
+        self.n += 1;
+        let d = x - self.mean;
+        self.mean += d / self.n as f64;
+        self.m2 += d * (x - self.mean);
+    }
+
+    /// Number of observations.
+    pub fn count(&self) -> u64 {
+        self.n
+    }
+
+    /// Sample mean (0 when empty).
+    pub fn mean(&self) -> f64 {
+        self.mean
+    }
+
+    /// Unbiased sample variance (0 with fewer than two observations).
+    pub fn variance(&self) -> f64 {
+        if self.n < 2 {
+            0.0
+        } else {
+            self.m2 / (self.n - 1) as f64
+        }
+    }
+
+    /// Standard error of the mean, sqrt(s²/n).
+    pub fn std_error(&self) -> f64 {
+        if self.n == 0 {
+            0.0
+        } else {
+            (self.variance() / self.n as f64).sqrt()
+        }
+    }
+}
+
+/// Outcome of a two-sided z test of `estimate` against `expected`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ZTest {
+    /// (estimate - expected) / standard error.
+    pub z: f64,
+    /// Two-sided p-value, 2·(1 - Φ(|z|)).
+    pub p: f64,
+}
+
+/// Two-sided z test; a zero standard error gives z = ±inf (p = 0) unless the estimate is exact.
+pub fn z_test(estimate: f64, std_error: f64, expected: f64) -> ZTest {
+    let diff = estimate - expected;
+    let z = if std_error > 0.0 {
+        diff / std_error
+    } else if diff == 0.0 {
+        0.0
+    } else {
+        f64::INFINITY.copysign(diff)
+    };
+    let normal = Normal::standard();
+    let p = 2.0 * normal.sf(z.abs());
+    ZTest { z, p }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn mean_var_matches_two_pass() {
+        let xs = [1.0, 2.0, 4.0, 8.0, 16.0];
+        let mut mv = MeanVar::default();
+        xs.iter().for_each(|&x| mv.push(x));
+        let mean = xs.iter().sum::<f64>() / 5.0;
+        let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 4.0;
+        assert!((mv.mean() - mean).abs() < 1e-14);
+        assert!((mv.variance() - var).abs() < 1e-12);
+    }
+
+    #[test]
+    fn z_test_known_values() {
+        let t = z_test(1.96, 1.0, 0.0);
+        assert!((t.p - 0.0499958).abs() < 1e-5);
+        assert_eq!(z_test(1.0, 0.0, 1.0).p, 1.0);
+        assert_eq!(z_test(1.1, 0.0, 1.0).p, 0.0);
+    }
+}

@@ -1,0 +1,98 @@
+//! The `furnace` binary: help text, exit codes, error reporting, outputs.
+
+use crate::root;
+use std::process::Command;
+
+fn furnace() -> Command {
+    let mut c = Command::new(env!("CARGO_BIN_EXE_furnace"));
+    c.current_dir(root(""));
+    c
+}
+
+#[test]
+fn render_help_documents_every_option() {
+    let out = furnace().args(["render", "--help"]).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    for opt in [
+        "--spp",
+        "--seed",
+        "--threads",
+        "--width",
+        "--height",
+        "--max-depth",
+        "--out",
+        "--png",
+        "--exposure",
+    ] {
+        assert!(text.contains(opt), "render --help lacks {opt}:\n{text}");
+    }
+}
+
+#[test]
+fn render_writes_exr_and_png_and_reports_speed() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-{}", std::process::id()));
+    let exr = dir.join("sphere.exr");
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/furnace-sphere.toml",
+            "--spp",
+            "2",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{stdout}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("16x16 px, 2 spp"), "{stdout}");
+    assert!(stdout.contains("samples/s"), "{stdout}");
+    let layers = furnace::film::io::read_exr(&exr).unwrap();
+    for ch in ["R", "G", "B", "X", "Y", "Z", "variance.Y", "variance.R"] {
+        let v = layers
+            .channel(ch)
+            .unwrap_or_else(|| panic!("missing channel {ch}"));
+        assert!(v.iter().all(|x| x.is_finite()));
+    }
+    // the furnace sphere reads Y = E/(1-R) = 2 on average
+    let y = layers.channel("Y").unwrap();
+    let mean = y.iter().map(|&v| v as f64).sum::<f64>() / y.len() as f64;
+    assert!((mean - 2.0).abs() < 0.2, "{mean}");
+    assert!(dir.join("sphere.png").exists());
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn invalid_scene_exits_2_with_location() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 60\n[materials.m]\ntype = \"diffuse\"\nreflectance = 1.5\n").unwrap();
+    let out = furnace().arg("render").arg(&bad).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.toml:8:15"), "{err}");
+    assert!(err.contains("materials.m.reflectance"), "{err}");
+    assert!(err.contains("[0, 1]"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn missing_scene_file_exits_2() {
+    let out = furnace()
+        .args(["render", "no/such/scene.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read the scene file"));
+}

@@ -1,0 +1,14 @@
+//! furnace integration tests: one binary, one module per concern.
+
+mod cli;
+mod layering;
+mod render;
+mod scene_errors;
+mod scene_parse;
+
+use std::path::PathBuf;
+
+/// Path of a file relative to the crate root.
+pub fn root(rel: &str) -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
+}

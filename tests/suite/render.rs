@@ -1,0 +1,153 @@
+//! Renders of bundled and analytic scenes: the first analytic check (a closed furnace),
+//! determinism across thread counts, and finiteness of every bundled scene.
+
+use crate::root;
+use furnace::film::Film;
+use furnace::integrators::PathTracer;
+use furnace::render::{render, RenderSettings};
+use furnace::scene::Scene;
+use furnace::stats::z_test;
+use std::path::Path;
+
+fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: h,
+        spp,
+        seed,
+        threads,
+        integrator: PathTracer::default(),
+    }
+}
+
+/// Image mean of channel `c` and its standard error: pixels are independent estimates, so
+/// Var(mean of pixels) = Σ Var(pixel mean) / n².
+fn image_mean(film: &Film, c: usize) -> (f64, f64) {
+    let m = film.means(c);
+    let v = film.mean_variances(c);
+    let n = m.len() as f64;
+    (m.iter().sum::<f64>() / n, v.iter().sum::<f64>().sqrt() / n)
+}
+
+fn furnace_sphere(emission: f64, albedo: f64, max_depth: Option<u32>) -> Scene {
+    let depth = max_depth.map_or(String::new(), |d| format!("max_depth = {d}"));
+    let text = format!(
+        r#"
+[render]
+{depth}
+[camera]
+position = [0.0, 0.0, 0.0]
+look_at = [0.0, 0.0, 1.0]
+up = [0.0, 1.0, 0.0]
+fov = 60.0
+[materials.wall]
+type = "diffuse"
+reflectance = {albedo}
+[[shape]]
+type = "sphere"
+center = [0.0, 0.0, 0.0]
+radius = 1.0
+material = "wall"
+emission = {emission}
+flip_normals = true
+"#
+    );
+    Scene::parse(&text, Path::new("inline-furnace.toml")).expect("valid furnace scene")
+}
+
+/// Two-sided z test at α = 1e-4 (|z| < 3.89): these are fixed-seed regression checks, the
+/// statistical suite with family-wise error control is `furnace check`.
+fn assert_matches(name: &str, film: &Film, expected: f64) {
+    for c in 0..3 {
+        let (mean, se) = image_mean(film, c);
+        let t = z_test(mean, se, expected);
+        assert!(
+            t.p > 1e-4,
+            "{name} channel {}: {mean:.6} ± {se:.2e} vs {expected} (z = {:.2}, p = {:.2e})",
+            furnace::film::CHANNELS[c],
+            t.z,
+            t.p
+        );
+    }
+    // The test must be able to fail: on Y, a 1 % bias is detected with 95 % probability at
+    // α = 1e-4 when (3.89 + 1.645)·se ≤ 1 % of the expected value.
+    let (_, se) = image_mean(film, 1);
+    assert!(
+        (3.89 + 1.645) * se <= 0.01 * expected,
+        "{name}: standard error {se} too large to detect a 1 % bias"
+    );
+}
+
+#[test]
+fn closed_furnace_sphere_matches_e_over_one_minus_r() {
+    for (albedo, spp) in [(0.5, 256), (0.9, 256)] {
+        let emission = 1.0;
+        let film = render(
+            &furnace_sphere(emission, albedo, None),
+            &settings(32, 32, spp, 11, 0),
+            &|_| {},
+        )
+        .unwrap();
+        assert_matches(&format!("R = {albedo}"), &film, emission / (1.0 - albedo));
+    }
+}
+
+#[test]
+fn depth_capped_furnace_sums_exactly_d_plus_one_terms() {
+    // E(1 − R^(D+1))/(1 − R): an off-by-one in the depth convention shifts this by E·R^D.
+    let (e, r, d) = (1.0, 0.5, 2u32);
+    let scene = furnace_sphere(e, r, Some(d));
+    let mut s = settings(32, 32, 256, 5, 0);
+    s.integrator.max_depth = Some(d);
+    let film = render(&scene, &s, &|_| {}).unwrap();
+    assert_matches("D = 2", &film, e * (1.0 - r.powi(d as i32 + 1)) / (1.0 - r));
+}
+
+#[test]
+fn the_furnace_check_rejects_a_wrong_answer() {
+    // Negative control for the assertion itself: the R = 0.5 furnace must not match 1.02 × E/(1−R).
+    let film = render(
+        &furnace_sphere(1.0, 0.5, None),
+        &settings(32, 32, 256, 11, 0),
+        &|_| {},
+    )
+    .unwrap();
+    let (mean, se) = image_mean(&film, 1);
+    assert!(z_test(mean, se, 2.0 * 1.02).p < 1e-4);
+}
+
+#[test]
+fn image_is_bit_identical_for_one_and_two_threads() {
+    let scene = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
+    let a = render(&scene, &settings(40, 40, 4, 3, 1), &|_| {}).unwrap();
+    let b = render(&scene, &settings(40, 40, 4, 3, 2), &|_| {}).unwrap();
+    assert!(a == b, "1-thread and 2-thread films differ");
+    let c = render(&scene, &settings(40, 40, 4, 4, 2), &|_| {}).unwrap();
+    assert!(a != c, "a different seed must give a different image");
+}
+
+#[test]
+fn bundled_scenes_render_without_nan_or_inf() {
+    let mut count = 0;
+    for entry in std::fs::read_dir(root("scenes")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_some_and(|e| e == "toml")
+            && !path.to_string_lossy().ends_with(".regions.toml")
+        {
+            let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+            let (w, h) = (scene.render.width.min(48), scene.render.height.min(48));
+            let aspect = scene.render.width as f64 / scene.render.height as f64;
+            let h = if (w as f64 / h as f64 - aspect).abs() > 1e-9 {
+                (w as f64 / aspect) as usize
+            } else {
+                h
+            };
+            let film = render(&scene, &settings(w, h, 8, 1, 0), &|_| {}).unwrap();
+            assert_eq!(film.non_finite_pixels(), 0, "{}", path.display());
+            let (y, _) = image_mean(&film, 1);
+            assert!(y > 0.0, "{} renders black", path.display());
+            count += 1;
+        }
+    }
+    assert!(count >= 3, "expected the bundled scenes, found {count}");
+}
