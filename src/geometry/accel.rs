@@ -8,7 +8,7 @@
 //! CWBVH because the CWBVH node test clamps t to an absolute 1e-4, which would skip nearby
 //! geometry in small scenes.
 
-use super::{Hit, Ray, Shape};
+use super::{triangle::ShearedRay, Hit, Ray, Shape};
 use crate::math::Vec3;
 use obvhs::{aabb::Aabb, bvh2::Bvh2, ray::Ray as BvhRay, BvhBuildParams};
 use std::time::Duration;
@@ -118,12 +118,13 @@ impl Aggregate {
     /// Nearest hit with 0 < t < t_max.
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
         let (bray, t0) = self.clip(ray, t_max)?;
+        let sheared = ShearedRay::new(*ray);
         let mut best: Option<Hit> = None;
         let mut best_t = t_max;
         let mut hit = obvhs::ray::RayHit::none();
         self.bvh.ray_traverse(bray, &mut hit, |_, i| {
             let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
-            match self.shapes[si as usize].intersect_primitive(p as usize, ray, best_t) {
+            match self.shapes[si as usize].intersect_primitive(p as usize, &sheared, best_t) {
                 Some((t, point)) => {
                     best_t = t;
                     best = Some(Hit {
@@ -145,9 +146,10 @@ impl Aggregate {
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
         };
+        let sheared = ShearedRay::new(*ray);
         !self.bvh.ray_traverse_miss(bray, |_, i| {
             let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
-            match self.shapes[si as usize].intersect_primitive(p as usize, ray, t_max) {
+            match self.shapes[si as usize].intersect_primitive(p as usize, &sheared, t_max) {
                 Some(_) => 0.0,
                 None => f32::INFINITY,
             }
@@ -263,5 +265,50 @@ mod tests {
         let h = agg.intersect(&side, f64::INFINITY).unwrap();
         assert_eq!(h.shape, 0);
         assert!((h.t - 2.0).abs() < 1e-12);
+    }
+
+    /// Rays spawned from points on a closed room's walls never hit their own wall and never
+    /// escape; walls on the coordinate planes (error bound exactly 0) are the hard case.
+    #[test]
+    fn spawned_rays_never_self_intersect_on_coordinate_planes() {
+        use crate::geometry::ray::spawn;
+        use crate::math::frame::Frame;
+        for scale in [1e-4, 1.0, 556.0, 1e5] {
+            let room = cube(scale, Vec3::ZERO);
+            // one shape per face, as a scene of walls would have
+            let mut shapes = Vec::new();
+            for f in 0..6 {
+                let tris = room.triangles[2 * f..2 * f + 2].to_vec();
+                // the cube's normals point outward; flip so they face the room
+                shapes.push(Shape::Mesh(TriangleMesh::new(
+                    room.positions.clone(),
+                    tris,
+                    true,
+                )));
+            }
+            shapes.push(Shape::Quad(Quad {
+                corner: Vec3::new(0.25, 0.0, 0.25) * scale,
+                // Z × X = +Y: the quad faces up into the room, coplanar with the floor
+                edge_u: Vec3::Z * 0.5 * scale,
+                edge_v: Vec3::X * 0.5 * scale,
+                flip_normals: false,
+            }));
+            let agg = Aggregate::new(shapes);
+            let mut s = SampleStream::new(2, 0, 0);
+            for (k, shape) in agg.shapes().iter().enumerate() {
+                for _ in 0..5_000 {
+                    let sp = shape.sample(s.next_f64(), s.next_2d());
+                    let w = Frame::from_normal(sp.n).to_world(warp::cosine_hemisphere(s.next_2d()));
+                    let hit = agg.intersect(&spawn(&sp, w), f64::INFINITY);
+                    let hit =
+                        hit.unwrap_or_else(|| panic!("scale {scale}: ray from shape {k} escaped"));
+                    assert_ne!(
+                        hit.shape as usize, k,
+                        "scale {scale}: shape {k} hit itself at t = {:e}",
+                        hit.t
+                    );
+                }
+            }
+        }
     }
 }

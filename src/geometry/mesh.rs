@@ -16,17 +16,24 @@ pub struct TriangleMesh {
     pub flip_normals: bool,
     /// Running sum of triangle areas (last entry = total area).
     area_cdf: Vec<f64>,
+    /// Vertices gathered per triangle, so intersection needs no index indirection.
+    corners: Vec<[Vec3; 3]>,
 }
 
 impl TriangleMesh {
     /// Builds the mesh and its area table. Callers validate indices and areas first
     /// (see `scene`); an index out of range here is a programming error.
     pub fn new(positions: Vec<Vec3>, triangles: Vec<[u32; 3]>, flip_normals: bool) -> Self {
+        let corners = triangles
+            .iter()
+            .map(|t| t.map(|k| positions[k as usize]))
+            .collect();
         let mut mesh = TriangleMesh {
             positions,
             triangles,
             flip_normals,
             area_cdf: Vec::new(),
+            corners,
         };
         let mut acc = 0.0;
         mesh.area_cdf = (0..mesh.triangles.len())
@@ -41,7 +48,7 @@ impl TriangleMesh {
     /// Vertices of triangle `i`.
     #[inline]
     pub fn vertices(&self, i: usize) -> [Vec3; 3] {
-        self.triangles[i].map(|k| self.positions[k as usize])
+        self.corners[i]
     }
 
     /// Area of triangle `i`.

@@ -58,7 +58,10 @@ impl Quad {
             return None;
         }
         let t = (self.corner - ray.o).dot(n) / denom;
-        if !(t > 0.0 && t < t_max) {
+        // Bound on the rounding error of t (the dot product of a difference, γ(5) relative to
+        // its absolute terms, PBR 3rd ed. §3.9.1): a ray starting on the plane must not hit it.
+        let delta_t = gamma(5) * (self.corner.abs() + ray.o.abs()).dot(n.abs()) / denom.abs();
+        if !(t > delta_t && t < t_max) {
             return None;
         }
         let h = ray.at(t) - self.corner;

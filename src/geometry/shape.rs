@@ -1,6 +1,7 @@
 //! The closed set of shapes a scene is built from, with uniform area sampling.
 
-use super::{mesh::TriangleMesh, quad::Quad, sphere::Sphere, triangle, Ray, SurfacePoint};
+use super::triangle::{self, ShearedRay};
+use super::{mesh::TriangleMesh, quad::Quad, sphere::Sphere, SurfacePoint};
 use crate::math::Vec3;
 
 /// A shape: a sphere, a parallelogram, or a triangle mesh (one BVH primitive per triangle).
@@ -32,20 +33,20 @@ impl Shape {
         }
     }
 
-    /// Nearest hit of primitive `prim` with 0 < t < t_max.
+    /// Nearest hit of primitive `prim` with 0 < t < t_max; the surface point is computed
+    /// only for a hit.
     #[inline]
     pub fn intersect_primitive(
         &self,
         prim: usize,
-        ray: &Ray,
+        ray: &ShearedRay,
         t_max: f64,
     ) -> Option<(f64, SurfacePoint)> {
         match self {
-            Shape::Sphere(s) => s.intersect(ray, t_max),
-            Shape::Quad(q) => q.intersect(ray, t_max),
+            Shape::Sphere(s) => s.intersect(&ray.ray, t_max),
+            Shape::Quad(q) => q.intersect(&ray.ray, t_max),
             Shape::Mesh(m) => {
-                let [a, b, c] = m.vertices(prim);
-                let (t, bary) = triangle::intersect(ray, a, b, c, t_max)?;
+                let (t, bary) = triangle::intersect_sheared(ray, m.vertices(prim), t_max)?;
                 Some((t, m.surface_point(prim, bary)))
             }
         }

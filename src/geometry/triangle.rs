@@ -5,22 +5,47 @@
 use super::{gamma, Ray, SurfacePoint};
 use crate::math::Vec3;
 
+/// The per-ray part of the watertight test (axis permutation and shear), computed once per
+/// ray and reused for every triangle it meets (Woop et al. 2013, §3, "precomputation").
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShearedRay {
+    /// The ray.
+    pub ray: Ray,
+    k: [usize; 3],
+    shear: [f64; 3],
+}
+
+impl ShearedRay {
+    /// Precomputes the permutation that makes z the dominant direction axis and the shear.
+    pub fn new(ray: Ray) -> Self {
+        let d = ray.d;
+        let kz = d.abs().max_position();
+        let mut kx = (kz + 1) % 3;
+        let mut ky = (kx + 1) % 3;
+        if d[kz] < 0.0 {
+            std::mem::swap(&mut kx, &mut ky);
+        }
+        ShearedRay {
+            ray,
+            k: [kx, ky, kz],
+            shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
+        }
+    }
+}
+
 /// Intersection of `ray` with triangle (p0, p1, p2) for 0 < t < t_max: (t, barycentrics).
 pub fn intersect(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f64) -> Option<(f64, [f64; 3])> {
-    // Permute so that z is the dominant direction axis (JCGT 2(1), Fig. 1).
-    let d = ray.d;
-    let kz = d.abs().max_position();
-    let mut kx = (kz + 1) % 3;
-    let mut ky = (kx + 1) % 3;
-    if d[kz] < 0.0 {
-        std::mem::swap(&mut kx, &mut ky);
-    }
-    let sx = d[kx] / d[kz];
-    let sy = d[ky] / d[kz];
-    let sz = 1.0 / d[kz];
-    let a = p0 - ray.o;
-    let b = p1 - ray.o;
-    let c = p2 - ray.o;
+    intersect_sheared(&ShearedRay::new(*ray), [p0, p1, p2], t_max)
+}
+
+/// [`intersect`] with the per-ray setup done once.
+#[inline]
+pub fn intersect_sheared(r: &ShearedRay, p: [Vec3; 3], t_max: f64) -> Option<(f64, [f64; 3])> {
+    let [kx, ky, kz] = r.k;
+    let [sx, sy, sz] = r.shear;
+    let a = p[0] - r.ray.o;
+    let b = p[1] - r.ray.o;
+    let c = p[2] - r.ray.o;
     // Shear and scale so the ray runs along +z.
     let ax = a[kx] - sx * a[kz];
     let ay = a[ky] - sy * a[kz];
@@ -39,9 +64,7 @@ pub fn intersect(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f64) -> Option<
     if det == 0.0 {
         return None;
     }
-    let az = sz * a[kz];
-    let bz = sz * b[kz];
-    let cz = sz * c[kz];
+    let (az, bz, cz) = (sz * a[kz], sz * b[kz], sz * c[kz]);
     let t_scaled = u * az + v * bz + w * cz;
     // Compare with the sign of det to avoid dividing before the range test.
     if det > 0.0 {
@@ -53,6 +76,22 @@ pub fn intersect(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f64) -> Option<
     }
     let inv = 1.0 / det;
     let t = t_scaled * inv;
+    // Conservative bound on the rounding error of t; a ray starting on the triangle's own
+    // plane (e.g. spawned from a coordinate-aligned wall, where the point's error bound is
+    // exactly 0) must not hit it at a tiny positive t (PBR 3rd ed. §3.9.6, eqs. 3.19-3.22).
+    let max_zt = az.abs().max(bz.abs()).max(cz.abs());
+    let max_xt = ax.abs().max(bx.abs()).max(cx.abs());
+    let max_yt = ay.abs().max(by.abs()).max(cy.abs());
+    let delta_z = gamma(3) * max_zt;
+    let delta_x = gamma(5) * (max_xt + max_zt);
+    let delta_y = gamma(5) * (max_yt + max_zt);
+    let delta_e = 2.0 * (gamma(2) * max_xt * max_yt + delta_y * max_xt + delta_x * max_yt);
+    let max_e = u.abs().max(v.abs()).max(w.abs());
+    let delta_t =
+        3.0 * (gamma(3) * max_e * max_zt + delta_e * max_zt + delta_z * max_e) * inv.abs();
+    if t <= delta_t {
+        return None;
+    }
     Some((t, [u * inv, v * inv, w * inv]))
 }
 

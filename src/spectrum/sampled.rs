@@ -101,14 +101,19 @@ fn vis_tanh(lambda: f64) -> f64 {
     (VIS_A * (lambda - VIS_B)).tanh()
 }
 
+/// tanh(A (360 − B)) and tanh(A (830 − B)), the CDF's ends (checked in the tests).
+const VIS_T0: f64 = -0.856_910_625_469_828;
+const VIS_T1: f64 = 0.970_591_346_940_269_8;
+/// The pdf's normalisation A / (T1 − T0), per nm.
+const VIS_NORM: f64 = VIS_A / (VIS_T1 - VIS_T0);
+
 impl Wavelengths {
     /// Samples four wavelengths from one uniform number `u`: the hero at the inverse CDF of
     /// `u`, the others at `u + i/4 (mod 1)`, so each is marginally distributed with the
     /// visible pdf and the four are stratified (the rotation of Wilkie et al. 2014, done in
     /// primary-sample space so that a non-uniform pdf stays exact).
     pub fn sample_visible(u: f64) -> Self {
-        let t0 = vis_tanh(LAMBDA_MIN);
-        let t1 = vis_tanh(LAMBDA_MAX);
+        let (t0, t1) = (VIS_T0, VIS_T1);
         let mut lambda = [0.0; N_WAVELENGTHS];
         let mut pdf = [0.0; N_WAVELENGTHS];
         for i in 0..N_WAVELENGTHS {
@@ -126,8 +131,9 @@ impl Wavelengths {
         if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {
             return 0.0;
         }
-        let c = (VIS_A * (lambda - VIS_B)).cosh();
-        VIS_A / ((vis_tanh(LAMBDA_MAX) - vis_tanh(LAMBDA_MIN)) * c * c)
+        // sech² = 1 − tanh²: one transcendental instead of cosh.
+        let t = vis_tanh(lambda);
+        VIS_NORM * (1.0 - t * t)
     }
 
     /// Four fixed wavelengths with a given pdf; for tests and single-wavelength studies.
@@ -139,6 +145,12 @@ impl Wavelengths {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cdf_end_constants_match_their_definition() {
+        assert_eq!(VIS_T0, vis_tanh(LAMBDA_MIN));
+        assert_eq!(VIS_T1, vis_tanh(LAMBDA_MAX));
+    }
 
     #[test]
     fn visible_pdf_integrates_to_one() {

@@ -1,0 +1,87 @@
+//! Criterion benchmarks of the renderer's hot paths and of one small Cornell Box frame.
+//! Run: `cargo bench --bench render`. Throughput is reported in samples (or rays) per second.
+
+use criterion::{criterion_group, criterion_main, Criterion, Throughput};
+use furnace::geometry::Ray;
+use furnace::integrators::PathTracer;
+use furnace::math::{rng::SampleStream, warp, Vec3};
+use furnace::render::{render, RenderSettings};
+use furnace::scene::Scene;
+use furnace::spectrum::Wavelengths;
+use std::hint::black_box;
+use std::path::Path;
+
+fn cornell() -> Scene {
+    Scene::load(Path::new(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/scenes/cornell-box.toml"
+    )))
+    .expect("bundled scene")
+}
+
+/// One Cornell Box frame at 64×64, 4 spp, at most 5 bounces (Mitsuba max_depth 6), 2 threads.
+fn cornell_frame(c: &mut Criterion) {
+    let scene = cornell();
+    let settings = RenderSettings {
+        width: 64,
+        height: 64,
+        spp: 4,
+        seed: 1,
+        threads: 2,
+        integrator: PathTracer {
+            max_depth: Some(5),
+            rr_depth: 5,
+        },
+    };
+    let mut g = c.benchmark_group("cornell_frame");
+    g.sample_size(20);
+    g.throughput(Throughput::Elements(64 * 64 * 4));
+    g.bench_function("64x64_4spp_depth5_2threads", |b| {
+        b.iter(|| render(&scene, &settings, &|_| {}).unwrap())
+    });
+    g.finish();
+}
+
+/// Closest-hit queries of rays from inside the box in uniformly random directions.
+fn bvh_intersect(c: &mut Criterion) {
+    let scene = cornell();
+    let mut s = SampleStream::new(9, 0, 0);
+    let rays: Vec<Ray> = (0..4096)
+        .map(|_| Ray {
+            o: Vec3::new(278.0, 273.0, 280.0),
+            d: warp::uniform_sphere(s.next_2d()),
+        })
+        .collect();
+    let mut g = c.benchmark_group("bvh");
+    g.throughput(Throughput::Elements(rays.len() as u64));
+    g.bench_function("cornell_closest_hit_4096_rays", |b| {
+        b.iter(|| {
+            rays.iter()
+                .filter(|r| scene.aggregate.intersect(r, f64::INFINITY).is_some())
+                .count()
+        })
+    });
+    g.finish();
+}
+
+/// Sampling four hero wavelengths and evaluating a 76-entry measured reflectance at them.
+fn spectrum_eval(c: &mut Criterion) {
+    let scene = cornell();
+    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0];
+    let mut g = c.benchmark_group("spectrum");
+    g.throughput(Throughput::Elements(1024));
+    g.bench_function("sample_wavelengths_and_eval_table_x1024", |b| {
+        b.iter(|| {
+            let mut acc = 0.0;
+            for i in 0..1024 {
+                let wl = Wavelengths::sample_visible((i as f64 + 0.5) / 1024.0);
+                acc += white.reflectance.sample(black_box(&wl)).average();
+            }
+            acc
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(benches, cornell_frame, bvh_intersect, spectrum_eval);
+criterion_main!(benches);
