@@ -30,7 +30,7 @@ fn cornell_frame(c: &mut Criterion) {
         threads: 2,
         integrator: PathTracer {
             max_depth: Some(5),
-            rr_depth: 5,
+            ..PathTracer::default()
         },
     };
     let mut g = c.benchmark_group("cornell_frame");

@@ -60,9 +60,18 @@ pub fn render(
             settings.spp
         )));
     }
+    if settings.integrator.rr_depth.is_none() && settings.integrator.max_depth.is_none() {
+        return Err(RenderError::Settings(
+            "Russian roulette is off and max_depth is unlimited: paths in a closed scene would never end; set a max depth".into(),
+        ));
+    }
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
+    // Model only what the scene requires: with every spectrum constant, radiance is the same
+    // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
+    let grey = scene.is_grey();
     let cie = cie::tables();
     let y_norm = 1.0 / cie.y_integral();
+    let white = cie.spectrum_to_xyz(&crate::spectrum::Spectrum::Constant(1.0));
     let tiles_x = w.div_ceil(TILE);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
@@ -81,10 +90,15 @@ pub fn render(
                         let pixel_index = (y * w + x) as u64;
                         for s in 0..settings.spp {
                             let mut rng = SampleStream::new(settings.seed, pixel_index, s);
-                            let wl = Wavelengths::sample_visible(rng.next_f64());
+                            let u_lambda = rng.next_f64();
+                            let wl = Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
                             let l = settings.integrator.radiance(scene, ray, &wl, &mut rng);
+                            if grey {
+                                px.add_xyz(white.map(|c| c * l.0[0]));
+                                continue;
+                            }
                             // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::cie).
                             let mut xyz = [0.0; 3];
                             for i in 0..N_WAVELENGTHS {

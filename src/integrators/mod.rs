@@ -3,4 +3,4 @@
 
 pub mod path;
 
-pub use path::PathTracer;
+pub use path::{PathTracer, Strategy};

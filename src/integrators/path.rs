@@ -15,20 +15,36 @@ use crate::scattering::Bxdf;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 
+/// How emitted light is found at each path vertex; the three are independent estimators of
+/// the same integral (except that BSDF sampling alone cannot find point lights).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Strategy {
+    /// Light sampling and BSDF sampling combined with the power heuristic.
+    Mis,
+    /// BSDF sampling only: emitters count when a sampled ray hits them.
+    BsdfOnly,
+    /// Light sampling only (next-event estimation); emitters hit by BSDF-sampled rays after
+    /// the camera vertex are ignored.
+    LightOnly,
+}
+
 /// Path-tracer settings.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PathTracer {
     /// Maximum number of bounces; None = unlimited.
     pub max_depth: Option<u32>,
-    /// Bounces before Russian roulette starts.
-    pub rr_depth: u32,
+    /// Bounces before Russian roulette starts; None disables roulette.
+    pub rr_depth: Option<u32>,
+    /// Light-finding strategy.
+    pub strategy: Strategy,
 }
 
 impl Default for PathTracer {
     fn default() -> Self {
         PathTracer {
             max_depth: None,
-            rr_depth: 5,
+            rr_depth: Some(5),
+            strategy: Strategy::Mis,
         }
     }
 }
@@ -44,6 +60,18 @@ pub fn power_heuristic(a: f64, b: f64) -> f64 {
 }
 
 impl PathTracer {
+    /// Weight of emission found by a BSDF-sampled ray (`prev_bsdf_pdf` None: camera ray or a
+    /// delta bounce, where light sampling could not have found it); `light_pdf` is the
+    /// solid-angle pdf light sampling would have had.
+    #[inline]
+    fn emitted_weight(&self, prev_bsdf_pdf: Option<f64>, light_pdf: impl FnOnce() -> f64) -> f64 {
+        match (prev_bsdf_pdf, self.strategy) {
+            (None, _) | (Some(_), Strategy::BsdfOnly) => 1.0,
+            (Some(_), Strategy::LightOnly) => 0.0,
+            (Some(p), Strategy::Mis) => power_heuristic(p, light_pdf()),
+        }
+    }
+
     /// Radiance along `camera_ray` at the wavelengths `wl`.
     pub fn radiance(
         &self,
@@ -67,13 +95,9 @@ impl PathTracer {
                 for light in &scene.lights {
                     if let Light::Environment { radiance } = light {
                         let le = radiance.sample(wl);
-                        let w = match prev_bsdf_pdf {
-                            None => 1.0,
-                            Some(p) => power_heuristic(
-                                p,
-                                select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF,
-                            ),
-                        };
+                        let w = self.emitted_weight(prev_bsdf_pdf, || {
+                            select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF
+                        });
                         l += beta * le * w;
                     }
                 }
@@ -91,13 +115,9 @@ impl PathTracer {
                 {
                     let le = area_radiance(radiance, *two_sided, sp.n, wo_world, wl);
                     if !le.is_black() {
-                        let w = match prev_bsdf_pdf {
-                            None => 1.0,
-                            Some(p) => power_heuristic(
-                                p,
-                                select_pdf * light.pdf_area_hit(prev_p, &sp, shapes),
-                            ),
-                        };
+                        let w = self.emitted_weight(prev_bsdf_pdf, || {
+                            select_pdf * light.pdf_area_hit(prev_p, &sp, shapes)
+                        });
                         l += beta * le * w;
                     }
                 }
@@ -115,7 +135,11 @@ impl PathTracer {
             let u_pos = rng.next_2d();
             let li = ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
             let light = &scene.lights[li];
-            if let Some(ls) = light.sample(sp.p, u_select, u_pos, shapes, wl) {
+            let nee = self.strategy != Strategy::BsdfOnly;
+            if let Some(ls) = light
+                .sample(sp.p, u_select, u_pos, shapes, wl)
+                .filter(|_| nee)
+            {
                 if ls.pdf > 0.0 && !ls.radiance.is_black() {
                     let wi = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo, wi, wl);
@@ -131,7 +155,7 @@ impl PathTracer {
                         };
                         if unoccluded {
                             let light_pdf = select_pdf * ls.pdf;
-                            let w = if ls.delta {
+                            let w = if ls.delta || self.strategy == Strategy::LightOnly {
                                 1.0
                             } else {
                                 power_heuristic(light_pdf, bsdf.pdf(wo, wi, wl))
@@ -160,7 +184,7 @@ impl PathTracer {
             // Russian roulette: survival q = min(1, max β) is never capped below 1, so
             // the estimator keeps finite variance at albedo near 1.
             let u_rr = rng.next_f64();
-            if depth >= self.rr_depth {
+            if self.rr_depth.is_some_and(|d| depth >= d) {
                 let q = beta.max_component().min(1.0);
                 if u_rr >= q {
                     break;

@@ -97,6 +97,76 @@ pub struct Scene {
 }
 
 impl Scene {
+    /// True when every spectrum in the scene is constant, so radiance does not depend on
+    /// wavelength and the renderer may skip wavelength sampling (grey mode).
+    pub fn is_grey(&self) -> bool {
+        let bsdfs = self.bsdfs.iter().all(|b| match b {
+            Bsdf::Diffuse(l) => l.reflectance.is_constant(),
+        });
+        let lights = self.lights.iter().all(|l| match l {
+            Light::Area { radiance, .. } | Light::Environment { radiance } => {
+                radiance.is_constant()
+            }
+            Light::Point { intensity, .. } => intensity.is_constant(),
+        });
+        bsdfs && lights
+    }
+
+    /// The same scene with every position mapped to `scale`·p + `offset` (camera included);
+    /// radiance and intensity spectra are unchanged, so point-light irradiance scales by
+    /// 1/scale². Used by the scale-invariance checks.
+    pub fn transformed(&self, scale: f64, offset: Vec3) -> Scene {
+        let map = |p: Vec3| p * scale + offset;
+        let shapes = self
+            .aggregate
+            .shapes()
+            .iter()
+            .map(|s| match s {
+                Shape::Sphere(sp) => Shape::Sphere(Sphere {
+                    center: map(sp.center),
+                    radius: sp.radius * scale,
+                    flip_normals: sp.flip_normals,
+                }),
+                Shape::Quad(q) => Shape::Quad(Quad {
+                    corner: map(q.corner),
+                    edge_u: q.edge_u * scale,
+                    edge_v: q.edge_v * scale,
+                    flip_normals: q.flip_normals,
+                }),
+                Shape::Mesh(m) => Shape::Mesh(TriangleMesh::new(
+                    m.positions.iter().map(|&p| map(p)).collect(),
+                    m.triangles.clone(),
+                    m.flip_normals,
+                )),
+            })
+            .collect();
+        let lights = self
+            .lights
+            .iter()
+            .map(|l| match l {
+                Light::Point {
+                    position,
+                    intensity,
+                } => Light::Point {
+                    position: map(*position),
+                    intensity: intensity.clone(),
+                },
+                other => other.clone(),
+            })
+            .collect();
+        let mut camera = self.camera.clone();
+        camera.position = map(camera.position);
+        camera.look_at = map(camera.look_at);
+        Scene {
+            aggregate: Aggregate::new(shapes),
+            bsdfs: self.bsdfs.clone(),
+            shape_light: self.shape_light.clone(),
+            lights,
+            camera,
+            render: self.render.clone(),
+        }
+    }
+
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
         let text = std::fs::read_to_string(path).map_err(|e| SceneError {

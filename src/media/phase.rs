@@ -1,0 +1,105 @@
+//! Phase functions p(wo, wi) per steradian, normalised so ∫ p dω = 1. Directions both point
+//! away from the scattering point: `wo` towards the viewer, `wi` towards the light; forward
+//! scattering means wi ≈ −wo, so the scattering angle θ has cos θ = −wo·wi.
+
+use crate::math::{frame::Frame, Vec3, PI};
+
+/// A sampled phase-function direction.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PhaseSample {
+    /// Sampled incident direction (unit).
+    pub wi: Vec3,
+    /// Its pdf per steradian (equal to p for an exactly sampled phase function).
+    pub pdf: f64,
+    /// p/pdf (1 for exact sampling).
+    pub weight: f64,
+}
+
+/// A phase function.
+pub trait Phase {
+    /// p(wo, wi) per steradian.
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64;
+    /// Samples wi from two uniform numbers.
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample;
+    /// Pdf of sampling wi, per steradian.
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64;
+}
+
+/// Henyey–Greenstein with asymmetry g in (−1, 1): mean cosine of the scattering angle = g
+/// (Henyey & Greenstein 1941, ApJ 93, eq. 1).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HenyeyGreenstein {
+    /// Asymmetry parameter, |g| < 1.
+    pub g: f64,
+}
+
+impl HenyeyGreenstein {
+    /// p as a function of the scattering-angle cosine μ: (1 − g²) / (4π (1 + g² − 2gμ)^{3/2}).
+    /// The denominator is written (1 − g)² + 2g(1 − μ), which is exact near g → 1, μ → 1 where
+    /// 1 + g² − 2gμ cancels catastrophically (DESIGN.md pitfall).
+    pub fn eval_cos(&self, mu: f64) -> f64 {
+        let g = self.g;
+        let denom = (1.0 - g) * (1.0 - g) + 2.0 * g * (1.0 - mu);
+        (1.0 - g) * (1.0 + g) / (4.0 * PI * denom * denom.sqrt())
+    }
+
+    /// Inverse-CDF sample of μ (Pharr, Jakob & Humphreys, PBR 3rd ed. §15.2.3, eq. 15.7 form):
+    /// μ = (1 + g² − ((1 − g²)/(1 + g − 2g ξ))²)/(2g), μ = 1 − 2ξ for g ≈ 0.
+    pub fn sample_cos(&self, xi: f64) -> f64 {
+        let g = self.g;
+        if g.abs() < 1e-3 {
+            return 1.0 - 2.0 * xi;
+        }
+        let s = (1.0 - g * g) / (1.0 + g - 2.0 * g * xi);
+        ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+    }
+}
+
+impl Phase for HenyeyGreenstein {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval_cos(-wo.dot(wi))
+    }
+
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        let mu = self.sample_cos(u[0]);
+        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+        let phi = 2.0 * PI * u[1];
+        // around the forward direction −wo
+        let frame = Frame::from_normal(-wo);
+        let wi = frame.to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), mu));
+        let pdf = self.eval_cos(mu);
+        PhaseSample {
+            wi,
+            pdf,
+            weight: 1.0,
+        }
+    }
+
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stable_denominator_at_extreme_g() {
+        let hg = HenyeyGreenstein { g: 0.9999 };
+        let p = hg.eval_cos(1.0);
+        // (1 − g²)/(4π(1 − g)³) = (1 + g)/(4π(1 − g)²)
+        let exact = (1.0 + 0.9999) / (4.0 * PI * 1e-8);
+        assert!((p / exact - 1.0).abs() < 1e-9, "{p} vs {exact}");
+        assert!(hg.eval_cos(-1.0) > 0.0);
+    }
+
+    #[test]
+    fn sampled_cosine_inverts_the_cdf() {
+        for g in [-0.9, -0.3, 0.0, 0.5, 0.99] {
+            let hg = HenyeyGreenstein { g };
+            assert!((hg.sample_cos(0.0) - 1.0).abs() < 1e-9, "g {g}");
+            assert!((hg.sample_cos(1.0) + 1.0).abs() < 1e-9, "g {g}");
+        }
+    }
+}
