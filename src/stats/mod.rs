@@ -1,6 +1,12 @@
 //! Statistics in f64: running mean and variance, and the two-sided z test the checks use.
 //! `statrs` lives only here.
 
+pub mod chi2;
+pub mod multiple;
+pub mod power;
+pub mod sphere;
+pub mod stability;
+
 use statrs::distribution::{ContinuousCDF, Normal};
 
 /// Running mean and variance of a stream of f64 values (Welford 1962, "Note on a method

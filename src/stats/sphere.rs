@@ -1,0 +1,444 @@
+//! Histograms of directions over the unit sphere, and the expected probability mass of
+//! each histogram bin under a given solid-angle pdf.
+//!
+//! Together with [`super::chi2::chi2_gof`] this tests a direction sampler against the pdf
+//! it claims: count samples per bin, integrate the pdf over each bin, scale by the number
+//! of samples, and compare.
+//!
+//! Binning: `theta_bins` strips that are **uniform in cos θ** (θ measured from +z), so
+//! every strip covers the same solid angle 4π/theta_bins (Archimedes' hat-box theorem),
+//! times `phi_bins` uniform sectors of φ = atan2(y, x) ∈ [0, 2π). All bins have equal solid
+//! angle 4π/(theta_bins·phi_bins) sr. Strip 0 touches +z; bin index = strip·phi_bins +
+//! sector. Choose an even `theta_bins` for a pdf that is discontinuous at the horizon
+//! (z = 0), so the discontinuity falls on a strip edge and the quadrature stays accurate.
+//!
+//! Every count/mass vector has one extra, last entry: the *invalid-direction* bin at index
+//! [`SphereBinning::n_bins`]. Directions that are zero, infinite or NaN are counted there,
+//! and its expected mass is 0, so `chi2_gof` reports any such sample as a zero-pdf hit
+//! (a certain failure) instead of the sample silently disappearing.
+
+/// Largest number of regular bins a binning may have; larger (or empty) binnings are
+/// degenerate and have no regular bins.
+pub const MAX_BINS: usize = 1 << 24;
+
+/// Largest number of quadrature nodes per dimension per bin used by
+/// [`SphereBinning::integrate`]; larger requests are clamped to it.
+pub const MAX_SUB: usize = 256;
+
+/// A θ × φ histogram layout over the unit sphere (see the module doc for the geometry).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SphereBinning {
+    /// Number of strips in θ, uniform in cos θ (each 2/theta_bins wide in cos θ).
+    pub theta_bins: usize,
+    /// Number of sectors in φ, uniform in φ (each 2π/phi_bins rad wide).
+    pub phi_bins: usize,
+}
+
+impl SphereBinning {
+    /// Number of regular bins, theta_bins·phi_bins; 0 for a degenerate binning (either
+    /// count 0, or more than [`MAX_BINS`] bins). It is also the index of the
+    /// invalid-direction bin, so vectors returned by `count` and `integrate` have length
+    /// `n_bins() + 1`.
+    pub fn n_bins(&self) -> usize {
+        match self.theta_bins.checked_mul(self.phi_bins) {
+            Some(n) if n > 0 && n <= MAX_BINS => n,
+            _ => 0,
+        }
+    }
+
+    /// Solid angle of each regular bin in steradians (4π / n_bins), or 0 when degenerate.
+    pub fn bin_solid_angle(&self) -> f64 {
+        match self.n_bins() {
+            0 => 0.0,
+            n => 4.0 * std::f64::consts::PI / n as f64,
+        }
+    }
+
+    /// Bin index of direction `w` (need not be unit length: only its direction is used).
+    /// θ is the angle from +z in [0, π], φ = atan2(y, x) in [0, 2π). A direction exactly
+    /// on the equator (z = 0) belongs to the strip above it. Zero, infinite or NaN
+    /// directions, and every direction of a degenerate binning, map to the
+    /// invalid-direction bin `n_bins()`.
+    pub fn bin(&self, w: [f64; 3]) -> usize {
+        let n = self.n_bins();
+        if n == 0 {
+            return 0;
+        }
+        let scale = w[0].abs().max(w[1].abs()).max(w[2].abs());
+        if w.iter().any(|c| !c.is_finite()) || scale == 0.0 {
+            return n;
+        }
+        let [x, y, z] = w.map(|c| c / scale);
+        let cos_theta = (z / (x * x + y * y + z * z).sqrt()).clamp(-1.0, 1.0);
+        let t = self.theta_bins;
+        let half = t as f64 / 2.0;
+        // Strip i covers cos θ in [1 − 2(i+1)/T, 1 − 2i/T] (equal-area strips); for z >= 0
+        // count from the bottom so that tiny positive z never rounds into the strip below.
+        let strip = if cos_theta >= 0.0 {
+            let from_bottom = (((1.0 + cos_theta) * half) as usize).min(t - 1);
+            t - 1 - from_bottom
+        } else {
+            (((1.0 - cos_theta) * half) as usize).min(t - 1)
+        };
+        let mut phi = y.atan2(x);
+        if phi < 0.0 {
+            phi += std::f64::consts::TAU;
+        }
+        let p = self.phi_bins;
+        // Sector j covers φ in [2πj/P, 2π(j+1)/P) (uniform in φ by definition).
+        let sector = ((phi / std::f64::consts::TAU * p as f64) as usize).min(p - 1);
+        strip * p + sector
+    }
+
+    /// Histogram of `samples` (directions): counts per bin, length `n_bins() + 1`, the last
+    /// entry counting invalid directions. Counts saturate at `u64::MAX`.
+    pub fn count(&self, samples: impl IntoIterator<Item = [f64; 3]>) -> Vec<u64> {
+        let mut counts = vec![0u64; self.n_bins() + 1];
+        for w in samples {
+            let c = &mut counts[self.bin(w)];
+            *c = c.saturating_add(1);
+        }
+        counts
+    }
+
+    /// Expected probability mass per bin, ∫_bin pdf dω (dimensionless), for a pdf with
+    /// respect to solid angle (1/sr), by tensor-product Gauss–Legendre quadrature in
+    /// (cos θ, φ) with `sub` × `sub` nodes per bin (`sub` clamped into 1..=[`MAX_SUB`]).
+    /// Integrating in cos θ makes dω = d(cos θ) dφ exact, so a pdf that is a polynomial of
+    /// degree ≤ 2·sub − 1 in cos θ and constant in φ within each bin is integrated exactly.
+    ///
+    /// Length `n_bins() + 1`; the last (invalid-direction) entry is 0. Masses sum to the
+    /// pdf's integral over the sphere (1 when normalised). The pdf's values are used as
+    /// returned: negative or NaN values propagate and are rejected later by `chi2_gof`.
+    pub fn integrate(&self, pdf: impl Fn([f64; 3]) -> f64, sub: usize) -> Vec<f64> {
+        let n = self.n_bins();
+        let mut mass = vec![0.0; n + 1];
+        if n == 0 {
+            return mass;
+        }
+        let (nodes, weights) = gauss_legendre(sub.clamp(1, MAX_SUB));
+        let (t, p) = (self.theta_bins, self.phi_bins);
+        let dc = 2.0 / t as f64;
+        let dphi = std::f64::consts::TAU / p as f64;
+        for strip in 0..t {
+            let c_hi = 1.0 - strip as f64 * dc;
+            let c_mid = c_hi - 0.5 * dc;
+            for sector in 0..p {
+                let phi_mid = (sector as f64 + 0.5) * dphi;
+                let mut sum = 0.0;
+                for (&xu, &wu) in nodes.iter().zip(&weights) {
+                    let c = (c_mid + 0.5 * dc * xu).clamp(-1.0, 1.0);
+                    let s = (1.0 - c * c).max(0.0).sqrt();
+                    for (&xp, &wp) in nodes.iter().zip(&weights) {
+                        let phi = phi_mid + 0.5 * dphi * xp;
+                        sum += wu * wp * pdf([s * phi.cos(), s * phi.sin(), c]);
+                    }
+                }
+                // Gauss–Legendre (Abramowitz & Stegun 1964, eq. 25.4.29) mapped affinely to
+                // [a, b]: ∫ f ≈ (b − a)/2 Σ w_i f(mid + (b − a)/2 x_i), in cos θ and φ; dω = dc dφ.
+                mass[strip * p + sector] = sum * 0.25 * dc * dphi;
+            }
+        }
+        mass
+    }
+}
+
+/// Gauss–Legendre nodes and weights on [−1, 1] for `n` >= 1 points: nodes are the roots
+/// of P_n found by Newton's method from Tricomi's initial guesses.
+fn gauss_legendre(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let mut nodes = vec![0.0; n];
+    let mut weights = vec![0.0; n];
+    let nf = n as f64;
+    for i in 0..n.div_ceil(2) {
+        // Initial guess θ = π(ν − 1/4)/(n + 1/2), ν = i + 1: the middle of the bracket
+        // π(ν − 1/2)/(n + 1/2) < θ_ν < πν/(n + 1/2) (Szegő 1939, Orthogonal Polynomials, §6.21).
+        let mut x = (std::f64::consts::PI * (i as f64 + 0.75) / (nf + 0.5)).cos();
+        let mut dp = 1.0;
+        for _ in 0..100 {
+            let (p, d) = legendre_with_derivative(n, x);
+            dp = d;
+            let step = p / d;
+            x -= step;
+            if step.abs() <= 1e-15 {
+                break;
+            }
+        }
+        let (_, d) = legendre_with_derivative(n, x);
+        if d.is_finite() && d != 0.0 {
+            dp = d;
+        }
+        // Weight w_i = 2 / ((1 − x_i²) P_n'(x_i)²) (Abramowitz & Stegun 1964, eq. 25.4.29).
+        let w = 2.0 / ((1.0 - x * x) * dp * dp);
+        nodes[i] = -x;
+        weights[i] = w;
+        nodes[n - 1 - i] = x;
+        weights[n - 1 - i] = w;
+    }
+    (nodes, weights)
+}
+
+/// P_n(x) and P_n'(x) by Bonnet's recurrence (j+1)P_{j+1} = (2j+1)x P_j − j P_{j−1}
+/// (Abramowitz & Stegun 1964, eq. 22.7.10) and P_n' = n(x P_n − P_{n−1})/(x² − 1)
+/// (A&S eq. 22.8.5), for |x| < 1.
+fn legendre_with_derivative(n: usize, x: f64) -> (f64, f64) {
+    let (mut p_prev, mut p) = (1.0, x);
+    for j in 1..n {
+        let jf = j as f64;
+        let next = ((2.0 * jf + 1.0) * x * p - jf * p_prev) / (jf + 1.0);
+        p_prev = p;
+        p = next;
+    }
+    let d = n as f64 * (x * p - p_prev) / (x * x - 1.0);
+    (p, d)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::chi2::chi2_gof;
+    use super::*;
+    use std::f64::consts::{FRAC_1_PI, PI, TAU};
+
+    /// SplitMix64 (Steele, Lea & Flood 2014, OOPSLA): a tiny deterministic test RNG.
+    struct SplitMix64(u64);
+
+    impl SplitMix64 {
+        fn next_u64(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        /// Uniform in [0, 1).
+        fn next_f64(&mut self) -> f64 {
+            (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        }
+    }
+
+    /// Cosine-weighted hemisphere direction by Malley's method: uniform point on the unit
+    /// disk lifted to the hemisphere (Pharr, Jakob & Humphreys, PBRT 3rd ed., §13.6.3).
+    fn sample_cosine(rng: &mut SplitMix64) -> [f64; 3] {
+        let (u1, u2) = (rng.next_f64(), rng.next_f64());
+        let r = u1.sqrt();
+        let phi = TAU * u2;
+        [r * phi.cos(), r * phi.sin(), (1.0 - u1).sqrt()]
+    }
+
+    fn cosine_pdf(w: [f64; 3]) -> f64 {
+        w[2].max(0.0) * FRAC_1_PI
+    }
+
+    fn uniform_hemisphere_pdf(w: [f64; 3]) -> f64 {
+        if w[2] >= 0.0 {
+            0.5 / PI
+        } else {
+            0.0
+        }
+    }
+
+    fn scaled(mass: &[f64], n: usize) -> Vec<f64> {
+        mass.iter().map(|m| m * n as f64).collect()
+    }
+
+    #[test]
+    fn gauss_legendre_nodes_and_weights() {
+        // 2-point rule: ±1/√3, weights 1; 3-point: 0, ±√(3/5), weights 8/9, 5/9.
+        let (x, w) = gauss_legendre(2);
+        assert!((x[1] - 1.0 / 3f64.sqrt()).abs() < 1e-15 && (w[0] - 1.0).abs() < 1e-14);
+        let (x, w) = gauss_legendre(3);
+        assert!(x[1].abs() < 1e-15 && (w[1] - 8.0 / 9.0).abs() < 1e-14);
+        assert!((x[2] - 0.6f64.sqrt()).abs() < 1e-15 && (w[2] - 5.0 / 9.0).abs() < 1e-14);
+        for n in [1, 4, 7, 20, 64, MAX_SUB] {
+            let (x, w) = gauss_legendre(n);
+            assert!((w.iter().sum::<f64>() - 2.0).abs() < 1e-12, "n={n}");
+            // Exact for x^(2n-2) when n > 1: ∫ x^(2n−2) = 2/(2n−1).
+            let k = 2 * n as i32 - 2;
+            let q: f64 = x.iter().zip(&w).map(|(x, w)| w * x.powi(k)).sum();
+            assert!((q - 2.0 / (k as f64 + 1.0)).abs() < 1e-12, "n={n} q={q}");
+        }
+    }
+
+    #[test]
+    fn bin_layout() {
+        let b = SphereBinning {
+            theta_bins: 4,
+            phi_bins: 8,
+        };
+        assert_eq!(b.n_bins(), 32);
+        assert_eq!(b.bin([0.0, 0.0, 1.0]), 0, "+z is strip 0, sector 0");
+        assert_eq!(b.bin([0.0, 0.0, -1.0]), 3 * 8, "-z is the last strip");
+        assert_eq!(b.bin([0.0, 0.0, 5.0]), 0, "length does not matter");
+        assert_eq!(b.bin([1e-300, 0.0, 1e-300]), b.bin([1.0, 0.0, 1.0]));
+        assert_eq!(b.bin([1e300, 0.0, 1e300]), b.bin([1.0, 0.0, 1.0]));
+        // cos θ = 0.6: strip floor((1 − 0.6)·2) = 0; cos θ = 0.4: strip 1.
+        assert_eq!(b.bin([0.8, 0.0, 0.6]) / 8, 0);
+        assert_eq!(b.bin([0.916_515, 0.0, 0.4]) / 8, 1);
+        // Equator belongs to the upper hemisphere; a hair below goes below.
+        assert_eq!(b.bin([1.0, 0.0, 0.0]) / 8, 1);
+        assert_eq!(b.bin([1.0, 0.0, 1e-17]) / 8, 1);
+        assert_eq!(b.bin([1.0, 0.0, -1e-17]) / 8, 2);
+        // φ sectors: +y is φ = π/2 -> sector 2; φ just below 2π -> sector 7.
+        assert_eq!(b.bin([0.0, 1.0, 0.0]) % 8, 2);
+        assert_eq!(b.bin([1.0, -1e-18, 0.0]) % 8, 7);
+        assert_eq!(b.bin([1.0, -0.0, 0.0]) % 8, 0);
+        assert_eq!(b.bin([-1.0, 0.0, 0.0]) % 8, 4);
+    }
+
+    #[test]
+    fn invalid_directions_and_degenerate_binnings() {
+        let b = SphereBinning {
+            theta_bins: 4,
+            phi_bins: 8,
+        };
+        for w in [[0.0; 3], [f64::NAN, 0.0, 1.0], [f64::INFINITY, 0.0, 0.0]] {
+            assert_eq!(b.bin(w), 32);
+        }
+        for d in [
+            SphereBinning {
+                theta_bins: 0,
+                phi_bins: 8,
+            },
+            SphereBinning {
+                theta_bins: 8,
+                phi_bins: 0,
+            },
+            SphereBinning {
+                theta_bins: usize::MAX,
+                phi_bins: 2,
+            },
+            SphereBinning {
+                theta_bins: MAX_BINS,
+                phi_bins: 2,
+            },
+        ] {
+            assert_eq!(d.n_bins(), 0);
+            assert_eq!(d.bin([0.0, 0.0, 1.0]), 0);
+            assert_eq!(d.count([[0.0, 0.0, 1.0]; 3]), vec![3]);
+            assert_eq!(d.integrate(cosine_pdf, 4), vec![0.0]);
+            assert_eq!(d.bin_solid_angle(), 0.0);
+        }
+    }
+
+    #[test]
+    fn uniform_sphere_pdf_gives_equal_bins() {
+        let b = SphereBinning {
+            theta_bins: 10,
+            phi_bins: 12,
+        };
+        let m = b.integrate(|_| 0.25 * FRAC_1_PI, 3);
+        assert_eq!(m.len(), 121);
+        assert_eq!(m[120], 0.0);
+        for &x in &m[..120] {
+            assert!((x - 1.0 / 120.0).abs() < 1e-15, "{x}");
+        }
+        assert!((m.iter().sum::<f64>() - 1.0).abs() < 1e-13);
+        assert!((b.bin_solid_angle() - 4.0 * PI / 120.0).abs() < 1e-15);
+    }
+
+    #[test]
+    fn cosine_hemisphere_pdf_integrates_exactly() {
+        let b = SphereBinning {
+            theta_bins: 8,
+            phi_bins: 6,
+        };
+        let m = b.integrate(cosine_pdf, 2);
+        assert!((m.iter().sum::<f64>() - 1.0).abs() < 1e-13);
+        // Strip [a, b] in cos θ, one sector: (b² − a²)/2 · (2π/6)/π.
+        for strip in 0..8 {
+            let (hi, lo) = (1.0 - strip as f64 * 0.25, 0.75 - strip as f64 * 0.25);
+            let want = if lo >= 0.0 {
+                (hi * hi - lo * lo) / 2.0 / 3.0
+            } else {
+                0.0
+            };
+            for sector in 0..6 {
+                assert!(
+                    (m[strip * 6 + sector] - want).abs() < 1e-15,
+                    "{strip} {sector}"
+                );
+            }
+        }
+        // With sub = 1 (midpoint rule) the linear pdf is still exact.
+        assert!((b.integrate(cosine_pdf, 1).iter().sum::<f64>() - 1.0).abs() < 1e-13);
+    }
+
+    #[test]
+    fn anisotropic_pdfs_integrate_to_one() {
+        let b = SphereBinning {
+            theta_bins: 6,
+            phi_bins: 16,
+        };
+        // ∫ 3z²/(4π) dω = 1: degree 2 in cos θ, exact for sub >= 2.
+        let m = b.integrate(|w| 0.75 * FRAC_1_PI * w[2] * w[2], 2);
+        assert!((m.iter().sum::<f64>() - 1.0).abs() < 1e-13);
+        // ∫ 3x²/(4π) dω = 1: depends on φ, accurate but not exact.
+        let m = b.integrate(|w| 0.75 * FRAC_1_PI * w[0] * w[0], 4);
+        assert!((m.iter().sum::<f64>() - 1.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn cosine_samples_pass_against_cosine_pdf() {
+        let b = SphereBinning {
+            theta_bins: 8,
+            phi_bins: 16,
+        };
+        let n = 50_000;
+        let expected = scaled(&b.integrate(cosine_pdf, 4), n);
+        for seed in [1, 2, 3] {
+            let mut rng = SplitMix64(seed);
+            let counts = b.count((0..n).map(|_| sample_cosine(&mut rng)));
+            assert_eq!(counts.iter().sum::<u64>(), n as u64);
+            let r = chi2_gof(&counts, &expected, 5.0).unwrap();
+            assert_eq!(r.zero_pdf_hits, 0);
+            assert_eq!(r.dof, 63, "64 upper-hemisphere bins");
+            assert!(r.p_value > 1e-3, "seed {seed}: {r:?}");
+        }
+    }
+
+    #[test]
+    fn cosine_samples_fail_against_wrong_pdfs() {
+        let b = SphereBinning {
+            theta_bins: 8,
+            phi_bins: 16,
+        };
+        let n = 50_000;
+        let mut rng = SplitMix64(7);
+        let counts = b.count((0..n).map(|_| sample_cosine(&mut rng)));
+        // Wrong shape: uniform hemisphere.
+        let r = chi2_gof(
+            &counts,
+            &scaled(&b.integrate(uniform_hemisphere_pdf, 4), n),
+            5.0,
+        );
+        assert!(r.unwrap().p_value < 1e-6);
+        // Right shape, wrong normalisation (integrates to 0.9).
+        let r = chi2_gof(
+            &counts,
+            &scaled(&b.integrate(|w| 0.9 * cosine_pdf(w), 4), n),
+            5.0,
+        );
+        assert!(r.unwrap().p_value < 1e-6);
+        // Wrong support: pdf claims the lower hemisphere.
+        let flipped = |w: [f64; 3]| cosine_pdf([w[0], w[1], -w[2]]);
+        let r = chi2_gof(&counts, &scaled(&b.integrate(flipped, 4), n), 5.0).unwrap();
+        assert_eq!(r.zero_pdf_hits, n as u64);
+        assert_eq!(r.p_value, 0.0);
+    }
+
+    #[test]
+    fn invalid_samples_fail_the_test() {
+        let b = SphereBinning {
+            theta_bins: 8,
+            phi_bins: 16,
+        };
+        let n = 50_000;
+        let mut rng = SplitMix64(1);
+        let mut samples: Vec<[f64; 3]> = (0..n).map(|_| sample_cosine(&mut rng)).collect();
+        samples[123] = [f64::NAN, 0.0, 1.0];
+        let counts = b.count(samples);
+        assert_eq!(counts[b.n_bins()], 1);
+        let r = chi2_gof(&counts, &scaled(&b.integrate(cosine_pdf, 4), n), 5.0).unwrap();
+        assert_eq!(r.zero_pdf_hits, 1);
+        assert_eq!(r.p_value, 0.0);
+    }
+}
