@@ -5,8 +5,11 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use furnace::film::io;
-use furnace::integrators::PathTracer;
+use furnace::harness::outcome::{Outcome, Verdict};
+use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
+use furnace::integrators::{PathTracer, Strategy};
 use furnace::render::{render, RenderSettings};
+use furnace::report::{json, junit, text};
 use furnace::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -24,6 +27,38 @@ pub struct Cli {
 enum Command {
     /// Render a TOML scene spectrally to a linear EXR (XYZ, sRGB and variance channels) and an sRGB PNG preview.
     Render(RenderArgs),
+    /// Run validation checks from TOML manifests (default: every manifest under tests/manifests/); exit 0 all pass, 1 a check failed, 2 invalid manifest or scene.
+    Check(CheckArgs),
+}
+
+#[derive(Debug, Args)]
+struct CheckArgs {
+    /// Manifest files or folders [default: tests/manifests].
+    manifests: Vec<PathBuf>,
+    /// Only run checks whose name matches this glob (`*` any run of characters, `?` one).
+    #[arg(long)]
+    filter: Option<String>,
+    /// Run seed; each check without its own seed derives one from this and its name.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Family-wise false-alarm rate held across all stochastic checks of the run.
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Multiple-testing correction: sidak or holm.
+    #[arg(long, default_value = "sidak", value_parser = ["sidak", "holm"])]
+    correction: String,
+    /// Render threads; 0 uses every core (results are identical for any count).
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Write JUnit XML here.
+    #[arg(long)]
+    junit: Option<PathBuf>,
+    /// Write JSON results here (schema furnace.check-results/1, see the README).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write a Markdown table here (for CI job summaries).
+    #[arg(long)]
+    markdown: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -48,9 +83,12 @@ struct RenderArgs {
     /// Maximum number of bounces (0 = emitters only, 1 = direct light) [default: the scene's render.max_depth, else unlimited]. Mitsuba's max_depth is this + 1.
     #[arg(long)]
     max_depth: Option<u32>,
-    /// Bounces before unbiased Russian roulette starts.
-    #[arg(long, default_value_t = 5)]
-    rr_depth: u32,
+    /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
+    #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
+    rr_depth: RrDepth,
+    /// How emitters are found: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
+    #[arg(long, default_value = "mis", value_parser = ["mis", "bsdf", "light"])]
+    strategy: String,
     /// Output EXR path [default: out/<scene name>.exr].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -63,6 +101,19 @@ struct RenderArgs {
     /// No progress bar.
     #[arg(long)]
     quiet: bool,
+}
+
+/// Russian-roulette start depth, or None for "off".
+#[derive(Debug, Clone, Copy)]
+struct RrDepth(Option<u32>);
+
+fn parse_rr_depth(s: &str) -> Result<RrDepth, String> {
+    if s == "off" {
+        return Ok(RrDepth(None));
+    }
+    s.parse::<u32>()
+        .map(|d| RrDepth(Some(d)))
+        .map_err(|_| format!("{s:?} is not a bounce count; give a whole number >= 0 or \"off\""))
 }
 
 /// An error with the exit code it maps to.
@@ -87,6 +138,7 @@ impl<E: Into<anyhow::Error>> From<E> for Failure {
 pub fn run(cli: Cli) -> Result<i32, Failure> {
     match cli.command {
         Command::Render(args) => render_command(args),
+        Command::Check(args) => check_command(args),
     }
 }
 
@@ -102,7 +154,12 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         threads: a.threads,
         integrator: PathTracer {
             max_depth: a.max_depth.or(d.max_depth),
-            rr_depth: a.rr_depth,
+            rr_depth: a.rr_depth.0,
+            strategy: match a.strategy.as_str() {
+                "bsdf" => Strategy::BsdfOnly,
+                "light" => Strategy::LightOnly,
+                _ => Strategy::Mis,
+            },
         },
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
@@ -146,7 +203,8 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.spp".to_string(), settings.spp.to_string()),
         ("furnace.seed".to_string(), settings.seed.to_string()),
         ("furnace.max_depth".to_string(), settings.integrator.max_depth.map_or("unlimited".into(), |d| d.to_string())),
-        ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.to_string()),
+        ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
+        ("furnace.strategy".to_string(), a.strategy.clone()),
         ("furnace.filter".to_string(), "box".to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931, Y=1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
@@ -173,4 +231,97 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         total as f64 / secs / 1e6
     );
     Ok(if bad > 0 { 1 } else { 0 })
+}
+
+fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+fn check_command(a: CheckArgs) -> Result<i32, Failure> {
+    if !(a.alpha > 0.0 && a.alpha < 1.0) {
+        return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
+    }
+    let inputs = if a.manifests.is_empty() {
+        vec![PathBuf::from("tests/manifests")]
+    } else {
+        a.manifests.clone()
+    };
+    let mut files = Vec::new();
+    for p in &inputs {
+        if p.is_dir() {
+            files.extend(
+                manifest::manifests_in(p)
+                    .with_context(|| format!("cannot list manifests in {}", p.display()))?,
+            );
+        } else {
+            files.push(p.clone());
+        }
+    }
+    if files.is_empty() {
+        return Err(anyhow::anyhow!("no manifests found in {:?}", inputs).into());
+    }
+    let mut specs = Vec::new();
+    for f in &files {
+        specs.extend(
+            manifest::load(f).with_context(|| format!("invalid manifest {}", f.display()))?,
+        );
+    }
+    let mut skipped = Vec::new();
+    if let Some(g) = &a.filter {
+        let (keep, drop): (Vec<_>, Vec<_>) = specs
+            .into_iter()
+            .partition(|s| harness::glob_match(g, &s.name));
+        specs = keep;
+        skipped = drop;
+    }
+    let opts = RunOptions {
+        seed: a.seed,
+        family_alpha: a.alpha,
+        correction: if a.correction == "holm" {
+            Correction::Holm
+        } else {
+            Correction::Sidak
+        },
+        threads: a.threads,
+    };
+    let bar = ProgressBar::new(specs.len() as u64);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg}")
+            .context("progress bar template")?,
+    );
+    let names = files.iter().map(|f| f.display().to_string()).collect();
+    let mut report = harness::run(&specs, &opts, &BuiltIn, names, &mut |name| {
+        bar.inc(1);
+        bar.set_message(name.to_string());
+    });
+    bar.finish_and_clear();
+    for o in &report.outcomes {
+        println!("{}", text::line(o));
+    }
+    // checks excluded by --filter are reported as skipped
+    for s in skipped {
+        let mut o = Outcome::new(s.name, s.kind);
+        o.verdict = Verdict::Skipped;
+        o.message = "not matching --filter".into();
+        report.outcomes.push(o);
+    }
+    if let Some(p) = &a.json {
+        write_file(p, &json::to_json(&report))?;
+    }
+    if let Some(p) = &a.junit {
+        write_file(p, &junit::to_junit(&report))?;
+    }
+    if let Some(p) = &a.markdown {
+        write_file(p, &text::table_markdown(&report))?;
+    }
+    println!("{}", text::summary(&report));
+    Ok(if report.outcomes.iter().any(|o| o.is_failure()) {
+        1
+    } else {
+        0
+    })
 }

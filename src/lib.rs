@@ -8,10 +8,13 @@
 pub mod camera;
 pub mod film;
 pub mod geometry;
+pub mod harness;
 pub mod integrators;
 pub mod lights;
 pub mod math;
+pub mod media;
 pub mod render;
+pub mod report;
 pub mod scattering;
 pub mod scene;
 pub mod spectrum;

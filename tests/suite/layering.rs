@@ -4,15 +4,16 @@
 use crate::root;
 use std::path::Path;
 
-const LAYERS: [&[&str]; 8] = [
+const LAYERS: [&[&str]; 9] = [
     &["math", "stats"],
     &["spectrum"],
     &["geometry"],
-    &["scattering", "lights", "camera", "film"],
+    &["scattering", "media", "lights", "camera", "film"],
     &["scene"],
     &["integrators"],
     &["render"],
-    &["harness", "report"],
+    &["harness"],
+    &["report"],
 ];
 
 fn layer(module: &str) -> Option<usize> {

@@ -2,6 +2,8 @@
 
 mod cli;
 mod layering;
+mod manifests;
+mod negative;
 mod render;
 mod scene_errors;
 mod scene_parse;

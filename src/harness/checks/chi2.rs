@@ -1,0 +1,108 @@
+//! Chi-square tests of every sampling routine against the pdf it claims: directions binned on
+//! the sphere (strips of equal cos θ × equal φ), expected counts from numerically integrating
+//! the claimed pdf over each bin, low-count bins pooled; a sample where the pdf is zero fails.
+//! One Pearson test per routine, Šidák-combined into the check's p-value.
+
+use super::{combine, fmt_sig};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::outcome::Statistic;
+use crate::harness::registry::{self, DirectionSampler};
+use crate::harness::{Context, Measurement};
+use crate::math::rng::{mix64, SampleStream};
+use crate::stats::{chi2::chi2_gof, sphere::SphereBinning};
+
+/// Chi-square test of one sampler with `samples` draws.
+pub fn measure_sampler(
+    sampler: &dyn DirectionSampler,
+    samples: u64,
+    bins: [usize; 2],
+    seed: u64,
+) -> Measurement {
+    let binning = SphereBinning {
+        theta_bins: bins[0],
+        phi_bins: bins[1],
+    };
+    let mut rng = SampleStream::new(seed, 3, 0);
+    let mut drawn = Vec::with_capacity(samples as usize);
+    for _ in 0..samples {
+        let u = rng.next_2d();
+        let uc = rng.next_f64();
+        if let Some(w) = sampler.sample(u, uc) {
+            drawn.push(w.to_array());
+        }
+    }
+    let counts = binning.count(drawn.iter().copied());
+    // A sample where the claimed pdf is zero is a failure by itself, whatever the bins say.
+    let zero_pdf = drawn
+        .iter()
+        .filter(|w| {
+            let p = sampler.pdf(crate::math::Vec3::from_array(**w));
+            p.is_nan() || p <= 0.0
+        })
+        .count();
+    // 32×32 nodes per bin: pdfs with a hard edge (a light's silhouette) cut bins, and the
+    // midpoint rule's error there is O(1/32) of the bin's mass.
+    let mut expected: Vec<f64> = binning
+        .integrate(|w| sampler.pdf(crate::math::Vec3::from_array(w)), 32)
+        .iter()
+        .map(|m| m * samples as f64)
+        .collect();
+    // A bin holding samples (all with pdf > 0) whose quadrature missed a sliver of support gets
+    // a negligible expected count, so pooling merges it instead of reporting a zero-pdf hit.
+    for (e, &c) in expected.iter_mut().zip(&counts) {
+        if *e == 0.0 && c > 0 && zero_pdf == 0 {
+            *e = 1e-12;
+        }
+    }
+    match chi2_gof(&counts, &expected, 5.0) {
+        Ok(c) => Measurement {
+            estimate: Some(drawn.len() as f64 / samples as f64),
+            expected: Some(expected.iter().sum::<f64>() / samples as f64),
+            statistic: Some(Statistic::ChiSquare { chi2: c.chi2, dof: c.dof }),
+            p_value: Some(if zero_pdf > 0 { 0.0 } else { c.p_value }),
+            samples,
+            message: format!(
+                "χ² = {} with {} dof ({} bins pooled), {zero_pdf} samples where the claimed pdf is 0; estimate = fraction of draws that gave a sample, expected = ∫ pdf",
+                fmt_sig(c.chi2),
+                c.dof,
+                c.pooled_bins,
+            ),
+            ..Default::default()
+        },
+        Err(e) => Measurement { p_value: Some(0.0), samples, message: format!("chi-square could not be formed: {e}"), ..Default::default() },
+    }
+}
+
+/// Runs the chi-square check over every registered sampling routine.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let samples = spec.params.samples.unwrap_or(200_000);
+    let bins = spec.params.bins.unwrap_or([24, 48]);
+    let parts = registry::samplers()
+        .into_iter()
+        .enumerate()
+        .map(|(i, (name, make))| {
+            (
+                name,
+                measure_sampler(make().as_ref(), samples, bins, mix64(ctx.seed ^ i as u64)),
+            )
+        })
+        .collect();
+    Ok(combine(parts))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_registered_sampler_passes_alone() {
+        let mut bad = Vec::new();
+        for (i, (name, make)) in registry::samplers().into_iter().enumerate() {
+            let m = measure_sampler(make().as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64));
+            if m.p_value.unwrap_or(0.0) < 1e-4 {
+                bad.push(format!("{name}: {} p {:?}", m.message, m.p_value));
+            }
+        }
+        assert!(bad.is_empty(), "{}", bad.join("\n"));
+    }
+}

@@ -1,0 +1,115 @@
+//! Furnace checks. Enclosure form: inside a closed diffuse enclosure whose every surface emits
+//! E and reflects R, radiance is E/(1 − R) everywhere, and with at most D bounces it is
+//! E(1 − R^(D+1))/(1 − R) (the Neumann series of the rendering equation, Kajiya 1986, eq. 5,
+//! with a constant kernel). White-furnace form: a convex object of albedo R under a uniform
+//! environment of radiance L reflects exactly R·L (it sees only the environment).
+//! The expected value is derived from the scene itself, so the check consumes scenes.
+
+use super::{region_measurement, region_of, render_region, settings_for};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::{Context, Measurement};
+use crate::integrators::Strategy;
+use crate::lights::Light;
+use crate::scattering::Bsdf;
+use crate::scene::Scene;
+use crate::spectrum::Spectrum;
+
+fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
+    match s {
+        Spectrum::Constant(v) => Ok(*v),
+        _ => Err(format!(
+            "a furnace scene needs constant spectra; {what} is not constant"
+        )),
+    }
+}
+
+/// The closed-form radiance (Y) a furnace scene must show, with a description.
+pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String), String> {
+    let albedos: Vec<f64> = scene
+        .bsdfs
+        .iter()
+        .map(|b| match b {
+            Bsdf::Diffuse(l) => constant(&l.reflectance, "a reflectance"),
+        })
+        .collect::<Result<_, _>>()?;
+    let r = albedos
+        .first()
+        .copied()
+        .ok_or("a furnace scene needs at least one shape")?;
+    if albedos.iter().any(|a| *a != r) {
+        return Err(format!(
+            "every surface of a furnace scene must have the same albedo; found {albedos:?}"
+        ));
+    }
+    let env: Vec<f64> = scene
+        .lights
+        .iter()
+        .filter_map(|l| match l {
+            Light::Environment { radiance } => Some(constant(radiance, "the environment radiance")),
+            _ => None,
+        })
+        .collect::<Result<_, _>>()?;
+    if scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Point { .. }))
+    {
+        return Err("a furnace scene may not have point lights".into());
+    }
+    if let Some(&l_env) = env.first() {
+        if scene.lights.iter().any(|l| matches!(l, Light::Area { .. })) {
+            return Err(
+                "the white-furnace form takes an environment light and non-emitting objects only"
+                    .into(),
+            );
+        }
+        let expected = if max_depth == Some(0) { 0.0 } else { r * l_env };
+        return Ok((expected, format!("white furnace: convex object of albedo {r} under environment {l_env}: expected R·L")));
+    }
+    let emissions: Vec<f64> = scene
+        .shape_light
+        .iter()
+        .map(|l| match l.map(|i| &scene.lights[i as usize]) {
+            Some(Light::Area { radiance, .. }) => constant(radiance, "an emission"),
+            _ => Err("every surface of a furnace enclosure must emit".into()),
+        })
+        .collect::<Result<_, _>>()?;
+    let e = emissions[0];
+    if emissions.iter().any(|x| *x != e) {
+        return Err(format!(
+            "every surface of a furnace enclosure must emit the same radiance; found {emissions:?}"
+        ));
+    }
+    match max_depth {
+        Some(d) => {
+            // E Σ_{k=0}^{D} R^k, summed directly so R = 1 is exact too
+            let sum: f64 = (0..=d).map(|k| r.powi(k as i32)).sum();
+            Ok((
+                e * sum,
+                format!(
+                    "furnace enclosure E = {e}, R = {r}, D = {d}: expected E(1 − R^(D+1))/(1 − R)"
+                ),
+            ))
+        }
+        None if r < 1.0 => Ok((
+            e / (1.0 - r),
+            format!("furnace enclosure E = {e}, R = {r}: expected E/(1 − R)"),
+        )),
+        None => Err("R = 1 without a depth cap has no finite radiance".into()),
+    }
+}
+
+/// Runs a furnace check.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let scene = spec.scene.as_ref().ok_or("furnace needs a scene")?;
+    let max_depth = spec.render.max_depth.or(scene.render.max_depth);
+    let (expected, what) = expectation(scene, max_depth)?;
+    let s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
+    let r = render_region(ctx, scene, &s, region_of(spec, &s)?, None)?;
+    Ok(region_measurement(
+        &r,
+        expected,
+        spec.rel_tolerance,
+        format!("{what}; path tracer, {} spp", s.spp),
+    ))
+}

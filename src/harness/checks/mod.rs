@@ -1,0 +1,311 @@
+//! The check kinds, one file each, and the helpers scene-level kinds share: rendering a
+//! region of an image and turning it into a mean, a standard error and a stability verdict.
+
+pub mod chi2;
+pub mod energy;
+pub mod estimators;
+pub mod furnace;
+pub mod hg;
+pub mod lambert;
+pub mod radiance;
+pub mod reciprocity;
+pub mod scale;
+pub mod weights;
+
+use super::manifest::{CheckSpec, RenderOverrides};
+use super::{Context, Measurement};
+use crate::film::Film;
+use crate::integrators::{PathTracer, Strategy};
+use crate::render::RenderSettings;
+use crate::scene::Scene;
+use crate::stats::{stability, z_test};
+
+/// Runs one check.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    match spec.kind.as_str() {
+        "furnace" => furnace::run(spec, ctx),
+        "lambert" => lambert::run(spec, ctx),
+        "reciprocity" => reciprocity::run(spec, ctx),
+        "energy" => energy::run(spec, ctx),
+        "hg" => hg::run(spec, ctx),
+        "chi2" => chi2::run(spec, ctx),
+        "radiance_invariance" => radiance::run(spec, ctx),
+        "estimator_agreement" => estimators::run(spec, ctx),
+        "sample_weights" => weights::run(spec, ctx),
+        "scale_invariance" => scale::run(spec, ctx),
+        other => Err(format!("unknown check kind {other:?}")),
+    }
+}
+
+/// Statistics of the Y channel over a pixel region of a rendered image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionStats {
+    /// Mean of the pixel means (the box-filtered radiance averaged over the region; Y).
+    pub mean: f64,
+    /// Standard error used by the test: the larger of the within-pixel estimate and (for
+    /// homoscedastic regions of at least 16 pixels) the batch-means estimate over pixels,
+    /// each pixel mean being a batch of spp samples.
+    pub se: f64,
+    /// Standard error from the per-pixel sample variances, √(Σ s²ᵢ/nᵢ)/N.
+    pub se_within: f64,
+    /// Standard error from the spread of the pixel residuals, sd(r)/√N (0 when not used).
+    pub se_between: f64,
+    /// Pixels in the region.
+    pub pixels: usize,
+    /// Camera paths traced for the whole image.
+    pub samples: u64,
+    /// Whether the variance settled (stats::stability on the pixel residuals).
+    pub stable: bool,
+    /// The diagnosis with its numbers.
+    pub stability: String,
+}
+
+/// Image size, spp and region of a scene-level check.
+pub fn settings_for(
+    spec: &CheckSpec,
+    scene: &Scene,
+    ctx: &Context,
+    seed: u64,
+    max_depth: Option<u32>,
+    strategy: Strategy,
+) -> RenderSettings {
+    let ov: &RenderOverrides = &spec.render;
+    RenderSettings {
+        width: ov.width.unwrap_or(scene.render.width),
+        height: ov.height.unwrap_or(scene.render.height),
+        spp: ov.spp.unwrap_or(scene.render.spp),
+        seed,
+        threads: ctx.threads,
+        integrator: PathTracer {
+            max_depth,
+            rr_depth: if ov.roulette { Some(5) } else { None },
+            strategy,
+        },
+    }
+}
+
+/// The region [x0, y0, x1, y1) of a check, checked against the image size.
+pub fn region_of(spec: &CheckSpec, s: &RenderSettings) -> Result<[usize; 4], String> {
+    let r = spec.render.region.unwrap_or([0, 0, s.width, s.height]);
+    if r[2] > s.width || r[3] > s.height {
+        return Err(format!(
+            "region {r:?} does not fit the {}x{} image",
+            s.width, s.height
+        ));
+    }
+    Ok(r)
+}
+
+/// Renders with `settings` and measures the Y channel over `region`; `expected_px` are the
+/// closed-form pixel values (row-major within the region) when the image is not uniform.
+pub fn render_region(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    region: [usize; 4],
+    expected_px: Option<&[f64]>,
+) -> Result<RegionStats, String> {
+    let film = ctx.renderer.render(scene, settings)?;
+    Ok(region_stats(
+        &film,
+        region,
+        settings.spp,
+        ctx.alpha,
+        expected_px,
+    ))
+}
+
+/// Pixel means and variances of the mean (Y) over a region, row-major.
+pub fn region_pixels(film: &Film, region: [usize; 4]) -> (Vec<f64>, Vec<f64>) {
+    let means = film.means(1);
+    let vars = film.mean_variances(1);
+    let mut m = Vec::new();
+    let mut v = Vec::new();
+    for y in region[1]..region[3] {
+        for x in region[0]..region[2] {
+            m.push(means[y * film.width + x]);
+            v.push(vars[y * film.width + x]);
+        }
+    }
+    (m, v)
+}
+
+/// Region statistics of a film's Y channel.
+///
+/// Residuals rᵢ = mᵢ − eᵢ (eᵢ the closed form of pixel i, or the region mean for a uniform
+/// image) are what the stability diagnosis sees; when the pixel variances differ by more than
+/// 100× (emitters in view), the residuals are standardised by their own standard errors first,
+/// so that bright pixels do not pass for a heavy tail. A region whose pixels carry no Monte
+/// Carlo noise (variance below (1e-12·|m|)²) is reported as deterministic.
+pub fn region_stats(
+    film: &Film,
+    region: [usize; 4],
+    spp: u64,
+    alpha: f64,
+    expected_px: Option<&[f64]>,
+) -> RegionStats {
+    let (px, vars) = region_pixels(film, region);
+    let n = px.len() as f64;
+    let mean = px.iter().sum::<f64>() / n;
+    let se_within = vars.iter().sum::<f64>().sqrt() / n;
+    let scale = px.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let samples = (film.width * film.height) as u64 * spp;
+    if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
+        return RegionStats {
+            mean,
+            se: se_within,
+            se_within,
+            se_between: 0.0,
+            pixels: px.len(),
+            samples,
+            stable: true,
+            stability: "no Monte Carlo noise: every pixel is exact up to rounding".into(),
+        };
+    }
+    let resid: Vec<f64> = match expected_px {
+        Some(e) => px.iter().zip(e).map(|(m, e)| m - e).collect(),
+        None => px.iter().map(|m| m - mean).collect(),
+    };
+    let mut sorted: Vec<f64> = vars.iter().copied().filter(|v| *v > 0.0).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let hetero = median > 0.0 && sorted.last().copied().unwrap_or(0.0) > 100.0 * median;
+    let values: Vec<f64> = if hetero {
+        resid
+            .iter()
+            .zip(&vars)
+            .filter(|(_, v)| **v > 0.0)
+            .map(|(r, v)| r / v.sqrt())
+            .collect()
+    } else {
+        resid.clone()
+    };
+    let diag = stability::diagnose(&values, alpha);
+    let se_between = if !hetero && px.len() >= 16 {
+        let rm = resid.iter().sum::<f64>() / n;
+        (resid.iter().map(|r| (r - rm) * (r - rm)).sum::<f64>() / (n - 1.0) / n).sqrt()
+    } else {
+        0.0
+    };
+    RegionStats {
+        mean,
+        se: se_within.max(se_between),
+        se_within,
+        se_between,
+        pixels: px.len(),
+        samples,
+        stable: diag.stable,
+        stability: format!(
+            "{}{}",
+            if hetero {
+                "standardised residuals: "
+            } else {
+                ""
+            },
+            diag.reason
+        ),
+    }
+}
+
+/// Relative allowance for f64 rounding in the comparison of an estimate with its closed form
+/// (accumulation and quadrature of a zero-variance estimator differ from the closed form by
+/// ~1e-15 relative; 1e-12 is far above that and far below any physical effect).
+pub const ROUNDING: f64 = 1e-12;
+
+/// Two-sided z test of `estimate` ± `se` against `expected`, after allowing a stated relative
+/// model tolerance and the f64 rounding allowance [`ROUNDING`]:
+/// z = sign(est − exp)·max(0, |est − exp| − tol·|exp| − 1e-12·max(|exp|, |est|))/se.
+/// Returns (z, p).
+pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
+    let allowance = rel_tolerance * expected.abs() + ROUNDING * expected.abs().max(estimate.abs());
+    let excess = ((estimate - expected).abs() - allowance).max(0.0);
+    let t = z_test(excess, se, 0.0);
+    (t.z.copysign(estimate - expected), t.p)
+}
+
+/// A measurement from one region test against a closed form.
+pub fn region_measurement(
+    r: &RegionStats,
+    expected: f64,
+    rel_tolerance: f64,
+    message: String,
+) -> Measurement {
+    let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
+    Measurement {
+        estimate: Some(r.mean),
+        std_error: Some(r.se),
+        expected: Some(expected),
+        statistic: Some(super::outcome::Statistic::Z { z }),
+        p_value: Some(p),
+        deterministic_pass: None,
+        unstable: (!r.stable).then(|| format!("UNSTABLE: {}", r.stability)),
+        samples: r.samples,
+        message: format!(
+            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}",
+            r.pixels, r.se_within, r.se_between, r.stability
+        ),
+    }
+}
+
+/// Combines several region tests (one per variant) into one measurement: p is the Šidák
+/// combination of the variants' p-values; the reported numbers are the worst variant's.
+pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
+    let ps: Vec<f64> = parts.iter().filter_map(|(_, m)| m.p_value).collect();
+    let worst = parts
+        .iter()
+        .enumerate()
+        .min_by(|a, b| {
+            a.1 .1
+                .p_value
+                .unwrap_or(1.0)
+                .total_cmp(&b.1 .1.p_value.unwrap_or(1.0))
+        })
+        .map(|(i, _)| i)
+        .unwrap_or(0);
+    let samples = parts.iter().map(|(_, m)| m.samples).sum();
+    let unstable: Vec<String> = parts
+        .iter()
+        .filter_map(|(n, m)| m.unstable.as_ref().map(|u| format!("{n}: {u}")))
+        .collect();
+    let summary: Vec<String> = parts
+        .iter()
+        .map(|(n, m)| {
+            format!(
+                "{n}: {} ± {} vs {} (p {})",
+                fmt_sig(m.estimate.unwrap_or(f64::NAN)),
+                fmt_sig(m.std_error.unwrap_or(f64::NAN)),
+                fmt_sig(m.expected.unwrap_or(f64::NAN)),
+                fmt_sig(m.p_value.unwrap_or(f64::NAN))
+            )
+        })
+        .collect();
+    let det = parts
+        .iter()
+        .filter_map(|(_, m)| m.deterministic_pass)
+        .reduce(|a, b| a && b);
+    let mut m = parts.get(worst).map(|p| p.1.clone()).unwrap_or_default();
+    m.p_value = (!ps.is_empty()).then(|| crate::stats::multiple::sidak_combine(&ps));
+    m.samples = samples;
+    m.deterministic_pass = det;
+    m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
+    m.message = format!(
+        "{} variants, p Šidák-combined, worst shown; {}",
+        parts.len(),
+        summary.join("; ")
+    );
+    m
+}
+
+/// A number with 4 significant digits.
+pub fn fmt_sig(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let a = x.abs();
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}

@@ -1,0 +1,98 @@
+//! Reciprocity: f(wo, wi) = f(wi, wo) for every BSDF (Helmholtz reciprocity; Veach 1997,
+//! §6.2, eq. 6.3), over random direction pairs on the whole sphere including grazing angles.
+//! Deterministic: passes when max |f(a,b) − f(b,a)| ≤ abs_tol + rel_tol·max|f|.
+
+use super::fmt_sig;
+use crate::harness::manifest::CheckSpec;
+use crate::harness::outcome::Statistic;
+use crate::harness::{registry, Context, Measurement};
+use crate::math::{rng::SampleStream, Vec3, PI};
+use crate::scattering::Bxdf;
+
+/// A random direction with |cos θ| ≥ cos(θmax), either hemisphere; every 8th one exactly at θmax.
+pub fn direction(rng: &mut SampleStream, theta_max_deg: f64, i: u64) -> Vec3 {
+    let cmin = theta_max_deg.to_radians().cos();
+    let z = if i % 8 == 7 {
+        cmin
+    } else {
+        cmin + (1.0 - cmin) * rng.next_f64()
+    };
+    let z = if rng.next_f64() < 0.5 { z } else { -z };
+    let phi = 2.0 * PI * rng.next_f64();
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    Vec3::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Measures reciprocity of each named model over `pairs` random pairs.
+pub fn measure(
+    models: &[(String, &dyn Bxdf)],
+    pairs: u64,
+    theta_max_deg: f64,
+    abs_tol: f64,
+    rel_tol: f64,
+    seed: u64,
+) -> Measurement {
+    let wl = registry::check_wavelengths();
+    let mut worst = (0.0f64, 0.0f64, String::new());
+    let mut pass = true;
+    for (name, b) in models {
+        let mut rng = SampleStream::new(seed, 0, 0);
+        for i in 0..pairs {
+            let a = direction(&mut rng, theta_max_deg, i);
+            let c = direction(&mut rng, theta_max_deg, i + 3);
+            let f1 = b.eval(a, c, &wl);
+            let f2 = b.eval(c, a, &wl);
+            for k in 0..4 {
+                let err = (f1.0[k] - f2.0[k]).abs();
+                let scale = f1.0[k].abs().max(f2.0[k].abs());
+                if err.is_nan() || err > abs_tol + rel_tol * scale {
+                    pass = false;
+                }
+                if err > worst.0 || !err.is_finite() {
+                    worst = (
+                        err,
+                        scale,
+                        format!(
+                            "{name}: f(wo,wi) = {} vs f(wi,wo) = {} at wo {:?}, wi {:?}",
+                            fmt_sig(f1.0[k]),
+                            fmt_sig(f2.0[k]),
+                            a.to_array(),
+                            c.to_array()
+                        ),
+                    );
+                }
+            }
+        }
+    }
+    Measurement {
+        estimate: Some(worst.0),
+        expected: Some(0.0),
+        statistic: Some(Statistic::Tolerance { max_error: worst.0, abs_tol, rel_tol }),
+        deterministic_pass: Some(pass),
+        samples: pairs * models.len() as u64,
+        message: format!(
+            "{} models x {pairs} pairs, θ up to {theta_max_deg}°, both hemispheres; largest difference {}",
+            models.len(),
+            if worst.2.is_empty() { "0".to_string() } else { worst.2 }
+        ),
+        ..Default::default()
+    }
+}
+
+/// Runs the reciprocity check over every registered BSDF.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let models = registry::bsdfs();
+    let refs: Vec<(String, &dyn Bxdf)> = models
+        .iter()
+        .map(|(n, b)| (n.clone(), b as &dyn Bxdf))
+        .collect();
+    let p = &spec.params;
+    Ok(measure(
+        &refs,
+        p.samples.unwrap_or(20_000),
+        p.theta_max_deg.unwrap_or(89.99),
+        p.abs_tol.unwrap_or(0.0),
+        p.rel_tol.unwrap_or(1e-12),
+        ctx.seed,
+    ))
+}

@@ -1,0 +1,295 @@
+//! The validation harness: manifests of checks, the check kinds, and the runner that applies
+//! the family-wise error correction and turns measurements into verdicts.
+//!
+//! Scene-level checks consume images through the [`Renderer`] trait (per-pixel means and
+//! variances), so the same checks can gate any renderer; BSDF-level checks consume the
+//! `Bxdf`/`Phase` interfaces.
+
+pub mod checks;
+pub mod manifest;
+pub mod outcome;
+pub mod registry;
+
+use crate::film::Film;
+use crate::render::{render, RenderSettings};
+use crate::scene::Scene;
+use crate::stats::{multiple, power};
+use manifest::CheckSpec;
+use outcome::{Outcome, RunReport, Statistic, Verdict};
+use std::time::Instant;
+
+/// Something that turns a scene into an image with per-pixel variance.
+pub trait Renderer: Sync {
+    /// Name shown in reports.
+    fn name(&self) -> String;
+    /// Renders `scene` with `settings`.
+    fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, String>;
+}
+
+/// furnace's own path tracer.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BuiltIn;
+
+impl Renderer for BuiltIn {
+    fn name(&self) -> String {
+        format!("furnace {}", env!("CARGO_PKG_VERSION"))
+    }
+    fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, String> {
+        render(scene, settings, &|_| {}).map_err(|e| e.to_string())
+    }
+}
+
+/// Family-wise error correction across the stochastic tests of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Correction {
+    /// Šidák: every test at 1 − (1 − α)^(1/m).
+    Sidak,
+    /// Holm's step-down procedure.
+    Holm,
+}
+
+/// How to run a set of checks.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Run seed; a check without its own seed derives one from this and its name.
+    pub seed: u64,
+    /// Family-wise false-alarm rate.
+    pub family_alpha: f64,
+    /// Correction method.
+    pub correction: Correction,
+    /// Render threads (0 = all cores).
+    pub threads: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            seed: 1,
+            family_alpha: 0.01,
+            correction: Correction::Sidak,
+            threads: 0,
+        }
+    }
+}
+
+/// What a check kind measured, before the runner assigns a verdict.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Measurement {
+    /// Measured value.
+    pub estimate: Option<f64>,
+    /// Its standard error.
+    pub std_error: Option<f64>,
+    /// Expected value.
+    pub expected: Option<f64>,
+    /// Test statistic.
+    pub statistic: Option<Statistic>,
+    /// p-value of the stochastic part (None for purely deterministic checks).
+    pub p_value: Option<f64>,
+    /// Verdict of the deterministic part (None for purely stochastic checks).
+    pub deterministic_pass: Option<bool>,
+    /// Evidence that the variance did not settle (makes the verdict UNSTABLE).
+    pub unstable: Option<String>,
+    /// Samples used.
+    pub samples: u64,
+    /// Explanation: estimator, what was compared, sub-results.
+    pub message: String,
+}
+
+/// Context a check runs in.
+pub struct Context<'a> {
+    /// The renderer under test.
+    pub renderer: &'a dyn Renderer,
+    /// The check's seed.
+    pub seed: u64,
+    /// Render threads.
+    pub threads: usize,
+    /// Per-test significance (Šidák level), for power and diagnostics.
+    pub alpha: f64,
+}
+
+/// True for kinds whose verdict rests on a p-value (they count towards the correction).
+pub fn is_stochastic(kind: &str) -> bool {
+    !matches!(kind, "reciprocity")
+}
+
+/// Seed of a check: its own, or a hash of the run seed and its name.
+pub fn check_seed(spec: &CheckSpec, run_seed: u64) -> u64 {
+    spec.seed.unwrap_or_else(|| {
+        let h = spec.name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+        });
+        crate::math::rng::mix64(h ^ crate::math::rng::mix64(run_seed))
+    })
+}
+
+/// Simple glob: `*` matches any run of characters, `?` one character.
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
+    while ni < n.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
+            pi += 1;
+            ni += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ni;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ni = mark;
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|&c| c == '*')
+}
+
+/// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
+/// UNSTABLE if the variance did not settle, FAIL if the deterministic part fails or p ≤ α.
+pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
+    if ms.unstable.is_some() {
+        return Verdict::Unstable;
+    }
+    let det = ms.deterministic_pass.unwrap_or(true);
+    let stoch = ms.p_value.is_none_or(|p| p > alpha);
+    if det && stoch {
+        Verdict::Pass
+    } else {
+        Verdict::Fail
+    }
+}
+
+/// Runs `specs` against `renderer`; `progress` sees each finished outcome (before the
+/// correction when Holm is used, so its verdict may still change).
+pub fn run(
+    specs: &[CheckSpec],
+    opts: &RunOptions,
+    renderer: &dyn Renderer,
+    manifests: Vec<String>,
+    progress: &mut dyn FnMut(&str),
+) -> RunReport {
+    let start = Instant::now();
+    let m = specs
+        .iter()
+        .filter(|s| is_stochastic(&s.kind))
+        .count()
+        .max(1);
+    let alpha = multiple::sidak_alpha(opts.family_alpha, m);
+    let mut outcomes = Vec::new();
+    let mut measured = Vec::new();
+    for spec in specs {
+        progress(&spec.name);
+        let ctx = Context {
+            renderer,
+            seed: check_seed(spec, opts.seed),
+            threads: opts.threads,
+            alpha,
+        };
+        let t0 = Instant::now();
+        let result = checks::run(spec, &ctx);
+        let seconds = t0.elapsed().as_secs_f64();
+        let mut o = Outcome::new(&spec.name, &spec.kind);
+        o.seconds = seconds;
+        o.rel_tolerance = spec.rel_tolerance;
+        match result {
+            Err(e) => {
+                o.verdict = Verdict::Error;
+                o.message = format!("{e} ({})", spec.origin);
+                measured.push(None);
+            }
+            Ok(ms) => {
+                o.estimate = ms.estimate;
+                o.std_error = ms.std_error;
+                o.expected = ms.expected;
+                o.statistic = ms.statistic.clone().unwrap_or(Statistic::None);
+                o.p_value = ms.p_value;
+                o.samples = ms.samples;
+                o.message = ms.message.clone();
+                if let (Some(se), Some(exp)) = (ms.std_error, ms.expected) {
+                    if exp != 0.0 && ms.p_value.is_some() {
+                        o.detection_power =
+                            Some(power::min_detectable_bias(se, alpha, 0.95) / exp.abs());
+                    }
+                }
+                let finite = [ms.estimate, ms.std_error, ms.p_value]
+                    .iter()
+                    .flatten()
+                    .all(|v| v.is_finite());
+                if !finite {
+                    o.verdict = Verdict::Error;
+                    o.message = format!(
+                        "non-finite estimate, standard error or p-value; {}",
+                        o.message
+                    );
+                    measured.push(None);
+                } else {
+                    measured.push(Some(ms));
+                }
+            }
+        }
+        outcomes.push(o);
+    }
+    // Verdicts: the deterministic part, then the stochastic part under the correction.
+    let p_values: Vec<(usize, f64)> = measured
+        .iter()
+        .enumerate()
+        .filter_map(|(i, ms)| ms.as_ref().and_then(|m| m.p_value.map(|p| (i, p))))
+        .collect();
+    let holm = match opts.correction {
+        Correction::Holm => Some(multiple::holm(
+            &p_values.iter().map(|x| x.1).collect::<Vec<_>>(),
+            opts.family_alpha,
+        )),
+        Correction::Sidak => None,
+    };
+    for (i, ms) in measured.iter().enumerate() {
+        let Some(ms) = ms else { continue };
+        let o = &mut outcomes[i];
+        let mut pass = ms.deterministic_pass.unwrap_or(true);
+        if let Some(p) = ms.p_value {
+            let k = p_values.iter().position(|x| x.0 == i).unwrap_or(0);
+            let (rejected, threshold) = match &holm {
+                Some(h) => h.get(k).copied().unwrap_or((p <= alpha, alpha)),
+                None => (p <= alpha, alpha),
+            };
+            o.alpha = Some(threshold);
+            pass &= !rejected;
+        }
+        o.verdict = if ms.unstable.is_some() {
+            o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
+            Verdict::Unstable
+        } else if pass {
+            Verdict::Pass
+        } else {
+            Verdict::Fail
+        };
+    }
+    RunReport {
+        furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+        manifests,
+        seed: opts.seed,
+        family_alpha: opts.family_alpha,
+        correction: match opts.correction {
+            Correction::Sidak => "sidak".into(),
+            Correction::Holm => "holm".into(),
+        },
+        stochastic_tests: p_values.len(),
+        outcomes,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn glob() {
+        assert!(glob_match("furnace/*", "furnace/sphere[albedo=0.5]"));
+        assert!(glob_match("*sphere*", "furnace/sphere"));
+        assert!(!glob_match("lambert/*", "furnace/sphere"));
+        assert!(glob_match("f?rnace", "furnace"));
+        assert!(glob_match("*", ""));
+    }
+}

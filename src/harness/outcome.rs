@@ -1,0 +1,134 @@
+//! The result of one check: its verdict and the numbers behind it.
+
+use serde::Serialize;
+
+/// What a check concluded.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "UPPERCASE")]
+pub enum Verdict {
+    /// The measurement agrees with the expectation at the stated significance/tolerance.
+    Pass,
+    /// The measurement disagrees.
+    Fail,
+    /// The estimator's variance did not settle (heavy tails): the standard error is not
+    /// trustworthy, so no pass/fail verdict is given; counts as a failure for exit codes.
+    Unstable,
+    /// The check could not run (invalid scene, NaN/Inf in an estimate, ...).
+    Error,
+    /// Not run (filtered out or not applicable).
+    Skipped,
+}
+
+/// The statistic a verdict rests on.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "type", rename_all = "snake_case")]
+pub enum Statistic {
+    /// Two-sided z test: (estimate − expected)/standard error.
+    Z {
+        /// The z score.
+        z: f64,
+    },
+    /// Pearson chi-square goodness of fit.
+    ChiSquare {
+        /// The χ² value.
+        chi2: f64,
+        /// Degrees of freedom after pooling.
+        dof: u64,
+    },
+    /// Deterministic comparison with explicit tolerances: passes when
+    /// max_error ≤ abs_tol + rel_tol·|expected|.
+    Tolerance {
+        /// The largest error found.
+        max_error: f64,
+        /// Absolute tolerance.
+        abs_tol: f64,
+        /// Relative tolerance.
+        rel_tol: f64,
+    },
+    /// No statistic (errors, skipped checks).
+    None,
+}
+
+/// One check's outcome, with every number a reader needs to judge it.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Outcome {
+    /// Unique check name, e.g. `furnace/sphere[albedo=0.9]`.
+    pub name: String,
+    /// Check kind, e.g. `furnace`.
+    pub kind: String,
+    /// Verdict.
+    pub verdict: Verdict,
+    /// The measured value (unit depends on the kind; stated in `message`).
+    pub estimate: Option<f64>,
+    /// Standard error of `estimate`.
+    pub std_error: Option<f64>,
+    /// The expected value.
+    pub expected: Option<f64>,
+    /// The test statistic.
+    pub statistic: Statistic,
+    /// Two-sided p-value of the test (stochastic checks).
+    pub p_value: Option<f64>,
+    /// The per-check significance level after the family-wise correction.
+    pub alpha: Option<f64>,
+    /// Relative model tolerance added to the acceptance rule (stated per check).
+    pub rel_tolerance: f64,
+    /// Smallest relative bias detected with 95 % probability at this budget and alpha.
+    pub detection_power: Option<f64>,
+    /// Samples (paths, BSDF samples, quadrature points) used.
+    pub samples: u64,
+    /// Wall time, seconds.
+    pub seconds: f64,
+    /// Human-readable explanation: estimator, what was compared, evidence for UNSTABLE/ERROR.
+    pub message: String,
+}
+
+impl Outcome {
+    /// An outcome with no numbers yet.
+    pub fn new(name: impl Into<String>, kind: impl Into<String>) -> Self {
+        Outcome {
+            name: name.into(),
+            kind: kind.into(),
+            verdict: Verdict::Error,
+            estimate: None,
+            std_error: None,
+            expected: None,
+            statistic: Statistic::None,
+            p_value: None,
+            alpha: None,
+            rel_tolerance: 0.0,
+            detection_power: None,
+            samples: 0,
+            seconds: 0.0,
+            message: String::new(),
+        }
+    }
+
+    /// True for verdicts that make a run fail (FAIL, UNSTABLE, ERROR).
+    pub fn is_failure(&self) -> bool {
+        matches!(
+            self.verdict,
+            Verdict::Fail | Verdict::Unstable | Verdict::Error
+        )
+    }
+}
+
+/// A whole run: what was run, with which settings, and every outcome.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct RunReport {
+    /// furnace version.
+    pub furnace_version: String,
+    /// Manifest files run.
+    pub manifests: Vec<String>,
+    /// Run seed (each check's seed derives from it unless the check sets one).
+    pub seed: u64,
+    /// Family-wise false-alarm rate the corrections hold.
+    pub family_alpha: f64,
+    /// Correction method, "sidak" or "holm".
+    pub correction: String,
+    /// Number of stochastic tests the correction spans.
+    pub stochastic_tests: usize,
+    /// Outcomes in run order.
+    pub outcomes: Vec<Outcome>,
+    /// Total wall time, seconds.
+    pub seconds: f64,
+}

@@ -1,0 +1,35 @@
+//! `cargo test --release` runs the default manifests, so CI gates from either side.
+
+use crate::root;
+use furnace::harness::{self, manifest, BuiltIn, RunOptions};
+use furnace::report::text;
+
+#[test]
+fn default_manifests_pass() {
+    let files = manifest::manifests_in(&root("tests/manifests")).unwrap();
+    assert!(files.len() >= 4);
+    let mut specs = Vec::new();
+    for f in &files {
+        specs.extend(manifest::load(f).unwrap_or_else(|e| panic!("{e}")));
+    }
+    let kinds: std::collections::BTreeSet<&str> = specs.iter().map(|s| s.kind.as_str()).collect();
+    assert_eq!(
+        kinds.len(),
+        manifest::KINDS.len(),
+        "every kind is covered: {kinds:?}"
+    );
+    let report = harness::run(
+        &specs,
+        &RunOptions::default(),
+        &BuiltIn,
+        vec![],
+        &mut |_| {},
+    );
+    let lines: Vec<String> = report.outcomes.iter().map(text::line).collect();
+    assert!(
+        report.outcomes.iter().all(|o| !o.is_failure()),
+        "{}\n{}",
+        lines.join("\n"),
+        text::summary(&report)
+    );
+}

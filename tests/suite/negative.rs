@@ -1,0 +1,430 @@
+//! Negative controls: for every check kind, a deliberately wrong implementation that the
+//! check must reject. The bugs are the classic ones (off-by-one depth, missing cosine,
+//! missing 1/π, non-reciprocal BRDF, wrong pdf, sign error in HG, inverse-square radiance,
+//! area pdf used as solid-angle pdf, fixed absolute ray epsilon).
+
+use crate::root;
+use furnace::film::Film;
+use furnace::geometry::{ray, Ray};
+use furnace::harness::checks::{chi2, energy, hg, reciprocity, weights};
+use furnace::harness::manifest::{self, CheckSpec};
+use furnace::harness::outcome::Verdict;
+use furnace::harness::registry::DirectionSampler;
+use furnace::harness::{self, judge, BuiltIn, Renderer, RunOptions};
+use furnace::integrators::Strategy;
+use furnace::lights::{area_radiance, Light};
+use furnace::math::frame::Frame;
+use furnace::math::rng::SampleStream;
+use furnace::math::{warp, Vec3, INV_PI, PI};
+use furnace::media::{HenyeyGreenstein, Phase, PhaseSample};
+use furnace::render::RenderSettings;
+use furnace::scattering::{BsdfSample, Bxdf};
+use furnace::scene::Scene;
+use furnace::spectrum::{cie, SampledSpectrum, Spectrum, Wavelengths, N_WAVELENGTHS};
+
+/// The Šidák per-test level of the default suite is about 1e-4; the controls must fail at it.
+const ALPHA: f64 = 1e-4;
+
+fn specs(manifest_file: &str, name: &str) -> Vec<CheckSpec> {
+    let all = manifest::load(&root(manifest_file)).unwrap();
+    let v: Vec<CheckSpec> = all
+        .into_iter()
+        .filter(|s| harness::glob_match(name, &s.name))
+        .collect();
+    assert!(!v.is_empty(), "no check matches {name}");
+    v
+}
+
+/// Runs the named checks with `renderer`; returns their verdicts.
+fn verdicts(
+    manifest_file: &str,
+    name: &str,
+    renderer: &dyn Renderer,
+) -> Vec<(String, Verdict, String)> {
+    let s = specs(manifest_file, name);
+    let report = harness::run(&s, &RunOptions::default(), renderer, vec![], &mut |_| {});
+    report
+        .outcomes
+        .into_iter()
+        .map(|o| (o.name, o.verdict, o.message))
+        .collect()
+}
+
+fn assert_all(manifest_file: &str, name: &str, renderer: &dyn Renderer, want: Verdict) {
+    for (n, v, m) in verdicts(manifest_file, name, renderer) {
+        assert_eq!(v, want, "{n}: {m}");
+    }
+}
+
+/// The check must reject the renderer: FAIL, or UNSTABLE when the bug also breaks the variance
+/// diagnosis (a bias that varies across pixels looks like structure in the residuals); both
+/// make `furnace check` exit 1.
+fn assert_rejected(manifest_file: &str, name: &str, renderer: &dyn Renderer) {
+    for (n, v, m) in verdicts(manifest_file, name, renderer) {
+        assert!(
+            matches!(v, Verdict::Fail | Verdict::Unstable),
+            "{n} was not rejected ({v:?}): {m}"
+        );
+    }
+}
+
+// ---------------------------------------------------------------- scene-level renderers
+
+/// Off-by-one depth: renders one bounce fewer than asked.
+struct OffByOneDepth;
+impl Renderer for OffByOneDepth {
+    fn name(&self) -> String {
+        "off-by-one depth".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let mut s = s.clone();
+        s.integrator.max_depth = s.integrator.max_depth.map(|d| d.saturating_sub(1));
+        BuiltIn.render(scene, &s)
+    }
+}
+
+/// Radiance that falls off with the square of the camera's distance to its look-at point.
+struct InverseSquareCamera;
+impl Renderer for InverseSquareCamera {
+    fn name(&self) -> String {
+        "inverse-square camera".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let d2 = (scene.camera.position - scene.camera.look_at).length_squared();
+        let mut scene = scene.clone();
+        for l in &mut scene.lights {
+            if let Light::Area {
+                radiance: Spectrum::Blackbody { scale, .. },
+                ..
+            } = l
+            {
+                *scale /= d2;
+            }
+        }
+        BuiltIn.render(&scene, s)
+    }
+}
+
+#[derive(Clone, Copy, PartialEq)]
+enum DirectBug {
+    MissingCosine,
+    AreaPdfAsSolidAngle,
+    FixedEpsilon,
+}
+
+/// A small direct-lighting tracer (emission + one light sample) with one injected bug; for
+/// strategies it does not implement it defers to the built-in renderer.
+struct Direct(DirectBug);
+
+impl Renderer for Direct {
+    fn name(&self) -> String {
+        "buggy direct".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        if self.0 == DirectBug::AreaPdfAsSolidAngle && s.integrator.strategy != Strategy::LightOnly
+        {
+            return BuiltIn.render(scene, s);
+        }
+        let camera = scene.camera.build(s.width, s.height)?;
+        let shapes = scene.aggregate.shapes();
+        let cmf = cie::tables();
+        let mut film = Film::new(s.width, s.height);
+        for y in 0..s.height {
+            for x in 0..s.width {
+                let px = &mut film.pixels[y * s.width + x];
+                for k in 0..s.spp {
+                    let mut rng = SampleStream::new(s.seed, (y * s.width + x) as u64, k);
+                    let wl = Wavelengths::sample_visible(rng.next_f64());
+                    let [jx, jy] = rng.next_2d();
+                    let r = camera.ray(x as f64 + jx, y as f64 + jy, s.width, s.height);
+                    let l = self.radiance(scene, shapes, r, &wl, &mut rng);
+                    let mut xyz = [0.0; 3];
+                    for i in 0..N_WAVELENGTHS {
+                        let c = cmf.cmf(wl.lambda[i]);
+                        for j in 0..3 {
+                            xyz[j] +=
+                                l.0[i] / wl.pdf[i] * c[j] / cmf.y_integral() / N_WAVELENGTHS as f64;
+                        }
+                    }
+                    px.add_xyz(xyz);
+                }
+            }
+        }
+        Ok(film)
+    }
+}
+
+impl Direct {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        shapes: &[furnace::geometry::Shape],
+        r: Ray,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+    ) -> SampledSpectrum {
+        let Some(hit) = scene.aggregate.intersect(&r, f64::INFINITY) else {
+            return scene
+                .lights
+                .iter()
+                .fold(SampledSpectrum::ZERO, |a, l| match l {
+                    Light::Environment { radiance } => a + radiance.sample(wl),
+                    _ => a,
+                });
+        };
+        let mut l = SampledSpectrum::ZERO;
+        if let Some(Light::Area {
+            radiance,
+            two_sided,
+            ..
+        }) = scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize])
+        {
+            l += area_radiance(radiance, *two_sided, hit.point.n, -r.d, wl);
+        }
+        let mut sp = hit.point;
+        if self.0 == DirectBug::FixedEpsilon {
+            // the classic bug: a fixed 1e-3 offset along the normal, whatever the scene scale
+            let n = if sp.n.dot(r.d) < 0.0 { sp.n } else { -sp.n };
+            sp.p += n * 1e-3;
+            sp.p_error = Vec3::ZERO;
+        }
+        let frame = Frame::from_normal(hit.point.n);
+        let wo = frame.to_local(-r.d);
+        let bsdf = &scene.bsdfs[hit.shape as usize];
+        let n_lights = scene.lights.len();
+        let li = ((rng.next_f64() * n_lights as f64) as usize).min(n_lights - 1);
+        let (u_sel, u) = (rng.next_f64(), rng.next_2d());
+        let Some(ls) = scene.lights[li].sample(sp.p, u_sel, u, shapes, wl) else {
+            return l;
+        };
+        let wi = frame.to_local(ls.wi);
+        let f = bsdf.eval(wo, wi, wl);
+        let visible = match &ls.point {
+            Some(t) => {
+                let (sr, tmax) = ray::spawn_to(&sp, t);
+                !scene.aggregate.occluded(&sr, tmax)
+            }
+            None => !scene
+                .aggregate
+                .occluded(&ray::spawn(&sp, ls.wi), f64::INFINITY),
+        };
+        if !visible {
+            return l;
+        }
+        let cos = if self.0 == DirectBug::MissingCosine {
+            1.0
+        } else {
+            wi.z.abs()
+        };
+        let mut pdf = ls.pdf;
+        if self.0 == DirectBug::AreaPdfAsSolidAngle {
+            if let (Light::Area { shape, .. }, false) = (&scene.lights[li], ls.delta) {
+                pdf = 1.0 / shapes[*shape as usize].area();
+            }
+        }
+        l + f * ls.radiance * (cos * n_lights as f64 / pdf)
+    }
+}
+
+#[test]
+fn the_controls_render_correctly_when_unbroken() {
+    // Guard against vacuous controls: the built-in renderer passes the same checks.
+    assert_all(
+        "tests/manifests/furnace.toml",
+        "furnace/sphere-depth3*",
+        &BuiltIn,
+        Verdict::Pass,
+    );
+    assert_all(
+        "tests/manifests/lambert.toml",
+        "lambert/point-60deg*",
+        &BuiltIn,
+        Verdict::Pass,
+    );
+}
+
+#[test]
+fn furnace_rejects_off_by_one_depth() {
+    assert_rejected(
+        "tests/manifests/furnace.toml",
+        "furnace/sphere-depth3*",
+        &OffByOneDepth,
+    );
+}
+
+#[test]
+fn lambert_rejects_a_missing_cosine() {
+    assert_rejected(
+        "tests/manifests/lambert.toml",
+        "lambert/point-60deg*",
+        &Direct(DirectBug::MissingCosine),
+    );
+}
+
+#[test]
+fn radiance_invariance_rejects_inverse_square_falloff() {
+    assert_rejected(
+        "tests/manifests/invariance.toml",
+        "radiance/*",
+        &InverseSquareCamera,
+    );
+}
+
+#[test]
+fn estimator_agreement_rejects_an_area_pdf_used_as_solid_angle_pdf() {
+    assert_rejected(
+        "tests/manifests/invariance.toml",
+        "estimators/*",
+        &Direct(DirectBug::AreaPdfAsSolidAngle),
+    );
+}
+
+#[test]
+fn scale_invariance_rejects_a_fixed_ray_epsilon() {
+    assert_rejected(
+        "tests/manifests/invariance.toml",
+        "scale/lambert-area",
+        &Direct(DirectBug::FixedEpsilon),
+    );
+}
+
+// ---------------------------------------------------------------- model-level impostors
+
+/// Lambert whose eval forgets the 1/π (albedo πR).
+struct LambertNoInvPi(f64);
+impl Bxdf for LambertNoInvPi {
+    fn eval(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
+        if wo.z * wi.z > 0.0 {
+            SampledSpectrum::splat(self.0)
+        } else {
+            SampledSpectrum::ZERO
+        }
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], _uc: f64, _wl: &Wavelengths) -> Option<BsdfSample> {
+        let mut wi = warp::cosine_hemisphere(u);
+        wi.z = wi.z.copysign(wo.z);
+        // weight consistent with its own eval: f cos / pdf = R cos / (cos/π) = πR
+        Some(BsdfSample {
+            wi,
+            weight: SampledSpectrum::splat(self.0 * PI),
+            pdf: wi.z.abs() * INV_PI,
+            delta: false,
+        })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> f64 {
+        if wo.z * wi.z > 0.0 {
+            wi.z.abs() * INV_PI
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Lambert whose eval forgets the 1/π but whose sampling weight is the correct R.
+struct LambertInconsistentWeight(f64);
+impl Bxdf for LambertInconsistentWeight {
+    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        LambertNoInvPi(self.0).eval(wo, wi, wl)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        LambertNoInvPi(self.0)
+            .sample(wo, u, uc, wl)
+            .map(|s| BsdfSample {
+                weight: SampledSpectrum::splat(self.0),
+                ..s
+            })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
+        LambertNoInvPi(self.0).pdf(wo, wi, wl)
+    }
+}
+
+/// A BRDF that prefers light arriving from the zenith: f = R/π (0.5 + cos θi), not symmetric.
+struct NonReciprocal;
+impl Bxdf for NonReciprocal {
+    fn eval(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
+        if wo.z * wi.z > 0.0 {
+            SampledSpectrum::splat(0.5 * INV_PI * (0.5 + wi.z.abs()))
+        } else {
+            SampledSpectrum::ZERO
+        }
+    }
+    fn sample(&self, _wo: Vec3, _u: [f64; 2], _uc: f64, _wl: &Wavelengths) -> Option<BsdfSample> {
+        None
+    }
+    fn pdf(&self, _wo: Vec3, _wi: Vec3, _wl: &Wavelengths) -> f64 {
+        0.0
+    }
+}
+
+/// HG with the sign of g flipped in the denominator: mean cosine −g.
+struct HgSignError(f64);
+impl Phase for HgSignError {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        HenyeyGreenstein { g: -self.0 }.eval(wo, wi)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        HenyeyGreenstein { g: self.0 }.sample(wo, u)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
+/// Claims a cosine-weighted pdf but draws uniformly over the hemisphere.
+struct CosineClaimUniformDraw;
+impl DirectionSampler for CosineClaimUniformDraw {
+    fn sample(&self, u: [f64; 2], _uc: f64) -> Option<Vec3> {
+        let w = warp::uniform_sphere(u);
+        Some(Vec3::new(w.x, w.y, w.z.abs()))
+    }
+    fn pdf(&self, w: Vec3) -> f64 {
+        warp::cosine_hemisphere_pdf(w)
+    }
+}
+
+#[test]
+fn reciprocity_rejects_a_non_reciprocal_brdf() {
+    let m = reciprocity::measure(
+        &[("non-reciprocal".into(), &NonReciprocal as &dyn Bxdf)],
+        2000,
+        89.99,
+        0.0,
+        1e-12,
+        1,
+    );
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn energy_rejects_a_lambert_missing_one_over_pi() {
+    let m = energy::measure(
+        &[("no 1/pi".into(), &LambertNoInvPi(0.5) as &dyn Bxdf)],
+        89.9,
+        1e-6,
+        10_000,
+        1,
+    );
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn sample_weights_reject_a_weight_inconsistent_with_eval() {
+    let m = weights::measure_bsdf(&LambertInconsistentWeight(0.5), 2_000, 89.9, 1e-9, 1);
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn hg_rejects_a_sign_error() {
+    let m = hg::measure_phase(&HgSignError(0.5), 0.5, 1e-6, 50_000, 40, 16, 1);
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+    // and the true HG passes the same measurement
+    let ok = hg::measure_phase(&HenyeyGreenstein { g: 0.5 }, 0.5, 1e-6, 50_000, 40, 16, 1);
+    assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
+}
+
+#[test]
+fn chi2_rejects_a_sampler_whose_pdf_is_wrong() {
+    let m = chi2::measure_sampler(&CosineClaimUniformDraw, 50_000, [24, 48], 1);
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
