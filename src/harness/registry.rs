@@ -46,6 +46,15 @@ pub fn bsdfs() -> Vec<(String, Bsdf)> {
     ]
 }
 
+/// Borrows named BSDFs as trait objects, the form the model-level checks take (so that
+/// negative controls can pass their own types).
+pub fn as_bxdfs(models: &[(String, Bsdf)]) -> Vec<(String, &dyn Bxdf)> {
+    models
+        .iter()
+        .map(|(n, b)| (n.clone(), b as &dyn Bxdf))
+        .collect()
+}
+
 /// A routine that samples directions, with the pdf it claims (per steradian).
 pub trait DirectionSampler {
     /// A direction from uniform numbers, or None when the routine produces no sample.

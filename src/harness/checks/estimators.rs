@@ -4,7 +4,7 @@
 //! their standard errors: three pairwise two-sided z tests of the region means (independent
 //! seeds), Šidák-combined.
 
-use super::{fmt_sig, region_of, region_pixels, region_stats, settings_for};
+use super::{fmt_sig, region_of, region_pixels, region_stats, residual_stability, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
@@ -57,19 +57,23 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let mut worst = (0.0f64, 1.0f64, String::new(), 0.0f64, 0.0f64);
     let mut lines = Vec::new();
     for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        let (fa, region, spp) = &films[a];
-        let (pa, _) = region_pixels(fa, *region);
+        let (fa, region, _) = &films[a];
         let (fb, _, _) = &films[b];
-        let r = region_stats(fb, *region, *spp, ctx.alpha, Some(&pa));
+        let (pa, va) = region_pixels(fa, *region);
+        let (pb, vb) = region_pixels(fb, *region);
+        let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
+        let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
+        let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
+        let (stable, why, se_between) = residual_stability(&d, &v, scale, ctx.alpha);
         let (na, ra) = &stats[a];
         let (nb, rb) = &stats[b];
-        if !r.stable {
-            unstable.push(format!("{na} − {nb}: {}", r.stability));
+        if !stable {
+            unstable.push(format!("{na} − {nb}: {why}"));
         }
         let diff = ra.mean - rb.mean;
         let se = (ra.se_within.powi(2) + rb.se_within.powi(2))
             .sqrt()
-            .max(r.se_between);
+            .max(se_between);
         let t = z_test(diff, se, 0.0);
         ps.push(t.p);
         lines.push(format!(

@@ -130,13 +130,8 @@ pub fn region_pixels(film: &Film, region: [usize; 4]) -> (Vec<f64>, Vec<f64>) {
     (m, v)
 }
 
-/// Region statistics of a film's Y channel.
-///
-/// Residuals rᵢ = mᵢ − eᵢ (eᵢ the closed form of pixel i, or the region mean for a uniform
-/// image) are what the stability diagnosis sees; when the pixel variances differ by more than
-/// 100× (emitters in view), the residuals are standardised by their own standard errors first,
-/// so that bright pixels do not pass for a heavy tail. A region whose pixels carry no Monte
-/// Carlo noise (variance below (1e-12·|m|)²) is reported as deterministic.
+/// Region statistics of a film's Y channel; `expected_px` are the closed-form pixel values
+/// (None: the image is expected to be uniform).
 pub fn region_stats(
     film: &Film,
     region: [usize; 4],
@@ -148,45 +143,13 @@ pub fn region_stats(
     let n = px.len() as f64;
     let mean = px.iter().sum::<f64>() / n;
     let se_within = vars.iter().sum::<f64>().sqrt() / n;
-    let scale = px.iter().fold(0.0f64, |a, v| a.max(v.abs()));
     let samples = (film.width * film.height) as u64 * spp;
-    if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
-        return RegionStats {
-            mean,
-            se: se_within,
-            se_within,
-            se_between: 0.0,
-            pixels: px.len(),
-            samples,
-            stable: true,
-            stability: "no Monte Carlo noise: every pixel is exact up to rounding".into(),
-        };
-    }
     let resid: Vec<f64> = match expected_px {
         Some(e) => px.iter().zip(e).map(|(m, e)| m - e).collect(),
         None => px.iter().map(|m| m - mean).collect(),
     };
-    let mut sorted: Vec<f64> = vars.iter().copied().filter(|v| *v > 0.0).collect();
-    sorted.sort_by(f64::total_cmp);
-    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
-    let hetero = median > 0.0 && sorted.last().copied().unwrap_or(0.0) > 100.0 * median;
-    let values: Vec<f64> = if hetero {
-        resid
-            .iter()
-            .zip(&vars)
-            .filter(|(_, v)| **v > 0.0)
-            .map(|(r, v)| r / v.sqrt())
-            .collect()
-    } else {
-        resid.clone()
-    };
-    let diag = stability::diagnose(&values, alpha);
-    let se_between = if !hetero && px.len() >= 16 {
-        let rm = resid.iter().sum::<f64>() / n;
-        (resid.iter().map(|r| (r - rm) * (r - rm)).sum::<f64>() / (n - 1.0) / n).sqrt()
-    } else {
-        0.0
-    };
+    let scale = px.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    let (stable, stability, se_between) = residual_stability(&resid, &vars, scale, alpha);
     RegionStats {
         mean,
         se: se_within.max(se_between),
@@ -194,17 +157,62 @@ pub fn region_stats(
         se_between,
         pixels: px.len(),
         samples,
-        stable: diag.stable,
-        stability: format!(
-            "{}{}",
-            if hetero {
-                "standardised residuals: "
-            } else {
-                ""
-            },
-            diag.reason
-        ),
+        stable,
+        stability,
     }
+}
+
+/// Variance diagnosis of per-pixel residuals rᵢ (zero mean under the null hypothesis) whose
+/// variances are `vars`: returns (stable, the diagnosis, batch-means standard error of their
+/// mean). Residuals are standardised by their own standard errors first when the variances
+/// differ by more than 100× (emitters in view), so that bright pixels do not pass for a heavy
+/// tail; the batch-means standard error is then not used (0). Residuals without Monte Carlo
+/// noise (all variances below (1e-12·scale)²) are reported as deterministic.
+pub fn residual_stability(
+    resid: &[f64],
+    vars: &[f64],
+    scale: f64,
+    alpha: f64,
+) -> (bool, String, f64) {
+    if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
+        return (
+            true,
+            "no Monte Carlo noise: every pixel is exact up to rounding".into(),
+            0.0,
+        );
+    }
+    let n = resid.len() as f64;
+    let mut sorted: Vec<f64> = vars.iter().copied().filter(|v| *v > 0.0).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let hetero = median > 0.0 && sorted.last().copied().unwrap_or(0.0) > 100.0 * median;
+    let values: Vec<f64> = if hetero {
+        resid
+            .iter()
+            .zip(vars)
+            .filter(|(_, v)| **v > 0.0)
+            .map(|(r, v)| r / v.sqrt())
+            .collect()
+    } else {
+        resid.to_vec()
+    };
+    let diag = stability::diagnose(&values, alpha);
+    let se_between = if !hetero && resid.len() >= 16 {
+        let rm = resid.iter().sum::<f64>() / n;
+        (resid.iter().map(|r| (r - rm) * (r - rm)).sum::<f64>() / (n - 1.0) / n).sqrt()
+    } else {
+        0.0
+    };
+    let reason = format!(
+        "{}{}",
+        if hetero {
+            "standardised residuals: "
+        } else {
+            ""
+        },
+        diag.reason
+    );
+    (diag.stable, reason, se_between)
 }
 
 /// Relative allowance for f64 rounding in the comparison of an estimate with its closed form

@@ -82,10 +82,7 @@ pub fn measure(
 /// Runs the reciprocity check over every registered BSDF.
 pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let models = registry::bsdfs();
-    let refs: Vec<(String, &dyn Bxdf)> = models
-        .iter()
-        .map(|(n, b)| (n.clone(), b as &dyn Bxdf))
-        .collect();
+    let refs = registry::as_bxdfs(&models);
     let p = &spec.params;
     Ok(measure(
         &refs,
