@@ -233,21 +233,25 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<CheckSpec>, ManifestError> {
         src.error(span, "", e.message().trim_end().to_string())
     })?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
-    let mut out = Vec::new();
-    for (i, c) in desc.check.iter().enumerate() {
-        out.extend(check(&src, &base, i, c)?);
-    }
+    let mut out: Vec<CheckSpec> = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
-    for c in &out {
-        if !seen.insert(c.name.clone()) {
-            return Err(SceneError {
-                file: path.to_path_buf(),
-                line: 0,
-                column: 0,
-                key: "check.name".into(),
-                message: format!("duplicate check name {:?}; names must be unique", c.name),
+    for (i, c) in desc.check.iter().enumerate() {
+        for spec in check(&src, &base, i, c)? {
+            if !seen.insert(spec.name.clone()) {
+                let span = c
+                    .get_ref()
+                    .name
+                    .as_ref()
+                    .map(|n| n.span())
+                    .unwrap_or(c.span());
+                return Err(err(
+                    &src,
+                    span,
+                    format!("check[{i}].name"),
+                    format!("duplicate check name {:?}; names must be unique", spec.name),
+                ));
             }
-            .into());
+            out.push(spec);
         }
     }
     Ok(out)
@@ -393,9 +397,10 @@ fn check(
         }
     };
     let render = RenderOverrides {
-        spp: uint(src, &d.spp, &format!("{at}.spp"), 1, 1 << 32)?,
-        width: uint(src, &d.width, &format!("{at}.width"), 1, 1 << 14)?,
-        height: uint(src, &d.height, &format!("{at}.height"), 1, 1 << 14)?,
+        // spp ≥ 2: one sample per pixel gives no variance estimate, so no test is possible.
+        spp: uint(src, &d.spp, &format!("{at}.spp"), 2, 1 << 32)?,
+        width: uint(src, &d.width, &format!("{at}.width"), 1, 4096)?,
+        height: uint(src, &d.height, &format!("{at}.height"), 1, 4096)?,
         max_depth: uint(src, &d.max_depth, &format!("{at}.max_depth"), 0, 1 << 20)?,
         roulette: d.roulette.as_ref().is_none_or(|r| *r.get_ref()),
         region,
@@ -472,12 +477,12 @@ fn check(
         None => None,
         Some(b) => {
             let [t, p] = *b.get_ref();
-            if !(2..=1000).contains(&t) || !(1..=2000).contains(&p) {
+            if !(2..=1000).contains(&t) || !(2..=2000).contains(&p) {
                 return Err(err(
                     src,
                     b.span(),
                     format!("{at}.bins"),
-                    format!("[{t}, {p}] must be [theta bins 2..=1000, phi bins 1..=2000]"),
+                    format!("[{t}, {p}] must be [theta bins 2..=1000, phi bins 2..=2000]"),
                 ));
             }
             Some([t as usize, p as usize])
@@ -503,7 +508,7 @@ fn check(
             .map(|o| o.get_ref().clone())
             .unwrap_or_default(),
         of,
-        samples: uint(src, &d.samples, &format!("{at}.samples"), 1, 1 << 34)?,
+        samples: uint(src, &d.samples, &format!("{at}.samples"), 1, 1 << 26)?,
         theta_max_deg: theta,
         g,
         abs_tol: positive(src, &d.abs_tol, &format!("{at}.abs_tol"))?,
@@ -534,6 +539,29 @@ fn check(
             format!("{}:{l}", src.path.display())
         },
     };
+    if base_spec.rel_tolerance >= 0.1 {
+        let s = d
+            .rel_tolerance
+            .as_ref()
+            .map(|r| r.span())
+            .unwrap_or(c.span());
+        return Err(err(src, s, format!("{at}.rel_tolerance"), format!("{} is too large: a model tolerance of 10 % or more lets real bugs pass; allowed [0, 0.1)", base_spec.rel_tolerance)));
+    }
+    if base_spec.params.of.as_deref() == Some("lambert") {
+        if let Some(m) = &d.max_depth {
+            return Err(err(src, m.span(), format!("{at}.max_depth"), "scale_invariance of \"lambert\" renders direct light only (max_depth 1); remove max_depth".into()));
+        }
+    }
+    if let Some(v) = &d.vary {
+        if let Some((k, _)) = v.get_ref().iter().find(|(_, xs)| xs.is_empty()) {
+            return Err(err(
+                src,
+                v.span(),
+                format!("{at}.vary.{k}"),
+                "an empty list would expand into no checks; give at least one value".into(),
+            ));
+        }
+    }
     let Some(scene) = &d.scene else {
         return Ok(vec![base_spec]);
     };

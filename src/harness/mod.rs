@@ -93,6 +93,11 @@ pub struct Measurement {
     pub samples: u64,
     /// Explanation: estimator, what was compared, sub-results.
     pub message: String,
+    /// Number of sub-tests folded into `p_value` (0 or 1: one test); the detection power is
+    /// computed at the per-sub-test level this implies.
+    pub variants: usize,
+    /// True when the test is one-sided (energy: only an albedo above 1 is a violation).
+    pub one_sided: bool,
 }
 
 /// Context a check runs in.
@@ -206,12 +211,6 @@ pub fn run(
                 o.p_value = ms.p_value;
                 o.samples = ms.samples;
                 o.message = ms.message.clone();
-                if let (Some(se), Some(exp)) = (ms.std_error, ms.expected) {
-                    if exp != 0.0 && ms.p_value.is_some() {
-                        o.detection_power =
-                            Some(power::min_detectable_bias(se, alpha, 0.95) / exp.abs());
-                    }
-                }
                 let finite = [ms.estimate, ms.std_error, ms.p_value]
                     .iter()
                     .flatten()
@@ -256,6 +255,19 @@ pub fn run(
             o.alpha = Some(threshold);
             pass &= !rejected;
         }
+        // Detection power at the level this test actually ran at: the corrected threshold,
+        // split over the sub-tests folded into the p-value, one- or two-sided, plus the
+        // stated model tolerance.
+        if let (Some(se), Some(exp), Some(thr)) = (ms.std_error, ms.expected, o.alpha) {
+            if exp != 0.0 {
+                let k = ms.variants.max(1) as f64;
+                // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
+                let per = -((-thr).ln_1p() / k).exp_m1();
+                let level = if ms.one_sided { 2.0 * per } else { per };
+                o.detection_power =
+                    Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
+            }
+        }
         o.verdict = if ms.unstable.is_some() {
             o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
             Verdict::Unstable
@@ -274,7 +286,7 @@ pub fn run(
             Correction::Sidak => "sidak".into(),
             Correction::Holm => "holm".into(),
         },
-        stochastic_tests: p_values.len(),
+        stochastic_tests: m,
         outcomes,
         seconds: start.elapsed().as_secs_f64(),
     }

@@ -50,7 +50,7 @@ pub fn line(o: &Outcome) -> String {
         s.push_str(&nums);
     }
     if let Some(p) = o.detection_power {
-        let _ = write!(s, "  power {}", percent(p));
+        let _ = write!(s, "  power {}", power_text(p));
     }
     if o.samples > 0 {
         let _ = write!(s, "  {} samples", o.samples);
@@ -281,6 +281,16 @@ fn family_line(r: &RunReport) -> String {
 }
 
 /// A Markdown (GitHub-flavoured) table of every outcome, ending with a newline, with the
+/// A detection power for display: a zero-variance estimator detects any bias above the
+/// rounding allowance, which "0 %" would misrepresent.
+fn power_text(p: f64) -> String {
+    if p == 0.0 {
+        "exact (zero variance)".to_string()
+    } else {
+        percent(p)
+    }
+}
+
 /// columns check, verdict, estimate ± se, expected, statistic, p, α, power, samples, time.
 /// Unknown values show as `—`; failing verdicts are bold; names are code spans.
 pub fn table_markdown(r: &RunReport) -> String {
@@ -312,7 +322,7 @@ pub fn table_markdown(r: &RunReport) -> String {
             markdown_cell(&statistic),
             markdown_cell(&o.p_value.map(|p| sig(p, 2, true)).unwrap_or_default()),
             markdown_cell(&o.alpha.map(|a| sig(a, 2, true)).unwrap_or_default()),
-            markdown_cell(&o.detection_power.map(percent).unwrap_or_default()),
+            markdown_cell(&o.detection_power.map(power_text).unwrap_or_default()),
             if o.samples > 0 {
                 o.samples.to_string()
             } else {

@@ -56,6 +56,11 @@ impl MeanVar {
     }
 }
 
+/// Upper tail of the standard normal distribution, P(Z > x).
+pub fn normal_sf(x: f64) -> f64 {
+    Normal::standard().sf(x)
+}
+
 /// Outcome of a two-sided z test of `estimate` against `expected`.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ZTest {

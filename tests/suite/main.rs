@@ -2,6 +2,7 @@
 
 mod cli;
 mod layering;
+mod manifest_errors;
 mod manifests;
 mod negative;
 mod render;

@@ -42,17 +42,25 @@ pub fn measure_sampler(
         .count();
     // 32×32 nodes per bin: pdfs with a hard edge (a light's silhouette) cut bins, and the
     // midpoint rule's error there is O(1/32) of the bin's mass.
-    let mut expected: Vec<f64> = binning
+    let expected: Vec<f64> = binning
         .integrate(|w| sampler.pdf(crate::math::Vec3::from_array(w)), 32)
         .iter()
         .map(|m| m * samples as f64)
         .collect();
-    // A bin holding samples (all with pdf > 0) whose quadrature missed a sliver of support gets
-    // a negligible expected count, so pooling merges it instead of reporting a zero-pdf hit.
-    for (e, &c) in expected.iter_mut().zip(&counts) {
-        if *e == 0.0 && c > 0 && zero_pdf == 0 {
-            *e = 1e-12;
-        }
+    // A sample in a bin where the quadrature found no pdf mass cannot be judged: ERROR
+    // (NaN p), not FAIL; finer bins or nodes resolve it.
+    let missed = expected
+        .iter()
+        .zip(&counts)
+        .filter(|(e, c)| **e == 0.0 && **c > 0)
+        .count();
+    if missed > 0 && zero_pdf == 0 {
+        return Measurement {
+            p_value: Some(f64::NAN),
+            samples,
+            message: format!("{missed} bins hold samples but no pdf mass by quadrature (32x32 nodes per bin); refine the binning"),
+            ..Default::default()
+        };
     }
     match chi2_gof(&counts, &expected, 5.0) {
         Ok(c) => Measurement {
@@ -69,7 +77,7 @@ pub fn measure_sampler(
             ),
             ..Default::default()
         },
-        Err(e) => Measurement { p_value: Some(0.0), samples, message: format!("chi-square could not be formed: {e}"), ..Default::default() },
+        Err(e) => Measurement { p_value: Some(f64::NAN), samples, message: format!("chi-square could not be formed: {e}"), ..Default::default() },
     }
 }
 

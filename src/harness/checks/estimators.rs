@@ -4,7 +4,10 @@
 //! their standard errors: three pairwise two-sided z tests of the region means (independent
 //! seeds), Šidák-combined.
 
-use super::{fmt_sig, region_of, region_pixels, region_stats, residual_stability, settings_for};
+use super::{
+    diagnosis_alpha, fmt_sig, region_of, region_pixels, region_stats, residual_stability,
+    settings_for,
+};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
@@ -64,7 +67,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
         let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
         let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
-        let (stable, why, se_between) = residual_stability(&d, &v, scale, ctx.alpha);
+        let (stable, why, se_between) = residual_stability(&d, &v, scale, diagnosis_alpha(ctx, 3));
         let (na, ra) = &stats[a];
         let (nb, rb) = &stats[b];
         if !stable {
@@ -97,6 +100,8 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         expected: Some(0.0),
         statistic: Some(Statistic::Z { z: worst.0 }),
         p_value: Some(sidak_combine(&ps)),
+        variants: 3,
+        one_sided: false,
         deterministic_pass: None,
         unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
         samples: stats.iter().map(|(_, r)| r.samples).sum(),

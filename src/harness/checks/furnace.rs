@@ -5,7 +5,7 @@
 //! environment of radiance L reflects exactly R·L (it sees only the environment).
 //! The expected value is derived from the scene itself, so the check consumes scenes.
 
-use super::{region_measurement, region_of, render_region, settings_for};
+use super::{diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
@@ -99,13 +99,50 @@ pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String
     }
 }
 
+/// Checks that the region sees what the closed form assumes: in the white-furnace form every
+/// camera ray of the region hits the (single) object; in the enclosure form every ray hits a
+/// surface whose emission faces the camera (no escaping rays, no back of a one-sided emitter).
+pub fn validate_view(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+) -> Result<(), String> {
+    let white = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+    if white && scene.aggregate.shapes().len() != 1 {
+        return Err("the white-furnace form needs exactly one (convex) object: others would be lit by its reflection".into());
+    }
+    super::lambert::per_pixel(scene, width, height, region, &|hit, d| {
+        let hit = hit.ok_or("a camera ray of the region escapes: the region must see only the object (white furnace) or the enclosure")?;
+        if !white {
+            match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
+                Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {}
+                _ => return Err("a camera ray of the region meets a surface that does not emit towards the camera: is the enclosure closed, emitting inward, with the camera inside?".to_string()),
+            }
+        }
+        Ok(0.0)
+    })
+    .map(|_| ())
+}
+
 /// Runs a furnace check.
 pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let scene = spec.scene.as_ref().ok_or("furnace needs a scene")?;
     let max_depth = spec.render.max_depth.or(scene.render.max_depth);
     let (expected, what) = expectation(scene, max_depth)?;
     let s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
-    let r = render_region(ctx, scene, &s, region_of(spec, &s)?, None)?;
+    validate_view(scene, s.width, s.height, region_of(spec, &s)?)?;
+    let r = render_region(
+        ctx,
+        scene,
+        &s,
+        region_of(spec, &s)?,
+        None,
+        diagnosis_alpha(ctx, 1),
+    )?;
     Ok(region_measurement(
         &r,
         expected,

@@ -7,7 +7,7 @@
 //! The expected value is the closed form averaged over the region's footprint (9×9 midpoint
 //! quadrature over each pixel's footprint, matching the box filter).
 
-use super::{region_measurement, region_of, render_region, settings_for};
+use super::{diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::geometry::{Shape, SurfacePoint};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
@@ -45,6 +45,13 @@ pub fn polygon_irradiance(p: Vec3, n: Vec3, vertices: &[Vec3], l: f64) -> f64 {
 /// Closed-form irradiance at surface point `sp` (normal towards the viewer) from every light.
 pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, String> {
     let shapes = scene.aggregate.shapes();
+    let has_env = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }));
+    if has_env && (scene.lights.len() > 1 || shapes.len() > 1) {
+        return Err("the lambert sky form (H = π L) needs the environment as the only light and the viewed surface as the only shape: anything else blocks part of the sky".into());
+    }
     let mut h = 0.0;
     for light in &scene.lights {
         match light {
@@ -80,6 +87,10 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Stri
                         .map(|i| (m.vertices(i).to_vec(), m.normal(i)))
                         .collect(),
                     Shape::Sphere(s) => {
+                        // A one-sided sphere emitting inward is dark from outside.
+                        if s.flip_normals && !*two_sided {
+                            continue;
+                        }
                         let v = s.center - sp.p;
                         let d = v.length();
                         let cos = n.dot(v) / d;
@@ -91,6 +102,9 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Stri
                         continue;
                     }
                 };
+                if polys.iter().any(|(_, n)| (*n - polys[0].1).length() > 1e-9) {
+                    return Err("the lambert closed form takes planar emitters only (a curved mesh emitter may hide parts of itself)".into());
+                }
                 for (verts, ln) in polys {
                     if verts.iter().any(|v| n.dot(*v - sp.p) <= 0.0) {
                         return Err("the lambert closed form needs area lights fully above the horizon of the viewed point".into());
@@ -192,7 +206,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let s = settings_for(spec, scene, ctx, ctx.seed, Some(1), Strategy::Mis);
     let region = region_of(spec, &s)?;
     let (expected, px) = expectation(scene, s.width, s.height, region)?;
-    let r = render_region(ctx, scene, &s, region, Some(&px))?;
+    let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
     Ok(region_measurement(
         &r,
         expected,

@@ -18,7 +18,7 @@ use crate::film::Film;
 use crate::integrators::{PathTracer, Strategy};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
-use crate::stats::{stability, z_test};
+use crate::stats::{normal_sf, stability, z_test};
 
 /// Runs one check.
 pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
@@ -104,15 +104,23 @@ pub fn render_region(
     settings: &RenderSettings,
     region: [usize; 4],
     expected_px: Option<&[f64]>,
+    diag_alpha: f64,
 ) -> Result<RegionStats, String> {
     let film = ctx.renderer.render(scene, settings)?;
     Ok(region_stats(
         &film,
         region,
         settings.spp,
-        ctx.alpha,
+        diag_alpha,
         expected_px,
     ))
+}
+
+/// The false-alarm level of each variance diagnosis in a check with `diagnoses` diagnosed
+/// images: the diagnosis has two criteria, so α/(2·diagnoses) keeps a check's UNSTABLE
+/// false alarms at or below its per-test α.
+pub fn diagnosis_alpha(ctx: &Context, diagnoses: usize) -> f64 {
+    ctx.alpha / (2.0 * diagnoses.max(1) as f64)
 }
 
 /// Pixel means and variances of the mean (Y) over a region, row-major.
@@ -149,6 +157,21 @@ pub fn region_stats(
         None => px.iter().map(|m| m - mean).collect(),
     };
     let scale = px.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if spp < 2 {
+        let why =
+            "spp < 2: one sample per pixel gives no variance estimate, so no test is possible"
+                .to_string();
+        return RegionStats {
+            mean,
+            se: se_within,
+            se_within,
+            se_between: 0.0,
+            pixels: px.len(),
+            samples,
+            stable: false,
+            stability: why,
+        };
+    }
     let (stable, stability, se_between) = residual_stability(&resid, &vars, scale, alpha);
     RegionStats {
         mean,
@@ -226,9 +249,19 @@ pub const ROUNDING: f64 = 1e-12;
 /// Returns (z, p).
 pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
     let allowance = rel_tolerance * expected.abs() + ROUNDING * expected.abs().max(estimate.abs());
-    let excess = ((estimate - expected).abs() - allowance).max(0.0);
-    let t = z_test(excess, se, 0.0);
-    (t.z.copysign(estimate - expected), t.p)
+    let d = (estimate - expected).abs();
+    let excess = (d - allowance).max(0.0);
+    let z = z_test(excess, se, 0.0).z;
+    // p of H0: |bias| ≤ allowance, taken at the boundary bias = allowance:
+    // P(|D| ≥ d) = Φ̄((d − a)/se) + Φ̄((d + a)/se); for a = 0 it is the two-sided 2Φ̄(d/se).
+    let p = if se > 0.0 {
+        normal_sf((d - allowance) / se) + normal_sf((d + allowance) / se)
+    } else if excess > 0.0 {
+        0.0
+    } else {
+        1.0
+    };
+    (z.copysign(estimate - expected), p.min(1.0))
 }
 
 /// A measurement from one region test against a closed form.
@@ -247,6 +280,8 @@ pub fn region_measurement(
         p_value: Some(p),
         deterministic_pass: None,
         unstable: (!r.stable).then(|| format!("UNSTABLE: {}", r.stability)),
+        variants: 1,
+        one_sided: false,
         samples: r.samples,
         message: format!(
             "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}",
@@ -292,7 +327,15 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
         .filter_map(|(_, m)| m.deterministic_pass)
         .reduce(|a, b| a && b);
     let mut m = parts.get(worst).map(|p| p.1.clone()).unwrap_or_default();
-    m.p_value = (!ps.is_empty()).then(|| crate::stats::multiple::sidak_combine(&ps));
+    // A sub-test that could not be formed (NaN p) makes the whole check an ERROR.
+    m.p_value = (!ps.is_empty()).then(|| {
+        if ps.iter().any(|p| p.is_nan()) {
+            f64::NAN
+        } else {
+            crate::stats::multiple::sidak_combine(&ps)
+        }
+    });
+    m.variants = parts.iter().map(|(_, p)| p.variants.max(1)).sum();
     m.samples = samples;
     m.deterministic_pass = det;
     m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));

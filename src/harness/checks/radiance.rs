@@ -4,7 +4,7 @@
 //! emission only (max_depth 0) every pixel must read the emitter's radiance (Y).
 
 use super::lambert::per_pixel;
-use super::{combine, region_measurement, region_of, render_region, settings_for};
+use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
@@ -80,7 +80,14 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         let region = region_of(spec, &s)?;
         let px = emitted_along(&scene, s.width, s.height, region)?;
         let expected = px.iter().sum::<f64>() / px.len() as f64;
-        let r = render_region(ctx, &scene, &s, region, Some(&px))?;
+        let r = render_region(
+            ctx,
+            &scene,
+            &s,
+            region,
+            Some(&px),
+            diagnosis_alpha(ctx, spec.params.distances.len()),
+        )?;
         parts.push((
             format!("d = {d:e}"),
             region_measurement(

@@ -3,7 +3,8 @@
 //! unit scenes fail this at 1e-4 or 1e5 scale or far from the origin.
 
 use super::{
-    combine, furnace, lambert, region_measurement, region_of, render_region, settings_for,
+    combine, diagnosis_alpha, furnace, lambert, region_measurement, region_of, render_region,
+    settings_for,
 };
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
@@ -49,6 +50,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
             let region = region_of(spec, &settings)?;
             let (expected, px, what) = match of {
                 "furnace" => {
+                    furnace::validate_view(&scene, settings.width, settings.height, region)?;
                     let (e, w) = furnace::expectation(&scene, max_depth)?;
                     (e, None, w)
                 }
@@ -58,7 +60,14 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
                     (e, Some(px), "Lambert closed form".to_string())
                 }
             };
-            let r = render_region(ctx, &scene, &settings, region, px.as_deref())?;
+            let r = render_region(
+                ctx,
+                &scene,
+                &settings,
+                region,
+                px.as_deref(),
+                diagnosis_alpha(ctx, scales.len() * offsets.len()),
+            )?;
             let label = format!("scale {s:e}, offset {o:?}");
             parts.push((
                 label.clone(),

@@ -1,0 +1,106 @@
+//! Invalid manifests: every error names the manifest file, line, column and key, and says what
+//! is allowed; `furnace check` exits 2 on them. Messages are snapshotted.
+
+use crate::root;
+use furnace::harness::manifest;
+use std::path::Path;
+use std::process::Command;
+
+fn error_of(text: &str) -> String {
+    // anchored in tests/manifests so that relative scene paths resolve like the real ones
+    match manifest::parse(text, &root("tests/manifests/bad.toml")) {
+        Ok(specs) => panic!("manifest accepted ({} checks):\n{text}", specs.len()),
+        Err(e) => e.to_string().replace(&root("").display().to_string(), ""),
+    }
+}
+
+#[test]
+fn manifest_error_messages() {
+    let cases: Vec<(&str, String)> = vec![
+        ("toml_syntax", error_of("[[check]\nname = \"x\"\n")),
+        ("unknown_top_level_key", error_of("checks = 1\n")),
+        ("unknown_check_key", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\nsampels = 3\n")),
+        ("unknown_kind", error_of("[[check]]\nname = \"x\"\nkind = \"furnice\"\n")),
+        ("key_of_another_kind", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\ndistances = [1.0]\n")),
+        ("missing_name", error_of("[[check]]\nkind = \"reciprocity\"\n")),
+        ("missing_scene", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\n")),
+        ("missing_scene_file", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/nope.toml\"\n")),
+        ("invalid_scene", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\n[check.scene]\ncamera = 3\n")),
+        ("unresolved_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\n")),
+        ("unknown_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [0.5], colour = [1.0] }\n")),
+        ("empty_vary", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [] }\n")),
+        ("spp_one", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nspp = 1\n")),
+        ("g_out_of_range", error_of("[[check]]\nname = \"x\"\nkind = \"hg\"\ng = [0.5, 1.0]\n")),
+        ("tolerance_too_large", error_of("[[check]]\nname = \"x\"\nkind = \"lambert\"\nscene = \"scenes/lambert-sky.toml\"\nrel_tolerance = 0.5\n")),
+        ("roulette_off_without_depth", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nroulette = false\n")),
+        ("bad_region", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nregion = [4, 4, 2, 8]\n")),
+        ("scale_without_of", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
+        ("lambert_scale_with_depth", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"lambert\"\nscene = \"scenes/lambert-sky.toml\"\nmax_depth = 3\n")),
+        ("duplicate_names", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\n[[check]]\nname = \"x\"\nkind = \"energy\"\n")),
+    ];
+    for (name, message) in cases {
+        assert!(message.contains(".toml"), "{name}: {message}");
+        insta::assert_snapshot!(name, message);
+    }
+}
+
+#[test]
+fn check_exits_2_on_an_invalid_manifest_and_1_on_a_failing_check() {
+    let dir = std::env::temp_dir().join(format!("furnace-manifest-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, "[[check]]\nname = \"x\"\nkind = \"furnice\"\n").unwrap();
+    let run = |p: &Path, extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_furnace"))
+            .current_dir(root(""))
+            .arg("check")
+            .arg(p)
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&bad, &[]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("bad.toml:3:8"),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    // A white-furnace check whose region includes background pixels: the scene validation
+    // turns it into an ERROR, which fails the run (exit 1).
+    let failing = dir.join("failing.toml");
+    let scene = root("tests/manifests/scenes/white-furnace-sphere.toml")
+        .display()
+        .to_string();
+    std::fs::write(
+        &failing,
+        format!("[[check]]\nname = \"sees-background\"\nkind = \"furnace\"\nscene = \"{scene}\"\nvary = {{ albedo = [0.5] }}\nspp = 4\n"),
+    )
+    .unwrap();
+    let junit = dir.join("j.xml");
+    let json = dir.join("r.json");
+    let out = run(
+        &failing,
+        &[
+            "--junit",
+            junit.to_str().unwrap(),
+            "--json",
+            json.to_str().unwrap(),
+        ],
+    );
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(
+        stdout.contains("ERROR") && stdout.contains("escapes"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.trim_end().ends_with("0 passed, 1 failed"),
+        "{stdout}"
+    );
+    assert!(std::fs::read_to_string(&junit).unwrap().contains("<error"));
+    assert!(std::fs::read_to_string(&json)
+        .unwrap()
+        .contains("\"schema\": \"furnace.check-results/1\""));
+    std::fs::remove_dir_all(&dir).ok();
+}
