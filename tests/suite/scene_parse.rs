@@ -113,3 +113,26 @@ fn cornell_box_summary() {
         (&scene.render, &scene.camera, summary)
     );
 }
+
+/// The README's complete scene example is a valid scene (parsed as if it lived in scenes/).
+#[test]
+fn readme_scene_example_is_valid() {
+    let readme = std::fs::read_to_string(root("README.md")).unwrap();
+    let section = readme
+        .split("### Scene format")
+        .nth(1)
+        .expect("README has a scene format section");
+    let block = section
+        .split("```toml")
+        .nth(1)
+        .and_then(|b| b.split("```").next())
+        .expect("a toml block");
+    let scene =
+        Scene::parse(block, &root("scenes/readme-example.toml")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.aggregate.shapes().len(), 4);
+    assert_eq!(scene.lights.len(), 3);
+    assert!(scene
+        .camera
+        .build(scene.render.width, scene.render.height)
+        .is_ok());
+}
