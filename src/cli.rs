@@ -5,11 +5,13 @@
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
 use furnace::film::io;
+use furnace::harness::compare::{self, RgbImage};
 use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
 use furnace::integrators::{PathTracer, Strategy};
 use furnace::render::{render, RenderSettings};
 use furnace::report::{json, junit, text};
+use furnace::scene;
 use furnace::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
@@ -29,6 +31,31 @@ enum Command {
     Render(RenderArgs),
     /// Run validation checks from TOML manifests (default: every manifest under tests/manifests/); exit 0 all pass, 1 a check failed, 2 invalid manifest or scene.
     Check(CheckArgs),
+    /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
+    Compare(CompareArgs),
+}
+
+#[derive(Debug, Args)]
+struct CompareArgs {
+    /// The image under test (EXR).
+    test: PathBuf,
+    /// The reference image (EXR); without variance channels it is treated as exact.
+    reference: PathBuf,
+    /// Named regions (TOML `[[region]]` tables with `name` and `rect = [x0, y0, x1, y1]` in fractions of the image).
+    #[arg(long)]
+    regions: Option<PathBuf>,
+    /// Family-wise false-alarm rate over all region x channel tests (Sidak).
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// False-discovery rate of the per-pixel test (Benjamini-Hochberg).
+    #[arg(long, default_value_t = 0.01)]
+    fdr: f64,
+    /// Write a false-colour map of per-pixel |z| (blue 0 .. red >= 5) here (PNG).
+    #[arg(long)]
+    diff: Option<PathBuf>,
+    /// Write the per-pixel relative error |t - r|/(|r| + 0.01), luminance of R, G, B, here (PNG; 1 = white).
+    #[arg(long)]
+    relerr: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -139,6 +166,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
     match cli.command {
         Command::Render(args) => render_command(args),
         Command::Check(args) => check_command(args),
+        Command::Compare(args) => compare_command(args),
     }
 }
 
@@ -324,4 +352,127 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
     } else {
         0
     })
+}
+
+fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
+    if !(a.alpha > 0.0 && a.alpha < 1.0 && a.fdr > 0.0 && a.fdr < 1.0) {
+        return Err(anyhow::anyhow!("--alpha and --fdr must lie in (0, 1)").into());
+    }
+    let load = |p: &Path| -> Result<RgbImage, Failure> {
+        let layers = io::read_exr(p).with_context(|| format!("cannot read {}", p.display()))?;
+        Ok(RgbImage::from_layers(&layers).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?)
+    };
+    let test = load(&a.test)?;
+    let reference = load(&a.reference)?;
+    let regions = match &a.regions {
+        None => Vec::new(),
+        Some(p) => {
+            let text = std::fs::read_to_string(p)
+                .with_context(|| format!("cannot read {}", p.display()))?;
+            let r: compare::Regions = toml::from_str(&text).map_err(|e| {
+                let at = e
+                    .span()
+                    .map(|s| {
+                        scene::Source {
+                            path: p,
+                            text: &text,
+                        }
+                        .line_column(s.start)
+                    })
+                    .unwrap_or((0, 0));
+                anyhow::anyhow!(
+                    "{}:{}:{}: {}",
+                    p.display(),
+                    at.0,
+                    at.1,
+                    e.message().trim_end()
+                )
+            })?;
+            r.region
+        }
+    };
+    let c = compare::compare(&test, &reference, &regions, a.alpha, a.fdr)
+        .map_err(|e| anyhow::anyhow!(e))?;
+    println!(
+        "test {} vs reference {} ({}x{}){}",
+        a.test.display(),
+        a.reference.display(),
+        test.width,
+        test.height,
+        if c.reference_has_variance {
+            ""
+        } else {
+            "; the reference has no variance channels and is treated as exact"
+        }
+    );
+    println!(
+        "{:<8} {:>12} {:>12} {:>12} {:>12} {:>10}",
+        "channel", "mean test", "mean ref", "RMSE", "relMSE", "SMAPE"
+    );
+    for (ch, m) in compare::CHANNELS.iter().zip(&c.metrics) {
+        println!(
+            "{:<8} {:>12.6} {:>12.6} {:>12.4e} {:>12.4e} {:>10.4}",
+            ch, m.mean_test, m.mean_reference, m.rmse, m.rel_mse, m.smape
+        );
+    }
+    println!(
+        "{:<22} {:>3} {:>22} {:>22} {:>11} {:>8} {:>9}",
+        "region", "ch", "test ± se", "reference ± se", "difference", "z", "p"
+    );
+    for r in &c.regions {
+        println!(
+            "{:<22} {:>3} {:>13.6} ± {:<7.1e} {:>13.6} ± {:<7.1e} {:>+10.3}% {:>8.2} {:>9.2e}{}",
+            r.region,
+            r.channel,
+            r.test.0,
+            r.test.1,
+            r.reference.0,
+            r.reference.1,
+            100.0 * (r.test.0 - r.reference.0) / r.reference.0.abs().max(f64::MIN_POSITIVE),
+            r.z,
+            r.p,
+            if r.p <= c.alpha { "  DIFFERENT" } else { "" }
+        );
+    }
+    if let Some(k) = c.flagged_pixels {
+        println!(
+            "{k} of {} pixels differ beyond noise (Benjamini-Hochberg, FDR {})",
+            test.width * test.height,
+            a.fdr
+        );
+    }
+    if let (Some(p), Some(z)) = (&a.diff, &c.pixel_z) {
+        // blue (|z| = 0) to red (|z| >= 5), linear in |z|
+        let img: Vec<[f64; 3]> = z
+            .iter()
+            .map(|z| {
+                let t = (z / 5.0).min(1.0);
+                [t, 0.0, 1.0 - t]
+            })
+            .collect();
+        io::write_png_srgb(p, test.width, test.height, &img, 1.0)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if let Some(p) = &a.relerr {
+        let lum = |im: &RgbImage, i: usize| {
+            0.2126 * im.rgb[0][i] + 0.7152 * im.rgb[1][i] + 0.0722 * im.rgb[2][i]
+        };
+        let img: Vec<[f64; 3]> = (0..test.width * test.height)
+            .map(|i| {
+                let (t, r) = (lum(&test, i), lum(&reference, i));
+                let e = (t - r).abs() / (r.abs() + 0.01);
+                [e, e, e]
+            })
+            .collect();
+        io::write_png_srgb(p, test.width, test.height, &img, 1.0)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    let verdict = if c.differ { "DIFFERENT" } else { "AGREE" };
+    println!(
+        "{verdict}: {} region x channel tests at Sidak per-test alpha {:.2e} (family-wise {})",
+        c.regions.len(),
+        c.alpha,
+        a.alpha
+    );
+    Ok(if c.differ { 1 } else { 0 })
 }

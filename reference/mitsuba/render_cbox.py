@@ -65,6 +65,11 @@ def parse_args(argv=None):
                         "-1 = unlimited (default: [render].max_depth, absent = unlimited)")
     p.add_argument("--variant", default="scalar_spectral", help="Mitsuba variant (default: %(default)s)")
     p.add_argument("--out", default="cbox_mitsuba.exr", help="output EXR path (default: %(default)s)")
+    p.add_argument("--batches", type=int, default=1,
+                   help="render K independent batches of spp/K (seeds seed..seed+K-1) and write their "
+                        "mean with variance.R/G/B = the variance of that mean (sample variance / K), so "
+                        "furnace compare can weigh the reference's own noise; K >= 2 needs numpy "
+                        "(default: %(default)s)")
     return p.parse_args(argv)
 
 
@@ -292,17 +297,33 @@ def main(argv=None):
         t0 = time.perf_counter()
         scene = mi.load_dict(d)
         t_load = time.perf_counter() - t0
+    k = max(args.batches, 1)
+    if info["spp"] % k:
+        raise SystemExit(f"--spp {info['spp']} must be a multiple of --batches {k}")
     t0 = time.perf_counter()
-    img = mi.render(scene, spp=info["spp"], seed=args.seed)
-    dr.eval(img)
+    imgs = []
+    for b in range(k):
+        img = mi.render(scene, spp=info["spp"] // k, seed=args.seed + b)
+        dr.eval(img)
+        imgs.append(img)
     t_render = time.perf_counter() - t0
     # Restore the default pool before writing: with mitsuba 3.9.1 / drjit 1.5.0, Bitmap.write()
     # of an EXR hangs forever (no CPU use) when the pool was set to 1 thread (no workers).
     dr.set_thread_count(max(default_threads, 2))
 
-    bmp = mi.Bitmap(img, mi.Bitmap.PixelFormat.RGB)
     os.makedirs(os.path.dirname(out) or ".", exist_ok=True)
-    bmp.write(out)
+    if k == 1:
+        bmp = mi.Bitmap(imgs[0], mi.Bitmap.PixelFormat.RGB)
+        bmp.write(out)
+    else:
+        import numpy as np
+        stack = np.stack([np.array(i, dtype=np.float64) for i in imgs])  # (K, H, W, 3)
+        mean = stack.mean(axis=0)
+        var_of_mean = stack.var(axis=0, ddof=1) / k
+        both = np.concatenate([mean, var_of_mean], axis=2).astype(np.float32)
+        names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"]
+        mi.Bitmap(both, channel_names=names).write(out)
+        bmp = mi.Bitmap(mean.astype(np.float32), mi.Bitmap.PixelFormat.RGB)
     xyz_out = stem + "_xyz.exr"
     bmp.convert(mi.Bitmap.PixelFormat.XYZ, mi.Struct.Type.Float32, srgb_gamma=False).write(xyz_out)
 
@@ -313,6 +334,7 @@ def main(argv=None):
         "drjit_version": dr.__version__,
         "variant": args.variant,
         "spp": info["spp"],
+        "batches": k,
         "seed": args.seed,
         "width": info["width"],
         "height": info["height"],

@@ -6,6 +6,7 @@
 //! `Bxdf`/`Phase` interfaces.
 
 pub mod checks;
+pub mod compare;
 pub mod manifest;
 pub mod outcome;
 pub mod registry;

@@ -96,3 +96,68 @@ fn missing_scene_file_exits_2() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("cannot read the scene file"));
 }
+
+#[test]
+fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
+    use furnace::film::io::{read_exr, write_exr};
+    let dir = std::env::temp_dir().join(format!("furnace-compare-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let reference = root("reference/mitsuba/cornell-box.exr");
+    let regions = root("scenes/cornell-box.regions.toml");
+    let same = furnace()
+        .args(["compare"])
+        .arg(&reference)
+        .arg(&reference)
+        .arg("--regions")
+        .arg(&regions)
+        .output()
+        .unwrap();
+    assert_eq!(
+        same.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&same.stdout)
+    );
+    assert!(String::from_utf8_lossy(&same.stdout).contains("AGREE"));
+    // tint the red wall's R by 2 % (x < 0.12 of the image)
+    let mut img = read_exr(&reference).unwrap();
+    let (w, h) = (img.width, img.height);
+    for (name, data) in img.channels.iter_mut() {
+        if name == "R" {
+            for y in 0..h {
+                for x in 0..(w * 12 / 100) {
+                    data[y * w + x] *= 1.02;
+                }
+            }
+        }
+    }
+    let tinted = dir.join("tinted.exr");
+    write_exr(&tinted, &img).unwrap();
+    let zmap = dir.join("z.png");
+    let out = furnace()
+        .args(["compare"])
+        .arg(&tinted)
+        .arg(&reference)
+        .arg("--regions")
+        .arg(&regions)
+        .arg("--diff")
+        .arg(&zmap)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.starts_with("red wall") && l.contains(" R ") && l.contains("DIFFERENT")),
+        "{stdout}"
+    );
+    assert!(
+        stdout
+            .lines()
+            .any(|l| l.starts_with("back wall") && l.contains(" R ") && !l.contains("DIFFERENT")),
+        "{stdout}"
+    );
+    assert!(zmap.exists());
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,429 @@
+//! Image comparison: does a test image agree with a reference beyond noise?
+//!
+//! Both images are read as linear `R`, `G`, `B` with optional `variance.R/G/B` channels (the
+//! variance of each pixel mean, as furnace writes them). Region means are compared with a
+//! two-sided z test whose standard error combines both images' variance channels; a reference
+//! without variance channels is treated as exact (and the report says so). Where the images
+//! differ is located pixel by pixel with the Benjamini–Hochberg procedure at a false-discovery
+//! rate q (Benjamini & Hochberg 1995, JRSS B 57, §3). Whole-image metrics as used in the
+//! rendering literature: RMSE, relMSE with ε (Rousselle et al. 2011, "Adaptive sampling and
+//! reconstruction using greedy error minimization", eq. 9 form (x − y)²/(y² + ε)), SMAPE.
+
+use crate::film::io::Layers;
+use crate::stats::{multiple, z_test};
+use serde::Deserialize;
+
+/// Colour channels compared.
+pub const CHANNELS: [&str; 3] = ["R", "G", "B"];
+
+/// A linear RGB image with optional per-pixel variance of the mean.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RgbImage {
+    /// Width, pixels.
+    pub width: usize,
+    /// Height, pixels.
+    pub height: usize,
+    /// R, G, B planes, row-major.
+    pub rgb: [Vec<f64>; 3],
+    /// variance.R/G/B planes, when present.
+    pub variance: Option<[Vec<f64>; 3]>,
+}
+
+impl RgbImage {
+    /// Takes R, G, B (required) and variance.R/G/B (all three or none) from EXR layers.
+    pub fn from_layers(l: &Layers) -> Result<Self, String> {
+        let plane = |name: &str| {
+            l.channel(name)
+                .map(|c| c.iter().map(|&v| v as f64).collect::<Vec<f64>>())
+        };
+        let mut rgb: [Vec<f64>; 3] = Default::default();
+        for (i, c) in CHANNELS.iter().enumerate() {
+            rgb[i] = plane(c)
+                .ok_or_else(|| format!("no channel {c:?}; an image needs linear R, G and B"))?;
+        }
+        let vars: Vec<Option<Vec<f64>>> = CHANNELS
+            .iter()
+            .map(|c| plane(&format!("variance.{c}")))
+            .collect();
+        let variance =
+            match (&vars[0], &vars[1], &vars[2]) {
+                (Some(r), Some(g), Some(b)) => Some([r.clone(), g.clone(), b.clone()]),
+                (None, None, None) => None,
+                _ => return Err(
+                    "variance channels must be all of variance.R, variance.G, variance.B or none"
+                        .into(),
+                ),
+            };
+        Ok(RgbImage {
+            width: l.width,
+            height: l.height,
+            rgb,
+            variance,
+        })
+    }
+}
+
+/// A named rectangle in fractions of the image, [x0, y0, x1, y1) with 0 ≤ x0 < x1 ≤ 1.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Region {
+    /// Name shown in reports.
+    pub name: String,
+    /// [x0, y0, x1, y1) as fractions of width and height (resolution independent).
+    pub rect: [f64; 4],
+}
+
+/// A regions file: `[[region]]` tables.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Regions {
+    /// The regions.
+    #[serde(default)]
+    pub region: Vec<Region>,
+}
+
+impl Region {
+    /// The pixel rectangle [x0, y0, x1, y1) of this region in a `w`×`h` image (at least one pixel).
+    pub fn pixels(&self, w: usize, h: usize) -> Result<[usize; 4], String> {
+        let [x0, y0, x1, y1] = self.rect;
+        if !(0.0 <= x0 && x0 < x1 && x1 <= 1.0 && 0.0 <= y0 && y0 < y1 && y1 <= 1.0) {
+            return Err(format!(
+                "region {:?}: rect {:?} must satisfy 0 <= x0 < x1 <= 1 and 0 <= y0 < y1 <= 1",
+                self.name, self.rect
+            ));
+        }
+        let px = |f: f64, n: usize| ((f * n as f64).round() as usize).min(n);
+        let r = [
+            px(x0, w),
+            px(y0, h),
+            px(x1, w).max(px(x0, w) + 1).min(w),
+            px(y1, h).max(px(y0, h) + 1).min(h),
+        ];
+        Ok(r)
+    }
+}
+
+/// One region × channel comparison.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionResult {
+    /// Region name.
+    pub region: String,
+    /// Channel.
+    pub channel: &'static str,
+    /// Mean of the test image and its standard error.
+    pub test: (f64, f64),
+    /// Mean of the reference and its standard error (0 when it has no variance channels).
+    pub reference: (f64, f64),
+    /// z = (test − reference)/√(se_t² + se_r²).
+    pub z: f64,
+    /// Two-sided p.
+    pub p: f64,
+}
+
+/// Whole-image metrics per channel.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Metrics {
+    /// Mean of the test image.
+    pub mean_test: f64,
+    /// Mean of the reference.
+    pub mean_reference: f64,
+    /// Root-mean-square error.
+    pub rmse: f64,
+    /// Mean of (t − r)²/(r² + ε), ε = 1e-2.
+    pub rel_mse: f64,
+    /// Mean of 2|t − r|/(|t| + |r|) over pixels where |t| + |r| > 0.
+    pub smape: f64,
+}
+
+/// The result of comparing two images.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Comparison {
+    /// Per-channel metrics, R, G, B.
+    pub metrics: [Metrics; 3],
+    /// Region tests, region-major.
+    pub regions: Vec<RegionResult>,
+    /// Šidák per-test level used for the region tests.
+    pub alpha: f64,
+    /// True when some region test rejects at `alpha`.
+    pub differ: bool,
+    /// Pixels flagged as different by Benjamini–Hochberg at rate q (any channel), when both
+    /// images give a standard error per pixel.
+    pub flagged_pixels: Option<usize>,
+    /// Per-pixel |z| (max over channels) when available, for the difference map.
+    pub pixel_z: Option<Vec<f64>>,
+    /// Whether the reference carried variance channels.
+    pub reference_has_variance: bool,
+}
+
+/// ε of relMSE.
+pub const REL_MSE_EPS: f64 = 1e-2;
+
+fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
+    let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
+    for y in r[1]..r[3] {
+        for x in r[0]..r[2] {
+            let i = y * img.width + x;
+            sum += img.rgb[c][i];
+            if let Some(v) = &img.variance {
+                var += v[c][i];
+            }
+            n += 1.0;
+        }
+    }
+    (sum / n, var.sqrt() / n)
+}
+
+/// Compares `test` with `reference` over `regions` (the whole image is always one region) at
+/// family-wise rate `family_alpha` (Šidák over regions × channels) and pixel FDR `q`.
+pub fn compare(
+    test: &RgbImage,
+    reference: &RgbImage,
+    regions: &[Region],
+    family_alpha: f64,
+    q: f64,
+) -> Result<Comparison, String> {
+    if (test.width, test.height) != (reference.width, reference.height) {
+        return Err(format!(
+            "the images differ in size: {}x{} vs {}x{}",
+            test.width, test.height, reference.width, reference.height
+        ));
+    }
+    let (w, h) = (test.width, test.height);
+    let n = (w * h) as f64;
+    let metrics = std::array::from_fn(|c| {
+        let (t, r) = (&test.rgb[c], &reference.rgb[c]);
+        let mut se = 0.0;
+        let mut rel = 0.0;
+        let mut sm = (0.0, 0.0);
+        for (a, b) in t.iter().zip(r) {
+            let d = a - b;
+            se += d * d;
+            rel += d * d / (b * b + REL_MSE_EPS);
+            if a.abs() + b.abs() > 0.0 {
+                sm.0 += 2.0 * d.abs() / (a.abs() + b.abs());
+                sm.1 += 1.0;
+            }
+        }
+        Metrics {
+            mean_test: t.iter().sum::<f64>() / n,
+            mean_reference: r.iter().sum::<f64>() / n,
+            rmse: (se / n).sqrt(),
+            rel_mse: rel / n,
+            smape: if sm.1 > 0.0 { sm.0 / sm.1 } else { 0.0 },
+        }
+    });
+    let mut all = vec![Region {
+        name: "whole image".into(),
+        rect: [0.0, 0.0, 1.0, 1.0],
+    }];
+    all.extend(regions.iter().cloned());
+    let m = all.len() * 3;
+    let alpha = multiple::sidak_alpha(family_alpha, m);
+    let mut results = Vec::new();
+    for reg in &all {
+        let rect = reg.pixels(w, h)?;
+        for (c, channel) in CHANNELS.iter().enumerate() {
+            let (mt, st) = region_mean(test, c, rect);
+            let (mr, sr) = region_mean(reference, c, rect);
+            let se = (st * st + sr * sr).sqrt();
+            let t = z_test(mt, se, mr);
+            results.push(RegionResult {
+                region: reg.name.clone(),
+                channel,
+                test: (mt, st),
+                reference: (mr, sr),
+                z: t.z,
+                p: t.p,
+            });
+        }
+    }
+    let differ = results.iter().any(|r| r.p <= alpha);
+    // Pixel-level: BH over all pixel×channel tests, when the test image has variances.
+    let (flagged, pixel_z) = match &test.variance {
+        None => (None, None),
+        Some(vt) => {
+            let mut ps = Vec::with_capacity(w * h * 3);
+            let mut zmax = vec![0.0f64; w * h];
+            for c in 0..3 {
+                for i in 0..w * h {
+                    let var = vt[c][i] + reference.variance.as_ref().map_or(0.0, |v| v[c][i]);
+                    let t = z_test(test.rgb[c][i], var.sqrt(), reference.rgb[c][i]);
+                    ps.push((i, t.p));
+                    zmax[i] = zmax[i].max(t.z.abs().min(1e6));
+                }
+            }
+            let k = benjamini_hochberg(&ps.iter().map(|x| x.1).collect::<Vec<_>>(), q);
+            let mut sorted: Vec<(usize, f64)> = ps.clone();
+            sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
+            let mut px = std::collections::BTreeSet::new();
+            for (i, _) in sorted.iter().take(k) {
+                px.insert(*i);
+            }
+            (Some(px.len()), Some(zmax))
+        }
+    };
+    Ok(Comparison {
+        metrics,
+        regions: results,
+        alpha,
+        differ,
+        flagged_pixels: flagged,
+        pixel_z,
+        reference_has_variance: reference.variance.is_some(),
+    })
+}
+
+/// Number of hypotheses rejected by the Benjamini–Hochberg step-up procedure at FDR `q`:
+/// the largest k with p₍ₖ₎ ≤ k·q/m (Benjamini & Hochberg 1995, §3). NaN p-values count as 0.
+pub fn benjamini_hochberg(p: &[f64], q: f64) -> usize {
+    let m = p.len();
+    let mut s: Vec<f64> = p
+        .iter()
+        .map(|x| if x.is_nan() { 0.0 } else { *x })
+        .collect();
+    s.sort_by(f64::total_cmp);
+    (1..=m)
+        .rev()
+        .find(|&k| s[k - 1] <= k as f64 * q / m as f64)
+        .unwrap_or(0)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::SampleStream;
+
+    /// A synthetic render of a known image: pixel means with Gaussian noise of known variance.
+    fn noisy(
+        w: usize,
+        h: usize,
+        truth: impl Fn(usize, usize, usize) -> f64,
+        sd: f64,
+        seed: u64,
+    ) -> RgbImage {
+        let mut rng = SampleStream::new(seed, 0, 0);
+        let mut gauss = || {
+            // Box–Muller (Box & Muller 1958)
+            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
+            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        };
+        let rgb = std::array::from_fn(|c| {
+            (0..w * h)
+                .map(|i| truth(i % w, i / w, c) + sd * gauss())
+                .collect()
+        });
+        let variance = Some(std::array::from_fn(|_| vec![sd * sd; w * h]));
+        RgbImage {
+            width: w,
+            height: h,
+            rgb,
+            variance,
+        }
+    }
+
+    fn cornellish(x: usize, _y: usize, c: usize) -> f64 {
+        // a "red wall" on the left fifth, grey elsewhere
+        if x < 12 {
+            [0.6, 0.05, 0.05][c]
+        } else {
+            0.5
+        }
+    }
+
+    fn regions() -> Vec<Region> {
+        vec![
+            Region {
+                name: "red wall".into(),
+                rect: [0.0, 0.0, 0.2, 1.0],
+            },
+            Region {
+                name: "back".into(),
+                rect: [0.4, 0.3, 0.6, 0.6],
+            },
+        ]
+    }
+
+    #[test]
+    fn two_noisy_renders_of_the_same_image_agree() {
+        let mut false_alarms = 0;
+        for seed in 0..20 {
+            let a = noisy(64, 48, cornellish, 0.05, seed);
+            let b = noisy(64, 48, cornellish, 0.05, 100 + seed);
+            let c = compare(&a, &b, &regions(), 0.01, 0.01).unwrap();
+            false_alarms += c.differ as usize;
+            // with no true difference BH should flag (almost) nothing
+            assert!(c.flagged_pixels.unwrap() <= 3, "{:?}", c.flagged_pixels);
+        }
+        assert!(
+            false_alarms <= 2,
+            "{false_alarms} false alarms in 20 at 1 %"
+        );
+    }
+
+    #[test]
+    fn a_two_percent_tint_on_one_wall_is_rejected() {
+        let a = noisy(64, 48, cornellish, 0.05, 1);
+        let tinted = |x: usize, y: usize, c: usize| {
+            cornellish(x, y, c) * if x < 12 && c == 0 { 1.02 } else { 1.0 }
+        };
+        let b = noisy(64, 48, tinted, 0.05, 2);
+        let c = compare(&a, &b, &regions(), 0.01, 0.01).unwrap();
+        assert!(c.differ, "{:?}", c.regions);
+        let red = c
+            .regions
+            .iter()
+            .find(|r| r.region == "red wall" && r.channel == "R")
+            .unwrap();
+        assert!(red.p <= c.alpha, "{red:?}");
+        // the untouched back wall agrees
+        let back = c
+            .regions
+            .iter()
+            .find(|r| r.region == "back" && r.channel == "R")
+            .unwrap();
+        assert!(back.p > c.alpha);
+    }
+
+    #[test]
+    fn metrics_have_known_values() {
+        let img = |v: f64| RgbImage {
+            width: 2,
+            height: 1,
+            rgb: [vec![v, v], vec![v, v], vec![v, v]],
+            variance: None,
+        };
+        let c = compare(&img(1.1), &img(1.0), &[], 0.01, 0.01).unwrap();
+        let m = &c.metrics[0];
+        assert!((m.rmse - 0.1).abs() < 1e-12);
+        assert!((m.rel_mse - 0.01 / 1.01).abs() < 1e-12);
+        assert!((m.smape - 0.2 / 2.1).abs() < 1e-12);
+        // exact images: zero se on both sides, any difference rejects
+        assert!(c.differ && !c.reference_has_variance && c.flagged_pixels.is_none());
+    }
+
+    #[test]
+    fn bh_textbook() {
+        // Benjamini & Hochberg 1995, §4 example with 15 p-values: 4 rejected at q = 0.05.
+        let p = [
+            0.0001, 0.0004, 0.0019, 0.0095, 0.0201, 0.0278, 0.0298, 0.0344, 0.0459, 0.3240, 0.4262,
+            0.5719, 0.6528, 0.7590, 1.0,
+        ];
+        assert_eq!(benjamini_hochberg(&p, 0.05), 4);
+        assert_eq!(benjamini_hochberg(&[], 0.05), 0);
+    }
+
+    #[test]
+    fn regions_map_to_pixels_and_reject_bad_rects() {
+        let r = Region {
+            name: "x".into(),
+            rect: [0.0, 0.0, 0.5, 0.25],
+        };
+        assert_eq!(r.pixels(64, 48).unwrap(), [0, 0, 32, 12]);
+        assert!(Region {
+            name: "bad".into(),
+            rect: [0.5, 0.0, 0.4, 1.0]
+        }
+        .pixels(64, 48)
+        .is_err());
+    }
+}
