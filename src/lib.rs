@@ -1,9 +1,9 @@
 //! furnace: a predictive-rendering validation harness with a compact spectral reference
 //! renderer.
 //!
-//! Module chain (a module uses only those to its left):
-//! `math, stats ← spectrum ← geometry ← {scattering, lights, camera, film} ← scene ←
-//! integrators ← render`.
+//! Module chain (a module uses only those to its left; `tests/suite/layering.rs` enforces it):
+//! `math ← stats ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
+//! integrators ← render ← harness ← report`, with the `furnace` binary (`cli.rs`) on top.
 
 pub mod camera;
 pub mod film;

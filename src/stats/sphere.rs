@@ -196,28 +196,12 @@ fn legendre_with_derivative(n: usize, x: f64) -> (f64, f64) {
 mod tests {
     use super::super::chi2::chi2_gof;
     use super::*;
+    use crate::math::rng::SampleStream;
     use std::f64::consts::{FRAC_1_PI, PI, TAU};
-
-    /// SplitMix64 (Steele, Lea & Flood 2014, OOPSLA): a tiny deterministic test RNG.
-    struct SplitMix64(u64);
-
-    impl SplitMix64 {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
-        }
-        /// Uniform in [0, 1).
-        fn next_f64(&mut self) -> f64 {
-            (self.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-        }
-    }
 
     /// Cosine-weighted hemisphere direction by Malley's method: uniform point on the unit
     /// disk lifted to the hemisphere (Pharr, Jakob & Humphreys, PBRT 3rd ed., §13.6.3).
-    fn sample_cosine(rng: &mut SplitMix64) -> [f64; 3] {
+    fn sample_cosine(rng: &mut SampleStream) -> [f64; 3] {
         let (u1, u2) = (rng.next_f64(), rng.next_f64());
         let r = u1.sqrt();
         let phi = TAU * u2;
@@ -385,7 +369,7 @@ mod tests {
         let n = 50_000;
         let expected = scaled(&b.integrate(cosine_pdf, 4), n);
         for seed in [1, 2, 3] {
-            let mut rng = SplitMix64(seed);
+            let mut rng = SampleStream::new(seed, 0, 0);
             let counts = b.count((0..n).map(|_| sample_cosine(&mut rng)));
             assert_eq!(counts.iter().sum::<u64>(), n as u64);
             let r = chi2_gof(&counts, &expected, 5.0).unwrap();
@@ -402,7 +386,7 @@ mod tests {
             phi_bins: 16,
         };
         let n = 50_000;
-        let mut rng = SplitMix64(7);
+        let mut rng = SampleStream::new(7, 0, 0);
         let counts = b.count((0..n).map(|_| sample_cosine(&mut rng)));
         // Wrong shape: uniform hemisphere.
         let r = chi2_gof(
@@ -432,7 +416,7 @@ mod tests {
             phi_bins: 16,
         };
         let n = 50_000;
-        let mut rng = SplitMix64(1);
+        let mut rng = SampleStream::new(1, 0, 0);
         let mut samples: Vec<[f64; 3]> = (0..n).map(|_| sample_cosine(&mut rng)).collect();
         samples[123] = [f64::NAN, 0.0, 1.0];
         let counts = b.count(samples);

@@ -319,21 +319,19 @@ fn chi2_quantile(p: f64, dof: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::math::rng::SampleStream;
 
-    /// SplitMix64 (Steele, Lea & Flood 2014, OOPSLA): a tiny deterministic test RNG.
-    struct SplitMix64(u64);
+    /// The crate's deterministic counter-based stream, keyed by the test's seed, with the two
+    /// draws these tests need.
+    struct TestRng(SampleStream);
 
-    impl SplitMix64 {
-        fn next_u64(&mut self) -> u64 {
-            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
-            let mut z = self.0;
-            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-            z ^ (z >> 31)
+    impl TestRng {
+        fn new(seed: u64) -> Self {
+            TestRng(SampleStream::new(seed, 0, 0))
         }
         /// Uniform in (0, 1].
         fn next_open(&mut self) -> f64 {
-            ((self.next_u64() >> 11) + 1) as f64 * (1.0 / (1u64 << 53) as f64)
+            1.0 - self.0.next_f64()
         }
         fn normal(&mut self) -> f64 {
             // Box & Muller 1958, Ann. Math. Stat. 29: sqrt(−2 ln u1)·cos(2π u2).
@@ -343,22 +341,22 @@ mod tests {
     }
 
     fn normal_data(seed: u64, n: usize) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         (0..n).map(|_| 3.0 + 0.5 * r.normal()).collect()
     }
 
     fn exponential_data(seed: u64, n: usize) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         (0..n).map(|_| -r.next_open().ln()).collect()
     }
 
     fn chi2_1_data(seed: u64, n: usize) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         (0..n).map(|_| r.normal().powi(2)).collect()
     }
 
     fn t3_data(seed: u64, n: usize) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         (0..n)
             .map(|_| {
                 let z = r.normal();
@@ -370,13 +368,13 @@ mod tests {
 
     /// Pareto with tail index `index`: x = u^(−1/index), u uniform in (0, 1].
     fn pareto_data(seed: u64, n: usize, index: f64) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         (0..n).map(|_| r.next_open().powf(-1.0 / index)).collect()
     }
 
     /// Stationary AR(1) with coefficient phi and unit innovations.
     fn ar1_data(seed: u64, n: usize, phi: f64) -> Vec<f64> {
-        let mut r = SplitMix64(seed);
+        let mut r = TestRng::new(seed);
         let mut x = r.normal() / (1.0 - phi * phi).sqrt();
         (0..n)
             .map(|_| {

@@ -4,8 +4,9 @@
 use crate::root;
 use std::path::Path;
 
-const LAYERS: [&[&str]; 9] = [
-    &["math", "stats"],
+const LAYERS: [&[&str]; 10] = [
+    &["math"],
+    &["stats"],
     &["spectrum"],
     &["geometry"],
     &["scattering", "media", "lights", "camera", "film"],
