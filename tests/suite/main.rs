@@ -1,6 +1,7 @@
 //! furnace integration tests: one binary, one module per concern.
 
 mod cli;
+mod colorimetry;
 mod layering;
 mod manifest_errors;
 mod manifests;
