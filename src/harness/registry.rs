@@ -64,14 +64,14 @@ pub trait DirectionSampler {
 }
 
 /// A BSDF's sampling routine for a fixed `wo` (local frame).
-pub struct BsdfSampler<'a> {
+pub struct BsdfSampler {
     /// The BSDF.
-    pub bsdf: &'a dyn Bxdf,
+    pub bsdf: Bsdf,
     /// Outgoing direction.
     pub wo: Vec3,
 }
 
-impl DirectionSampler for BsdfSampler<'_> {
+impl DirectionSampler for BsdfSampler {
     fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
         self.bsdf
             .sample(self.wo, u, uc, &check_wavelengths())
@@ -84,14 +84,14 @@ impl DirectionSampler for BsdfSampler<'_> {
 }
 
 /// A phase function's sampling routine for a fixed `wo`.
-pub struct PhaseSampler<'a> {
+pub struct PhaseSampler {
     /// The phase function.
-    pub phase: &'a dyn Phase,
+    pub phase: HenyeyGreenstein,
     /// Outgoing direction.
     pub wo: Vec3,
 }
 
-impl DirectionSampler for PhaseSampler<'_> {
+impl DirectionSampler for PhaseSampler {
     fn sample(&self, u: [f64; 2], _uc: f64) -> Option<Vec3> {
         Some(self.phase.sample(self.wo, u).wi)
     }
@@ -164,7 +164,7 @@ pub fn samplers() -> Vec<(String, MakeSampler)> {
             v.push((
                 format!("bsdf {name} θo={theta}°"),
                 Box::new(move || {
-                    Box::new(OwnedBsdfSampler {
+                    Box::new(BsdfSampler {
                         bsdf: b.clone(),
                         wo,
                     })
@@ -177,8 +177,8 @@ pub fn samplers() -> Vec<(String, MakeSampler)> {
         v.push((
             format!("phase hg g={g}"),
             Box::new(move || {
-                Box::new(OwnedPhaseSampler {
-                    hg: HenyeyGreenstein { g },
+                Box::new(PhaseSampler {
+                    phase: HenyeyGreenstein { g },
                     wo,
                 })
             }),
@@ -250,44 +250,4 @@ pub fn samplers() -> Vec<(String, MakeSampler)> {
         }),
     ));
     v
-}
-
-struct OwnedBsdfSampler {
-    bsdf: Bsdf,
-    wo: Vec3,
-}
-
-impl DirectionSampler for OwnedBsdfSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        BsdfSampler {
-            bsdf: &self.bsdf,
-            wo: self.wo,
-        }
-        .sample(u, uc)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        BsdfSampler {
-            bsdf: &self.bsdf,
-            wo: self.wo,
-        }
-        .pdf(w)
-    }
-}
-
-struct OwnedPhaseSampler {
-    hg: HenyeyGreenstein,
-    wo: Vec3,
-}
-
-impl DirectionSampler for OwnedPhaseSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        PhaseSampler {
-            phase: &self.hg,
-            wo: self.wo,
-        }
-        .sample(u, uc)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        self.hg.pdf(self.wo, w)
-    }
 }
