@@ -32,6 +32,7 @@ fn cornell_frame(c: &mut Criterion) {
             max_depth: Some(5),
             ..PathTracer::default()
         },
+        observer: Default::default(),
     };
     let mut g = c.benchmark_group("cornell_frame");
     g.sample_size(20);

@@ -13,6 +13,7 @@ use furnace::render::{render, RenderSettings};
 use furnace::report::{json, junit, text};
 use furnace::scene;
 use furnace::scene::Scene;
+use furnace::spectrum::Observer;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -33,6 +34,20 @@ enum Command {
     Check(CheckArgs),
     /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
     Compare(CompareArgs),
+    /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
+    Export(ExportArgs),
+}
+
+#[derive(Debug, Args)]
+struct ExportArgs {
+    /// The furnace scene (TOML).
+    scene: PathBuf,
+    /// Target format.
+    #[arg(long, default_value = "mitsuba3", value_parser = ["mitsuba3"])]
+    format: String,
+    /// Output folder (created); the scene file inside it is scene.xml.
+    #[arg(long)]
+    out: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -47,6 +62,9 @@ struct CompareArgs {
     /// Family-wise false-alarm rate over all region x channel tests (Sidak).
     #[arg(long, default_value_t = 0.01)]
     alpha: f64,
+    /// Stated relative model tolerance: a region differs only when |test - reference| exceeds this fraction of the reference by more than noise.
+    #[arg(long, default_value_t = 0.0)]
+    rel_tolerance: f64,
     /// False-discovery rate of the per-pixel test (Benjamini-Hochberg).
     #[arg(long, default_value_t = 0.01)]
     fdr: f64,
@@ -116,6 +134,9 @@ struct RenderArgs {
     /// How emitters are found: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
     #[arg(long, default_value = "mis", value_parser = ["mis", "bsdf", "light"])]
     strategy: String,
+    /// Colour pipeline of the film: cie1931 (furnace's: CIE 1931 at 1 nm, Y/106.857, IEC matrix) or mitsuba3 (Mitsuba 3's: the same table at 5 nm, Y/106.750, its matrix), to compare RGB with a Mitsuba render without a colour-conversion difference.
+    #[arg(long, default_value = "cie1931", value_parser = ["cie1931", "mitsuba3"])]
+    observer: String,
     /// Output EXR path [default: out/<scene name>.exr].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -167,7 +188,17 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Render(args) => render_command(args),
         Command::Check(args) => check_command(args),
         Command::Compare(args) => compare_command(args),
+        Command::Export(args) => export_command(args),
     }
+}
+
+fn export_command(a: ExportArgs) -> Result<i32, Failure> {
+    let scene =
+        Scene::load(&a.scene).with_context(|| format!("invalid scene {}", a.scene.display()))?;
+    let xml = furnace::export::mitsuba::write(&scene, &a.out)
+        .with_context(|| format!("cannot export {}", a.scene.display()))?;
+    println!("wrote {}", xml.display());
+    Ok(0)
 }
 
 fn render_command(a: RenderArgs) -> Result<i32, Failure> {
@@ -189,6 +220,7 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
                 _ => Strategy::Mis,
             },
         },
+        observer: Observer::from_name(&a.observer).expect("clap restricts --observer"),
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
@@ -234,7 +266,8 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
         ("furnace.strategy".to_string(), a.strategy.clone()),
         ("furnace.filter".to_string(), "box".to_string()),
-        ("furnace.units".to_string(), "X,Y,Z: CIE 1931, Y=1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
+        ("furnace.observer".to_string(), settings.observer.name().to_string()),
+        ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
     io::write_exr(&exr_path, &film.to_layers(attrs))
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
@@ -358,6 +391,13 @@ fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
     if !(a.alpha > 0.0 && a.alpha < 1.0 && a.fdr > 0.0 && a.fdr < 1.0) {
         return Err(anyhow::anyhow!("--alpha and --fdr must lie in (0, 1)").into());
     }
+    if !(0.0..0.1).contains(&a.rel_tolerance) {
+        return Err(anyhow::anyhow!(
+            "--rel-tolerance {} must lie in [0, 0.1): a larger model tolerance lets real bugs pass",
+            a.rel_tolerance
+        )
+        .into());
+    }
     let load = |p: &Path| -> Result<RgbImage, Failure> {
         let layers = io::read_exr(p).with_context(|| format!("cannot read {}", p.display()))?;
         Ok(RgbImage::from_layers(&layers).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?)
@@ -391,7 +431,7 @@ fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
             r.region
         }
     };
-    let c = compare::compare(&test, &reference, &regions, a.alpha, a.fdr)
+    let c = compare::compare(&test, &reference, &regions, a.alpha, a.fdr, a.rel_tolerance)
         .map_err(|e| anyhow::anyhow!(e))?;
     println!(
         "test {} vs reference {} ({}x{}){}",

@@ -6,7 +6,7 @@ use crate::film::Film;
 use crate::integrators::PathTracer;
 use crate::math::rng::SampleStream;
 use crate::scene::Scene;
-use crate::spectrum::{cie, Wavelengths, N_WAVELENGTHS};
+use crate::spectrum::{Observer, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -28,6 +28,8 @@ pub struct RenderSettings {
     pub threads: usize,
     /// The estimator.
     pub integrator: PathTracer,
+    /// How spectral samples become XYZ and RGB on the film.
+    pub observer: Observer,
 }
 
 /// Why a render could not start.
@@ -69,9 +71,9 @@ pub fn render(
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
     let grey = scene.is_grey();
-    let cie = cie::tables();
-    let y_norm = 1.0 / cie.y_integral();
-    let white = cie.spectrum_to_xyz(&crate::spectrum::Spectrum::Constant(1.0));
+    let observer = settings.observer;
+    let y_norm = 1.0 / observer.y_integral();
+    let white = observer.white();
     let tiles_x = w.div_ceil(TILE);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
@@ -96,19 +98,21 @@ pub fn render(
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
                             let l = settings.integrator.radiance(scene, ray, &wl, &mut rng);
                             if grey {
-                                px.add_xyz(white.map(|c| c * l.0[0]));
+                                let xyz = white.map(|c| c * l.0[0]);
+                                px.add(xyz, observer.xyz_to_rgb(xyz));
                                 continue;
                             }
-                            // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::cie).
+                            // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::observer).
                             let mut xyz = [0.0; 3];
                             for i in 0..N_WAVELENGTHS {
-                                let c = cie.cmf(wl.lambda[i]);
+                                let c = observer.cmf(wl.lambda[i]);
                                 let k = l.0[i] / wl.pdf[i];
                                 for j in 0..3 {
                                     xyz[j] += k * c[j];
                                 }
                             }
-                            px.add_xyz(xyz.map(|v| v * y_norm / N_WAVELENGTHS as f64));
+                            let xyz = xyz.map(|v| v * y_norm / N_WAVELENGTHS as f64);
+                            px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
                         pixels.push(px);
                     }

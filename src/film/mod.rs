@@ -14,7 +14,6 @@
 
 pub mod io;
 
-use crate::spectrum::color::xyz_to_linear_srgb;
 use crate::stats::MeanVar;
 
 /// Channel names in storage order: X, Y, Z, then linear sRGB R, G, B.
@@ -28,10 +27,10 @@ pub struct Pixel {
 }
 
 impl Pixel {
-    /// Adds one sample's XYZ estimate (R, G, B derived from it).
+    /// Adds one sample's XYZ estimate and its linear sRGB (derived from it by the
+    /// observer's matrix).
     #[inline]
-    pub fn add_xyz(&mut self, xyz: [f64; 3]) {
-        let rgb = xyz_to_linear_srgb(xyz);
+    pub fn add(&mut self, xyz: [f64; 3], rgb: [f64; 3]) {
         for k in 0..3 {
             self.channels[k].push(xyz[k]);
             self.channels[k + 3].push(rgb[k]);

@@ -50,6 +50,21 @@ impl CieTables {
         ]
     }
 
+    /// Number of 1 nm rows (471: 360–830 nm).
+    pub fn len(&self) -> usize {
+        self.xyz.len()
+    }
+
+    /// Always false: the compiled-in table has 471 rows.
+    pub fn is_empty(&self) -> bool {
+        self.xyz.is_empty()
+    }
+
+    /// (x̄, ȳ, z̄) of row `i` (wavelength 360 + i nm).
+    pub fn row(&self, i: usize) -> [f64; 3] {
+        self.xyz[i]
+    }
+
     /// ∫ ȳ dλ over 360–830 nm in nm (the XYZ normalisation constant).
     pub fn y_integral(&self) -> f64 {
         self.y_integral

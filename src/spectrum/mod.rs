@@ -7,9 +7,11 @@
 pub mod cie;
 pub mod color;
 pub mod curve;
+pub mod observer;
 pub mod sampled;
 
 pub use curve::{Outside, Spectrum};
+pub use observer::Observer;
 pub use sampled::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 
 /// Shortest wavelength rendered, nm.

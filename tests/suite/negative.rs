@@ -152,7 +152,7 @@ impl Renderer for Direct {
                                 l.0[i] / wl.pdf[i] * c[j] / cmf.y_integral() / N_WAVELENGTHS as f64;
                         }
                     }
-                    px.add_xyz(xyz);
+                    px.add(xyz, furnace::spectrum::color::xyz_to_linear_srgb(xyz));
                 }
             }
         }

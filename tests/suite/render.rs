@@ -19,6 +19,7 @@ fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSe
         seed,
         threads,
         integrator: PathTracer::default(),
+        observer: Default::default(),
     }
 }
 

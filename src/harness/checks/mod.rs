@@ -6,6 +6,7 @@ pub mod energy;
 pub mod estimators;
 pub mod furnace;
 pub mod hg;
+pub mod image;
 pub mod lambert;
 pub mod radiance;
 pub mod reciprocity;
@@ -33,6 +34,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "estimator_agreement" => estimators::run(spec, ctx),
         "sample_weights" => weights::run(spec, ctx),
         "scale_invariance" => scale::run(spec, ctx),
+        "image_compare" => image::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }
@@ -81,6 +83,7 @@ pub fn settings_for(
             rr_depth: if ov.roulette { Some(5) } else { None },
             strategy,
         },
+        observer: Default::default(),
     }
 }
 
