@@ -3,9 +3,10 @@
 //!
 //! Module chain (a module uses only those to its left; `tests/suite/layering.rs` enforces it):
 //! `math ← stats ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
-//! integrators ← render ← harness ← report`, with the `furnace` binary (`cli.rs`) on top.
+//! {integrators, export} ← render ← harness ← report`, with the `furnace` binary (`cli.rs`) on top.
 
 pub mod camera;
+pub mod export;
 pub mod film;
 pub mod geometry;
 pub mod harness;

@@ -11,7 +11,7 @@ const LAYERS: [&[&str]; 10] = [
     &["geometry"],
     &["scattering", "media", "lights", "camera", "film"],
     &["scene"],
-    &["integrators"],
+    &["integrators", "export"],
     &["render"],
     &["harness"],
     &["report"],

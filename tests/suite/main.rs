@@ -2,10 +2,12 @@
 
 mod cli;
 mod colorimetry;
+mod export;
 mod layering;
 mod manifest_errors;
 mod manifests;
 mod negative;
+mod references;
 mod render;
 mod scene_errors;
 mod scene_parse;

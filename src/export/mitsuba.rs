@@ -1,0 +1,313 @@
+//! Mitsuba 3 scene XML (format version 3.0.0) plus binary PLY meshes.
+//!
+//! Translation (each choice keeps Mitsuba's image equal in expectation to furnace's):
+//! - spectra stay spectra, never RGB: a constant → `value="c"` (Mitsuba's `uniform`), a table
+//!   → `value="λ:v, …"` (Mitsuba's `irregular`: linear between samples, zero outside, as
+//!   furnace's `outside = "zero"`; `"clamp"` adds the end values at 360 and 830 nm, the range
+//!   both renderers sample), a blackbody → `blackbody` (same unit, W·sr⁻¹·m⁻²·nm⁻¹), or a 1 nm
+//!   Planck table when it carries a scale;
+//! - `diffuse` → `diffuse` inside `twosided` (furnace's Lambertian is two-sided);
+//! - quads and triangle meshes → binary little-endian PLY files next to the XML, loaded with
+//!   `face_normals = true` (flat shading, as furnace; vertex order keeps furnace's normal
+//!   (p1 − p0) × (p2 − p0)); spheres → `sphere`; `flip_normals` passed through;
+//! - an emitting shape → `area` emitter (one-sided on the normal's side, as furnace); point
+//!   light → `point`; environment → `constant`;
+//! - camera → `perspective` with `fov_axis = "y"` and a `lookat` transform, `box` filter,
+//!   `independent` sampler, `path` integrator;
+//! - `$spp`, `$width`, `$height`, `$seed` and `$max_depth` are XML parameters with the scene's
+//!   defaults, so a driver passes them to `mitsuba.load_file(path, spp=…)`; `max_depth`
+//!   follows Mitsuba's convention (bounces + 1, −1 = unlimited).
+//!
+//! Two-sided emission has no one-shape Mitsuba equivalent and is an error.
+
+use super::ExportError;
+use crate::geometry::Shape;
+use crate::lights::Light;
+use crate::math::Vec3;
+use crate::scattering::Bsdf;
+use crate::scene::Scene;
+use crate::spectrum::curve::planck;
+use crate::spectrum::{Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+
+/// Name of the format in messages.
+const FORMAT: &str = "Mitsuba 3";
+
+/// An exported scene: the XML text and the mesh files it references (by relative path).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MitsubaScene {
+    /// The scene XML.
+    pub xml: String,
+    /// (path relative to the XML's folder, file contents) of each PLY mesh.
+    pub meshes: Vec<(String, Vec<u8>)>,
+}
+
+/// Translates `scene`; see the module doc for the mapping.
+pub fn export(scene: &Scene) -> Result<MitsubaScene, ExportError> {
+    let mut x = String::new();
+    let mut meshes = Vec::new();
+    let r = &scene.render;
+    let max_depth = r.max_depth.map_or(-1, |d| d as i64 + 1);
+    x.push_str("<?xml version=\"1.0\" encoding=\"utf-8\"?>\n");
+    x.push_str("<!-- Exported by furnace ");
+    x.push_str(env!("CARGO_PKG_VERSION"));
+    x.push_str(" (src/export/mitsuba.rs). max_depth is Mitsuba's: furnace bounces + 1, -1 = unlimited. -->\n");
+    x.push_str("<scene version=\"3.0.0\">\n");
+    for (name, value) in [
+        ("spp", r.spp.to_string()),
+        ("width", r.width.to_string()),
+        ("height", r.height.to_string()),
+        ("seed", "0".to_string()),
+        ("max_depth", max_depth.to_string()),
+    ] {
+        let _ = writeln!(x, "  <default name=\"{name}\" value=\"{value}\"/>");
+    }
+    x.push_str("  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"$max_depth\"/>\n  </integrator>\n");
+    sensor(&mut x, scene);
+    let shapes = scene.aggregate.shapes();
+    for (i, shape) in shapes.iter().enumerate() {
+        match shape {
+            Shape::Sphere(s) => {
+                let _ = writeln!(x, "  <shape type=\"sphere\" id=\"shape-{i:03}\">");
+                let _ = writeln!(x, "    {}", point("center", s.center));
+                let _ = writeln!(x, "    <float name=\"radius\" value=\"{}\"/>", s.radius);
+                boolean(&mut x, "flip_normals", s.flip_normals);
+            }
+            Shape::Quad(q) => {
+                let c = q.corner;
+                let verts = [c, c + q.edge_u, c + q.edge_u + q.edge_v, c + q.edge_v];
+                // (p1 − p0) × (p2 − p0) = edge_u × edge_v for both triangles: furnace's normal.
+                ply_shape(&mut x, &mut meshes, i, &verts, &[[0, 1, 2], [0, 2, 3]]);
+                boolean(&mut x, "flip_normals", q.flip_normals);
+            }
+            Shape::Mesh(m) => {
+                ply_shape(&mut x, &mut meshes, i, &m.positions, &m.triangles);
+                boolean(&mut x, "flip_normals", m.flip_normals);
+            }
+        }
+        match &scene.bsdfs[i] {
+            Bsdf::Diffuse(l) => {
+                x.push_str("    <bsdf type=\"twosided\">\n      <bsdf type=\"diffuse\">\n");
+                spectrum(&mut x, 8, "reflectance", &l.reflectance);
+                x.push_str("      </bsdf>\n    </bsdf>\n");
+            }
+        }
+        if let Some(li) = scene.shape_light[i] {
+            if let Light::Area {
+                radiance,
+                two_sided,
+                ..
+            } = &scene.lights[li as usize]
+            {
+                if *two_sided {
+                    return Err(ExportError::Unsupported {
+                        format: FORMAT,
+                        what: format!("shape[{i}] emission with two_sided = true"),
+                        why: "Mitsuba's area emitter emits on one side only; use two shapes with opposite normals".into(),
+                    });
+                }
+                x.push_str("    <emitter type=\"area\">\n");
+                spectrum(&mut x, 6, "radiance", radiance);
+                x.push_str("    </emitter>\n");
+            }
+        }
+        x.push_str("  </shape>\n");
+    }
+    for light in &scene.lights {
+        match light {
+            Light::Area { .. } => {}
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                x.push_str("  <emitter type=\"point\">\n");
+                let _ = writeln!(x, "    {}", point("position", *position));
+                spectrum(&mut x, 4, "intensity", intensity);
+                x.push_str("  </emitter>\n");
+            }
+            Light::Environment { radiance } => {
+                x.push_str("  <emitter type=\"constant\">\n");
+                spectrum(&mut x, 4, "radiance", radiance);
+                x.push_str("  </emitter>\n");
+            }
+        }
+    }
+    x.push_str("</scene>\n");
+    Ok(MitsubaScene { xml: x, meshes })
+}
+
+/// Exports `scene` into `dir` as `scene.xml` plus `meshes/*.ply`; returns the XML's path.
+pub fn write(scene: &Scene, dir: &Path) -> Result<PathBuf, ExportError> {
+    let out = export(scene)?;
+    let io = |path: &Path| {
+        let path = path.to_path_buf();
+        move |source| ExportError::Io { path, source }
+    };
+    let mesh_dir = dir.join("meshes");
+    std::fs::create_dir_all(&mesh_dir).map_err(io(&mesh_dir))?;
+    for (rel, bytes) in &out.meshes {
+        let p = dir.join(rel);
+        std::fs::write(&p, bytes).map_err(io(&p))?;
+    }
+    let xml = dir.join("scene.xml");
+    std::fs::write(&xml, &out.xml).map_err(io(&xml))?;
+    Ok(xml)
+}
+
+fn sensor(x: &mut String, scene: &Scene) {
+    let cam = &scene.camera;
+    // Clip planes from the scene's extent (shapes, point lights, camera), as wide as possible
+    // without losing depth precision: [1e-4, 1e3] × extent.
+    let (mut lo, mut hi) = (cam.position, cam.position);
+    let mut grow = |p: Vec3| {
+        lo = lo.min(p);
+        hi = hi.max(p);
+    };
+    for s in scene.aggregate.shapes() {
+        for prim in 0..s.primitive_count() {
+            let (a, b) = s.primitive_bounds(prim);
+            grow(a);
+            grow(b);
+        }
+    }
+    for l in &scene.lights {
+        if let Light::Point { position, .. } = l {
+            grow(*position);
+        }
+    }
+    let extent = (hi - lo).max_element();
+    let extent = if extent > 0.0 { extent } else { 1.0 };
+    x.push_str("  <sensor type=\"perspective\">\n");
+    x.push_str("    <string name=\"fov_axis\" value=\"y\"/>\n");
+    let _ = writeln!(x, "    <float name=\"fov\" value=\"{}\"/>", cam.fov_y);
+    let _ = writeln!(
+        x,
+        "    <float name=\"near_clip\" value=\"{}\"/>",
+        1e-4 * extent
+    );
+    let _ = writeln!(
+        x,
+        "    <float name=\"far_clip\" value=\"{}\"/>",
+        1e3 * extent
+    );
+    x.push_str("    <transform name=\"to_world\">\n");
+    let v = |p: Vec3| format!("{}, {}, {}", p.x, p.y, p.z);
+    let _ = writeln!(
+        x,
+        "      <lookat origin=\"{}\" target=\"{}\" up=\"{}\"/>",
+        v(cam.position),
+        v(cam.look_at),
+        v(cam.up)
+    );
+    x.push_str("    </transform>\n");
+    x.push_str("    <sampler type=\"independent\">\n      <integer name=\"sample_count\" value=\"$spp\"/>\n      <integer name=\"seed\" value=\"$seed\"/>\n    </sampler>\n");
+    x.push_str("    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"$width\"/>\n      <integer name=\"height\" value=\"$height\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      <string name=\"component_format\" value=\"float32\"/>\n      <rfilter type=\"box\"/>\n    </film>\n");
+    x.push_str("  </sensor>\n");
+}
+
+fn point(name: &str, p: Vec3) -> String {
+    format!(
+        "<point name=\"{name}\" x=\"{}\" y=\"{}\" z=\"{}\"/>",
+        p.x, p.y, p.z
+    )
+}
+
+fn boolean(x: &mut String, name: &str, v: bool) {
+    let _ = writeln!(x, "    <boolean name=\"{name}\" value=\"{v}\"/>");
+}
+
+fn ply_shape(
+    x: &mut String,
+    meshes: &mut Vec<(String, Vec<u8>)>,
+    i: usize,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+) {
+    let rel = format!("meshes/shape-{i:03}.ply");
+    meshes.push((rel.clone(), ply(positions, triangles)));
+    let _ = writeln!(x, "  <shape type=\"ply\" id=\"shape-{i:03}\">");
+    let _ = writeln!(x, "    <string name=\"filename\" value=\"{rel}\"/>");
+    boolean(x, "face_normals", true);
+}
+
+/// Binary little-endian PLY: float32 positions (Mitsuba stores f32), int32 indices.
+pub fn ply(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<u8> {
+    let mut b = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        positions.len(),
+        triangles.len()
+    )
+    .into_bytes();
+    for p in positions {
+        for c in [p.x, p.y, p.z] {
+            b.extend_from_slice(&(c as f32).to_le_bytes());
+        }
+    }
+    for t in triangles {
+        b.push(3);
+        for &k in t {
+            b.extend_from_slice(&(k as i32).to_le_bytes());
+        }
+    }
+    b
+}
+
+/// One `<spectrum>` element named `name`, indented by `indent` spaces.
+fn spectrum(x: &mut String, indent: usize, name: &str, s: &Spectrum) {
+    let pad = " ".repeat(indent);
+    match s {
+        Spectrum::Constant(c) => {
+            let _ = writeln!(x, "{pad}<spectrum name=\"{name}\" value=\"{c}\"/>");
+        }
+        Spectrum::Tabulated {
+            wavelengths,
+            values,
+            outside,
+        } => {
+            let mut pairs: Vec<(f64, f64)> = wavelengths
+                .iter()
+                .copied()
+                .zip(values.iter().copied())
+                .collect();
+            if *outside == Outside::Clamp {
+                let (first, last) = (pairs[0], pairs[pairs.len() - 1]);
+                if first.0 > LAMBDA_MIN {
+                    pairs.insert(0, (LAMBDA_MIN, first.1));
+                }
+                if last.0 < LAMBDA_MAX {
+                    pairs.push((LAMBDA_MAX, last.1));
+                }
+            }
+            let _ = writeln!(
+                x,
+                "{pad}<spectrum name=\"{name}\" value=\"{}\"/>",
+                pairs_text(&pairs)
+            );
+        }
+        Spectrum::Blackbody { kelvin, scale } if *scale == 1.0 => {
+            let _ = writeln!(x, "{pad}<spectrum type=\"blackbody\" name=\"{name}\">");
+            let _ = writeln!(x, "{pad}  <float name=\"temperature\" value=\"{kelvin}\"/>");
+            let _ = writeln!(x, "{pad}</spectrum>");
+        }
+        Spectrum::Blackbody { kelvin, scale } => {
+            // Mitsuba's blackbody has no scale: a 1 nm table of scale · Planck (Planck 1901).
+            let pairs: Vec<(f64, f64)> = (LAMBDA_MIN as u32..=LAMBDA_MAX as u32)
+                .map(|l| (l as f64, scale * planck(l as f64, *kelvin)))
+                .collect();
+            let _ = writeln!(
+                x,
+                "{pad}<spectrum name=\"{name}\" value=\"{}\"/>",
+                pairs_text(&pairs)
+            );
+        }
+    }
+}
+
+fn pairs_text(pairs: &[(f64, f64)]) -> String {
+    pairs
+        .iter()
+        .map(|(l, v)| format!("{l}:{v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
+}

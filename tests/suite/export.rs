@@ -1,0 +1,304 @@
+//! The Mitsuba exporter: every bundled scene exports; the XML is well-formed and says what the
+//! scene says (shapes, spectra, camera); every PLY reads back (with furnace's own PLY reader)
+//! as the scene's geometry; and the exports committed next to the Mitsuba references are what
+//! the exporter writes today, so a reference can never silently describe another scene.
+
+use crate::root;
+use furnace::export::mitsuba;
+use furnace::geometry::{meshio, Shape};
+use furnace::scene::Scene;
+use quick_xml::events::{BytesStart, Event};
+use quick_xml::{Reader, XmlVersion};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// Every bundled scene: scenes/*.toml and the manifests' scenes (templates filled with 0.5).
+fn bundled() -> Vec<(PathBuf, Scene)> {
+    let mut out = Vec::new();
+    for dir in ["scenes", "tests/manifests/scenes"] {
+        let mut files: Vec<PathBuf> = std::fs::read_dir(root(dir))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .filter(|p| p.extension().is_some_and(|e| e == "toml"))
+            .filter(|p| !p.to_string_lossy().ends_with(".regions.toml"))
+            .collect();
+        files.sort();
+        for f in files {
+            let mut text = std::fs::read_to_string(&f).unwrap();
+            while let Some(i) = text.find("${") {
+                let j = text[i..].find('}').unwrap() + i;
+                text.replace_range(i..=j, "0.5");
+            }
+            let scene = Scene::parse(&text, &f).unwrap_or_else(|e| panic!("{e}"));
+            out.push((f, scene));
+        }
+    }
+    assert!(out.len() >= 14, "found only {} scenes", out.len());
+    out
+}
+
+/// An element: name, attributes, children.
+#[derive(Debug, Default, Clone)]
+struct Node {
+    name: String,
+    attrs: BTreeMap<String, String>,
+    children: Vec<Node>,
+}
+
+impl Node {
+    fn all<'a>(&'a self, name: &str, out: &mut Vec<&'a Node>) {
+        if self.name == name {
+            out.push(self);
+        }
+        for c in &self.children {
+            c.all(name, out);
+        }
+    }
+    fn child_named(&self, tag: &str, name: &str) -> Option<&Node> {
+        self.children
+            .iter()
+            .find(|c| c.name == tag && c.attrs.get("name").map(String::as_str) == Some(name))
+    }
+}
+
+fn node(e: &BytesStart<'_>) -> Node {
+    Node {
+        name: e.name().as_ref().to_string(),
+        attrs: e
+            .attributes()
+            .map(|a| {
+                let a = a.unwrap();
+                (
+                    a.key.as_ref().to_string(),
+                    a.normalized_value(XmlVersion::Explicit1_0)
+                        .unwrap()
+                        .into_owned(),
+                )
+            })
+            .collect(),
+        children: Vec::new(),
+    }
+}
+
+/// Parses the whole document with quick-xml (which checks nesting and end tags).
+fn parse(xml: &str) -> Node {
+    let mut reader = Reader::from_str(xml);
+    let mut stack = vec![Node::default()];
+    loop {
+        match reader
+            .read_event()
+            .unwrap_or_else(|e| panic!("not well-formed: {e}"))
+        {
+            Event::Eof => break,
+            Event::Start(e) => stack.push(node(&e)),
+            Event::Empty(e) => {
+                let n = node(&e);
+                stack.last_mut().unwrap().children.push(n);
+            }
+            Event::End(_) => {
+                let n = stack.pop().unwrap();
+                stack.last_mut().unwrap().children.push(n);
+            }
+            _ => {}
+        }
+    }
+    assert_eq!(stack.len(), 1, "unclosed elements");
+    let mut doc = stack.pop().unwrap();
+    assert_eq!(doc.children.len(), 1, "one root element");
+    doc.children.pop().unwrap()
+}
+
+/// `λ:v, …` or a plain number → (wavelength, value) pairs or a constant.
+fn spectrum_points(value: &str) -> Vec<(Option<f64>, f64)> {
+    value
+        .split(',')
+        .map(|p| match p.trim().split_once(':') {
+            Some((l, v)) => (Some(l.parse().unwrap()), v.parse().unwrap()),
+            None => (None, p.trim().parse().unwrap()),
+        })
+        .collect()
+}
+
+fn check_spectrum(node: &Node, name: &str, s: &furnace::spectrum::Spectrum, what: &str) {
+    let n = node
+        .child_named("spectrum", name)
+        .unwrap_or_else(|| panic!("{what}: no <spectrum name={name:?}>"));
+    if n.attrs.get("type").map(String::as_str) == Some("blackbody") {
+        let t = n.child_named("float", "temperature").unwrap();
+        assert!(
+            matches!(s, furnace::spectrum::Spectrum::Blackbody { kelvin, scale }
+            if *scale == 1.0 && t.attrs["value"].parse::<f64>().unwrap() == *kelvin)
+        );
+        return;
+    }
+    for (l, v) in spectrum_points(&n.attrs["value"]) {
+        let at = l.unwrap_or(550.0);
+        assert_eq!(v, s.eval(at), "{what}: {name} at {at} nm");
+    }
+}
+
+#[test]
+fn every_bundled_scene_exports_and_reads_back() {
+    for (path, scene) in bundled() {
+        let what = path.display().to_string();
+        let out = mitsuba::export(&scene).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let doc = parse(&out.xml);
+        assert_eq!(doc.name, "scene");
+        assert_eq!(doc.attrs["version"], "3.0.0");
+        let shapes: Vec<&Node> = doc.children.iter().filter(|c| c.name == "shape").collect();
+        assert_eq!(shapes.len(), scene.aggregate.shapes().len(), "{what}");
+        let meshes: BTreeMap<&str, &Vec<u8>> =
+            out.meshes.iter().map(|(n, b)| (n.as_str(), b)).collect();
+        let dir = tempdir(&path);
+        for (i, (shape, node)) in scene.aggregate.shapes().iter().zip(&shapes).enumerate() {
+            let what = format!("{what} shape[{i}]");
+            match shape {
+                Shape::Sphere(s) => {
+                    assert_eq!(node.attrs["type"], "sphere", "{what}");
+                    let c = node.child_named("point", "center").unwrap();
+                    let xyz: Vec<f64> = ["x", "y", "z"]
+                        .iter()
+                        .map(|k| c.attrs[*k].parse().unwrap())
+                        .collect();
+                    assert_eq!(xyz, s.center.to_array().to_vec(), "{what}");
+                    let r: f64 = node.child_named("float", "radius").unwrap().attrs["value"]
+                        .parse()
+                        .unwrap();
+                    assert_eq!(r, s.radius, "{what}");
+                }
+                Shape::Quad(_) | Shape::Mesh(_) => {
+                    assert_eq!(node.attrs["type"], "ply", "{what}");
+                    assert_eq!(
+                        node.child_named("boolean", "face_normals").unwrap().attrs["value"],
+                        "true"
+                    );
+                    let file = &node.child_named("string", "filename").unwrap().attrs["value"];
+                    let bytes = meshes[file.as_str()];
+                    let p = dir.join(file.replace('/', "_"));
+                    std::fs::write(&p, bytes).unwrap();
+                    let back = meshio::load_mesh(&p).unwrap_or_else(|e| panic!("{what}: {e}"));
+                    // The triangles furnace renders, as world-space corners.
+                    let (want, flip): (Vec<[furnace::math::Vec3; 3]>, bool) = match shape {
+                        Shape::Quad(q) => {
+                            let c = q.corner;
+                            let (a, b, d) = (c + q.edge_u, c + q.edge_u + q.edge_v, c + q.edge_v);
+                            (vec![[c, a, b], [c, b, d]], q.flip_normals)
+                        }
+                        Shape::Mesh(m) => (
+                            (0..m.triangles.len()).map(|t| m.vertices(t)).collect(),
+                            m.flip_normals,
+                        ),
+                        Shape::Sphere(_) => unreachable!(),
+                    };
+                    assert_eq!(back.triangles.len(), want.len(), "{what}");
+                    for (t, w) in back.triangles.iter().zip(&want) {
+                        for k in 0..3 {
+                            let got = back.positions[t[k] as usize];
+                            for (g, e) in got.iter().zip(w[k].to_array()) {
+                                // f32 storage: relative 2^-24.
+                                assert!((g - e).abs() <= 1e-7 * e.abs().max(1.0), "{what}");
+                            }
+                        }
+                    }
+                    assert_eq!(
+                        node.child_named("boolean", "flip_normals").unwrap().attrs["value"],
+                        flip.to_string(),
+                        "{what}"
+                    );
+                }
+            }
+            let bsdf = node.children.iter().find(|c| c.name == "bsdf").unwrap();
+            assert_eq!(bsdf.attrs["type"], "twosided", "{what}");
+            let furnace::scattering::Bsdf::Diffuse(l) = &scene.bsdfs[i];
+            check_spectrum(&bsdf.children[0], "reflectance", &l.reflectance, &what);
+            let emitter = node.children.iter().find(|c| c.name == "emitter");
+            match scene.shape_light[i] {
+                None => assert!(emitter.is_none(), "{what}"),
+                Some(li) => {
+                    let furnace::lights::Light::Area { radiance, .. } = &scene.lights[li as usize]
+                    else {
+                        panic!("{what}: not an area light")
+                    };
+                    let e = emitter.unwrap();
+                    assert_eq!(e.attrs["type"], "area");
+                    check_spectrum(e, "radiance", radiance, &what);
+                }
+            }
+        }
+        let mut sensors = Vec::new();
+        doc.all("sensor", &mut sensors);
+        assert_eq!(sensors.len(), 1, "{what}");
+        let fov: f64 = sensors[0].child_named("float", "fov").unwrap().attrs["value"]
+            .parse()
+            .unwrap();
+        assert_eq!(fov, scene.camera.fov_y, "{what}");
+        let lights = doc.children.iter().filter(|c| c.name == "emitter").count();
+        let non_area = scene
+            .lights
+            .iter()
+            .filter(|l| !matches!(l, furnace::lights::Light::Area { .. }))
+            .count();
+        assert_eq!(lights, non_area, "{what}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
+
+fn tempdir(scene: &Path) -> PathBuf {
+    let d = std::env::temp_dir().join(format!(
+        "furnace-export-{}-{}",
+        std::process::id(),
+        scene.file_stem().unwrap().to_string_lossy()
+    ));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+#[test]
+fn committed_reference_exports_are_current() {
+    for (scene, export) in [
+        (
+            "scenes/cornell-box.toml",
+            "reference/mitsuba/cornell-box.export",
+        ),
+        (
+            "scenes/furnace-sphere.toml",
+            "reference/mitsuba/furnace-sphere.export",
+        ),
+        (
+            "tests/manifests/scenes/furnace-box-0.5.toml",
+            "reference/mitsuba/furnace-box.export",
+        ),
+    ] {
+        let s = Scene::load(&root(scene)).unwrap();
+        let out = mitsuba::export(&s).unwrap();
+        let dir = root(export);
+        let committed = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+        assert_eq!(
+            committed, out.xml,
+            "{export}/scene.xml is stale: the scene or the exporter changed; regenerate the reference (reference/mitsuba/README.md)"
+        );
+        for (rel, bytes) in &out.meshes {
+            assert_eq!(
+                &std::fs::read(dir.join(rel)).unwrap(),
+                bytes,
+                "{export}/{rel}"
+            );
+        }
+    }
+}
+
+#[test]
+fn two_sided_emission_is_refused_by_name() {
+    let text = std::fs::read_to_string(root("scenes/furnace-sphere.toml"))
+        .unwrap()
+        .replace(
+            "flip_normals = true",
+            "flip_normals = true\ntwo_sided = true",
+        );
+    let s = Scene::parse(&text, Path::new("two-sided.toml")).unwrap();
+    let e = mitsuba::export(&s).unwrap_err().to_string();
+    assert!(
+        e.contains("shape[0] emission with two_sided = true") && e.contains("Mitsuba 3"),
+        "{e}"
+    );
+}
