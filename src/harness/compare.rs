@@ -9,7 +9,9 @@
 //! rendering literature: RMSE, relMSE with ε (Rousselle et al. 2011, "Adaptive sampling and
 //! reconstruction using greedy error minimization", eq. 9 form (x − y)²/(y² + ε)), SMAPE.
 
+use super::checks::z_with_tolerance;
 use crate::film::io::Layers;
+use crate::film::Film;
 use crate::stats::{multiple, z_test};
 use serde::Deserialize;
 
@@ -60,6 +62,36 @@ impl RgbImage {
             rgb,
             variance,
         })
+    }
+}
+
+impl RgbImage {
+    /// The linear sRGB means and mean variances of a rendered film.
+    pub fn from_film(film: &Film) -> Self {
+        RgbImage {
+            width: film.width,
+            height: film.height,
+            rgb: std::array::from_fn(|c| film.means(3 + c)),
+            variance: Some(std::array::from_fn(|c| film.mean_variances(3 + c))),
+        }
+    }
+
+    /// The same image with channels multiplied by `gain` inside the pixel rectangle `rect`
+    /// [x0, y0, x1, y1) (variances by gain²): how tests build a wrong reference.
+    pub fn tinted(&self, rect: [usize; 4], gain: [f64; 3]) -> Self {
+        let mut out = self.clone();
+        for y in rect[1]..rect[3].min(self.height) {
+            for x in rect[0]..rect[2].min(self.width) {
+                let i = y * self.width + x;
+                for c in 0..3 {
+                    out.rgb[c][i] *= gain[c];
+                    if let Some(v) = &mut out.variance {
+                        v[c][i] *= gain[c] * gain[c];
+                    }
+                }
+            }
+        }
+        out
     }
 }
 
@@ -174,13 +206,16 @@ fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
 }
 
 /// Compares `test` with `reference` over `regions` (the whole image is always one region) at
-/// family-wise rate `family_alpha` (Šidák over regions × channels) and pixel FDR `q`.
+/// family-wise rate `family_alpha` (Šidák over regions × channels) and pixel FDR `q`. A region
+/// differs when |test − reference| exceeds `rel_tolerance`·|reference| by more than noise (a
+/// stated model tolerance, 0 for "equal in expectation").
 pub fn compare(
     test: &RgbImage,
     reference: &RgbImage,
     regions: &[Region],
     family_alpha: f64,
     q: f64,
+    rel_tolerance: f64,
 ) -> Result<Comparison, String> {
     if (test.width, test.height) != (reference.width, reference.height) {
         return Err(format!(
@@ -226,14 +261,14 @@ pub fn compare(
             let (mt, st) = region_mean(test, c, rect);
             let (mr, sr) = region_mean(reference, c, rect);
             let se = (st * st + sr * sr).sqrt();
-            let t = z_test(mt, se, mr);
+            let (z, p) = z_with_tolerance(mt, se, mr, rel_tolerance);
             results.push(RegionResult {
                 region: reg.name.clone(),
                 channel,
                 test: (mt, st),
                 reference: (mr, sr),
-                z: t.z,
-                p: t.p,
+                z,
+                p,
             });
         }
     }
@@ -349,7 +384,7 @@ mod tests {
         for seed in 0..20 {
             let a = noisy(64, 48, cornellish, 0.05, seed);
             let b = noisy(64, 48, cornellish, 0.05, 100 + seed);
-            let c = compare(&a, &b, &regions(), 0.01, 0.01).unwrap();
+            let c = compare(&a, &b, &regions(), 0.01, 0.01, 0.0).unwrap();
             false_alarms += c.differ as usize;
             // with no true difference BH should flag (almost) nothing
             assert!(c.flagged_pixels.unwrap() <= 3, "{:?}", c.flagged_pixels);
@@ -367,7 +402,7 @@ mod tests {
             cornellish(x, y, c) * if x < 12 && c == 0 { 1.02 } else { 1.0 }
         };
         let b = noisy(64, 48, tinted, 0.05, 2);
-        let c = compare(&a, &b, &regions(), 0.01, 0.01).unwrap();
+        let c = compare(&a, &b, &regions(), 0.01, 0.01, 0.0).unwrap();
         assert!(c.differ, "{:?}", c.regions);
         let red = c
             .regions
@@ -392,7 +427,7 @@ mod tests {
             rgb: [vec![v, v], vec![v, v], vec![v, v]],
             variance: None,
         };
-        let c = compare(&img(1.1), &img(1.0), &[], 0.01, 0.01).unwrap();
+        let c = compare(&img(1.1), &img(1.0), &[], 0.01, 0.01, 0.0).unwrap();
         let m = &c.metrics[0];
         assert!((m.rmse - 0.1).abs() < 1e-12);
         assert!((m.rel_mse - 0.01 / 1.01).abs() < 1e-12);

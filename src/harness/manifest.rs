@@ -2,7 +2,9 @@
 //! and so are keys that the check's kind does not use; every error names the manifest file,
 //! line, column and key. Paths (scenes, templates) are relative to the manifest's folder.
 
+use super::compare::{Region, Regions};
 use crate::scene::{Scene, SceneError, Source};
+use crate::spectrum::Observer;
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -65,6 +67,12 @@ pub struct CheckDesc {
     pub rel_tol: Option<Spanned<f64>>,
     /// Sphere histogram bins [theta, phi] for chi-square tests.
     pub bins: Option<Spanned<[i64; 2]>>,
+    /// Reference image (EXR) of an image comparison, relative to the manifest.
+    pub reference: Option<Spanned<String>>,
+    /// Regions file (TOML `[[region]]`) of an image comparison, relative to the manifest.
+    pub regions: Option<Spanned<String>>,
+    /// Colour pipeline the image is rendered with (`cie1931` or `mitsuba3`).
+    pub observer: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -75,7 +83,7 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 10] = [
+pub const KINDS: [(&str, &[&str]); 11] = [
     (
         "furnace",
         &[
@@ -148,6 +156,19 @@ pub const KINDS: [(&str, &[&str]); 10] = [
             "rel_tolerance",
         ],
     ),
+    (
+        "image_compare",
+        &[
+            "scene",
+            "reference",
+            "regions",
+            "observer",
+            "spp",
+            "max_depth",
+            "seed",
+            "rel_tolerance",
+        ],
+    ),
 ];
 
 /// A scene-level check's render settings (None = the scene's own value).
@@ -211,6 +232,12 @@ pub struct Params {
     pub rel_tol: Option<f64>,
     /// Chi-square bins [theta, phi].
     pub bins: Option<[usize; 2]>,
+    /// Reference image path (image_compare), resolved against the manifest's folder.
+    pub reference: Option<PathBuf>,
+    /// Named regions compared (image_compare).
+    pub regions: Vec<Region>,
+    /// Colour pipeline of the render.
+    pub observer: Observer,
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -344,7 +371,7 @@ fn check(
             ),
         ));
     };
-    let present: [(&str, Option<Range<usize>>); 21] = [
+    let present: [(&str, Option<Range<usize>>); 24] = [
         ("scene", d.scene.as_ref().map(|v| v.span())),
         ("vary", d.vary.as_ref().map(|v| v.span())),
         ("spp", d.spp.as_ref().map(|v| v.span())),
@@ -365,6 +392,9 @@ fn check(
         ("abs_tol", d.abs_tol.as_ref().map(|v| v.span())),
         ("rel_tol", d.rel_tol.as_ref().map(|v| v.span())),
         ("bins", d.bins.as_ref().map(|v| v.span())),
+        ("reference", d.reference.as_ref().map(|v| v.span())),
+        ("regions", d.regions.as_ref().map(|v| v.span())),
+        ("observer", d.observer.as_ref().map(|v| v.span())),
         ("name", None),
     ];
     for (key, span) in &present {
@@ -514,6 +544,9 @@ fn check(
         abs_tol: positive(src, &d.abs_tol, &format!("{at}.abs_tol"))?,
         rel_tol: positive(src, &d.rel_tol, &format!("{at}.rel_tol"))?,
         bins,
+        reference: reference(src, base, &at, d, c.span(), kind_name)?,
+        regions: regions(src, base, &at, d)?,
+        observer: observer(src, &at, d)?,
     };
     if let Some(o) = &d.offsets {
         if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
@@ -631,6 +664,97 @@ fn check(
         out.push(spec);
     }
     Ok(out)
+}
+
+/// The reference image of an image comparison: required for that kind, and must exist.
+fn reference(
+    src: &Source,
+    base: &Path,
+    at: &str,
+    d: &CheckDesc,
+    span: Range<usize>,
+    kind: &str,
+) -> Result<Option<PathBuf>, ManifestError> {
+    match &d.reference {
+        None if kind == "image_compare" => Err(err(
+            src,
+            span,
+            format!("{at}.reference"),
+            "missing; an image comparison needs a reference EXR (path relative to the manifest)"
+                .into(),
+        )),
+        None => Ok(None),
+        Some(r) => {
+            let p = base.join(r.get_ref());
+            if !p.is_file() {
+                return Err(err(
+                    src,
+                    r.span(),
+                    format!("{at}.reference"),
+                    format!("{} does not exist or is not a file", p.display()),
+                ));
+            }
+            Ok(Some(p))
+        }
+    }
+}
+
+/// The named regions of an image comparison, read and validated now so that a bad regions
+/// file is an invalid manifest (exit 2), located in the regions file.
+fn regions(
+    src: &Source,
+    base: &Path,
+    at: &str,
+    d: &CheckDesc,
+) -> Result<Vec<Region>, ManifestError> {
+    let Some(r) = &d.regions else {
+        return Ok(Vec::new());
+    };
+    let p = base.join(r.get_ref());
+    let text = std::fs::read_to_string(&p).map_err(|e| {
+        err(
+            src,
+            r.span(),
+            format!("{at}.regions"),
+            format!("cannot read {}: {e}", p.display()),
+        )
+    })?;
+    let rsrc = Source {
+        path: &p,
+        text: &text,
+    };
+    let regions: Regions = toml::from_str(&text).map_err(|e| {
+        rsrc.error(
+            e.span().unwrap_or(0..0),
+            "",
+            e.message().trim_end().to_string(),
+        )
+    })?;
+    for reg in &regions.region {
+        reg.pixels(1, 1)
+            .map_err(|m| rsrc.error(0..0, "region", m))?;
+    }
+    Ok(regions.region)
+}
+
+/// The observer named by `observer` (default cie1931).
+fn observer(src: &Source, at: &str, d: &CheckDesc) -> Result<Observer, ManifestError> {
+    let Some(o) = &d.observer else {
+        return Ok(Observer::default());
+    };
+    Observer::from_name(o.get_ref()).ok_or_else(|| {
+        let names: Vec<&str> = Observer::ALL.iter().map(|x| x.0).collect();
+        err(
+            src,
+            o.span(),
+            format!("{at}.observer"),
+            format!(
+                "unknown observer {:?}; allowed: {}",
+                o.get_ref(),
+                names.join(", ")
+            ),
+        )
+    })
 }
 
 /// Cartesian product of the `vary` lists, in key order.

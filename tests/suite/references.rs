@@ -1,0 +1,162 @@
+//! The Mitsuba 3 references and what the comparisons with them found, as tested statements:
+//! - Mitsuba's furnace box agrees with E/(1 − R); its furnace *sphere* does not (+0.9 %): a
+//!   bias of Mitsuba 3.9.1's sphere emitter seen from inside, not of furnace (README,
+//!   "Comparisons with Mitsuba 3"); the image comparison therefore rejects the sphere pair;
+//! - the colour-conversion difference that made two near-zero Cornell channels differ is the
+//!   size the conversion alone produces;
+//! - an image comparison rejects a reference with a 2 % tint on one wall (negative control).
+
+use crate::root;
+use furnace::harness::checks::image;
+use furnace::harness::compare::{Region, Regions};
+use furnace::harness::manifest::{self, CheckSpec};
+use furnace::harness::{BuiltIn, Context, Renderer};
+use furnace::integrators::PathTracer;
+use furnace::render::{render, RenderSettings};
+use furnace::scene::Scene;
+use furnace::spectrum::Observer;
+
+/// Whole-image mean of channel `c` and its standard error from the variance channels.
+fn image_mean(path: &str, c: usize) -> (f64, f64) {
+    let img = image::load_reference(&root(path)).unwrap();
+    let n = img.rgb[c].len() as f64;
+    let v = img
+        .variance
+        .as_ref()
+        .expect("references carry variance channels");
+    (
+        img.rgb[c].iter().sum::<f64>() / n,
+        v[c].iter().sum::<f64>().sqrt() / n,
+    )
+}
+
+/// Mitsuba's G for a flat radiance spectrum L: L times its white point's G.
+fn mitsuba_g(l: f64) -> f64 {
+    l * Observer::Mitsuba3.xyz_to_rgb(Observer::Mitsuba3.white())[1]
+}
+
+#[test]
+fn mitsuba_box_furnace_matches_the_closed_form() {
+    // Six inward quads, emission 0.5, albedo 0.5: L = 0.5/(1 − 0.5) = 1.
+    let (m, se) = image_mean("reference/mitsuba/furnace-box.exr", 1);
+    let z = (m - mitsuba_g(1.0)) / se;
+    assert!(
+        z.abs() < 4.0,
+        "Mitsuba box {m} ± {se}, expected {}",
+        mitsuba_g(1.0)
+    );
+}
+
+#[test]
+fn mitsuba_sphere_furnace_is_biased_high() {
+    // Emitting sphere seen from inside, E = 1, albedo 0.5: L = 2. Mitsuba 3.9.1 reads 0.9 %
+    // high (its direct light from the sphere, max_depth 2, reads 1.510 for 1.5); the box above
+    // shows it is the sphere emitter, not the estimator or the colour pipeline.
+    let (m, se) = image_mean("reference/mitsuba/furnace-sphere.exr", 1);
+    let expected = mitsuba_g(2.0);
+    let rel = m / expected - 1.0;
+    assert!(
+        (m - expected) / se > 6.0 && (0.005..0.013).contains(&rel),
+        "Mitsuba sphere {m} ± {se}, expected {expected}: {:+.3} %",
+        100.0 * rel
+    );
+}
+
+fn spec(name: &str) -> CheckSpec {
+    manifest::load(&root("tests/manifests/reference.toml"))
+        .unwrap()
+        .into_iter()
+        .find(|s| s.name == name)
+        .unwrap_or_else(|| panic!("no check {name}"))
+}
+
+fn ctx(renderer: &dyn Renderer) -> Context<'_> {
+    Context {
+        renderer,
+        seed: 7,
+        threads: 0,
+        alpha: 1e-4,
+    }
+}
+
+#[test]
+fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
+    // The sphere pair: furnace is right (furnace.toml checks E/(1 − R) to 0.2 %), Mitsuba is
+    // not; the comparison must say they differ.
+    let mut s = spec("mitsuba/cornell-box");
+    s.name = "sphere".into();
+    s.scene = Some(Scene::load(&root("scenes/furnace-sphere.toml")).unwrap());
+    s.params.regions.clear();
+    s.render.spp = Some(64);
+    let reference = image::load_reference(&root("reference/mitsuba/furnace-sphere.exr")).unwrap();
+    let m = image::run_against(&s, &ctx(&BuiltIn), &reference).unwrap();
+    assert!(m.p_value.unwrap() < 1e-4, "{}", m.message);
+
+    // Negative control: the Cornell reference with the red wall 2 % brighter in R, G and B.
+    let s = spec("mitsuba/cornell-box");
+    let reference = image::load_reference(&root("reference/mitsuba/cornell-box.exr")).unwrap();
+    let wall = s
+        .params
+        .regions
+        .iter()
+        .find(|r| r.name == "red wall")
+        .unwrap()
+        .pixels(reference.width, reference.height)
+        .unwrap();
+    let tinted = reference.tinted(wall, [1.02; 3]);
+    let m = image::run_against(&s, &ctx(&BuiltIn), &tinted).unwrap();
+    assert!(
+        m.p_value.unwrap() < 1e-4 && m.message.contains("worst: red wall"),
+        "{}",
+        m.message
+    );
+}
+
+fn region(name: &str) -> Region {
+    let text = std::fs::read_to_string(root("scenes/cornell-box.regions.toml")).unwrap();
+    let r: Regions = toml::from_str(&text).unwrap();
+    r.region.into_iter().find(|r| r.name == name).unwrap()
+}
+
+#[test]
+fn the_cornell_colour_difference_is_the_colour_conversion() {
+    // furnace (1024 spp) vs the Mitsuba reference with furnace's own observer: red-wall G
+    // −1.6 % (z −5.6), green-wall B −2.7 % (z −5.2); with observer mitsuba3 both within noise
+    // (README). Rendering the same paths with both observers shows that the conversion alone
+    // moves these channels by that much, and the bright channels by ~0.1 %.
+    let scene = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
+    let (w, h) = (32, 32);
+    let film = |observer| {
+        let s = RenderSettings {
+            width: w,
+            height: h,
+            spp: 32,
+            seed: 3,
+            threads: 0,
+            integrator: PathTracer::default(),
+            observer,
+        };
+        render(&scene, &s, &|_| {}).unwrap()
+    };
+    let (ours, theirs) = (film(Observer::Cie1931), film(Observer::Mitsuba3));
+    let mean = |f: &furnace::film::Film, reg: &str, c: usize| {
+        let r = region(reg).pixels(w, h).unwrap();
+        let m = f.means(3 + c);
+        let mut s = 0.0;
+        for y in r[1]..r[3] {
+            for x in r[0]..r[2] {
+                s += m[y * w + x];
+            }
+        }
+        s
+    };
+    let shift = |reg: &str, c: usize| mean(&ours, reg, c) / mean(&theirs, reg, c) - 1.0;
+    let (red_g, green_b, back_r) = (
+        shift("red wall", 1),
+        shift("green wall", 2),
+        shift("back wall", 0),
+    );
+    assert!((-0.014..-0.005).contains(&red_g), "red-wall G {red_g}");
+    assert!((-0.04..-0.015).contains(&green_b), "green-wall B {green_b}");
+    assert!(back_r.abs() < 0.003, "back-wall R {back_r}");
+}
