@@ -10,7 +10,7 @@ use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
 use furnace::integrators::{PathTracer, Strategy};
 use furnace::render::{render, RenderSettings};
-use furnace::report::{json, junit, text};
+use furnace::report::{html, json, junit, text};
 use furnace::scene;
 use furnace::scene::Scene;
 use furnace::spectrum::Observer;
@@ -34,6 +34,8 @@ enum Command {
     Check(CheckArgs),
     /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
     Compare(CompareArgs),
+    /// Turn check results (JSON) and image comparisons into one self-contained HTML page and a Markdown summary; exit 1 when something failed.
+    Report(ReportArgs),
     /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
     Export(ExportArgs),
 }
@@ -74,6 +76,37 @@ struct CompareArgs {
     /// Write the per-pixel relative error |t - r|/(|r| + 0.01), luminance of R, G, B, here (PNG; 1 = white).
     #[arg(long)]
     relerr: Option<PathBuf>,
+    /// Write a self-contained HTML report here (images side by side, difference maps, region table).
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Write a Markdown summary here (for CI job summaries).
+    #[arg(long)]
+    markdown: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+struct ReportArgs {
+    /// Check results (JSON from furnace check --json); repeatable.
+    #[arg(long)]
+    results: Vec<PathBuf>,
+    /// An image comparison: TEST.exr REFERENCE.exr; repeatable.
+    #[arg(long, num_args = 2, value_names = ["TEST", "REFERENCE"])]
+    compare: Vec<PathBuf>,
+    /// Named regions for the comparisons (TOML [[region]] tables).
+    #[arg(long)]
+    regions: Option<PathBuf>,
+    /// Family-wise false-alarm rate of each comparison's region tests (Sidak).
+    #[arg(long, default_value_t = 0.01)]
+    alpha: f64,
+    /// Page title.
+    #[arg(long, default_value = "furnace report")]
+    title: String,
+    /// The HTML page (self-contained: images embedded).
+    #[arg(long)]
+    out: PathBuf,
+    /// Also write a Markdown summary here (for CI job summaries).
+    #[arg(long)]
+    markdown: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -104,6 +137,9 @@ struct CheckArgs {
     /// Write a Markdown table here (for CI job summaries).
     #[arg(long)]
     markdown: Option<PathBuf>,
+    /// Write a self-contained HTML report here.
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -189,6 +225,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Check(args) => check_command(args),
         Command::Compare(args) => compare_command(args),
         Command::Export(args) => export_command(args),
+        Command::Report(args) => report_command(args),
     }
 }
 
@@ -376,6 +413,11 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
     if let Some(p) = &a.junit {
         write_file(p, &junit::to_junit(&report))?;
     }
+    if let Some(p) = &a.report {
+        let v: serde_json::Value =
+            serde_json::from_str(&json::to_json(&report)).context("JSON round trip")?;
+        write_file(p, &html::page("furnace check", &[v], &[]))?;
+    }
     if let Some(p) = &a.markdown {
         write_file(p, &text::table_markdown(&report))?;
     }
@@ -384,6 +426,106 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
         1
     } else {
         0
+    })
+}
+
+/// Reads an EXR as linear RGB with optional variance channels.
+fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
+    let layers = io::read_exr(p).with_context(|| format!("cannot read {}", p.display()))?;
+    Ok(RgbImage::from_layers(&layers).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?)
+}
+
+/// Reads a regions file; a TOML error names file, line and column.
+fn load_regions(p: &Path) -> Result<Vec<compare::Region>, Failure> {
+    let text =
+        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+    let r: compare::Regions = toml::from_str(&text).map_err(|e| {
+        let at = e
+            .span()
+            .map(|s| {
+                scene::Source {
+                    path: p,
+                    text: &text,
+                }
+                .line_column(s.start)
+            })
+            .unwrap_or((0, 0));
+        anyhow::anyhow!(
+            "{}:{}:{}: {}",
+            p.display(),
+            at.0,
+            at.1,
+            e.message().trim_end()
+        )
+    })?;
+    Ok(r.region)
+}
+
+/// A comparison as a report section, with its images.
+fn section(
+    test_path: &Path,
+    reference_path: &Path,
+    test: &RgbImage,
+    reference: &RgbImage,
+    c: compare::Comparison,
+    family_alpha: f64,
+) -> Result<html::ComparisonSection, Failure> {
+    let panels = html::comparison_panels(test, reference, &c).map_err(|e| anyhow::anyhow!(e))?;
+    Ok(html::ComparisonSection {
+        title: format!("{} vs {}", test_path.display(), reference_path.display()),
+        comparison: c,
+        family_alpha,
+        panels,
+    })
+}
+
+fn report_command(a: ReportArgs) -> Result<i32, Failure> {
+    if !(a.alpha > 0.0 && a.alpha < 1.0) {
+        return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
+    }
+    let mut runs = Vec::new();
+    for p in &a.results {
+        let text =
+            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let v: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))?;
+        let schema = v["schema"].as_str().unwrap_or("");
+        if schema != json::SCHEMA {
+            return Err(anyhow::anyhow!(
+                "{}: schema {schema:?}; furnace report reads {:?} (furnace check --json)",
+                p.display(),
+                json::SCHEMA
+            )
+            .into());
+        }
+        runs.push(v);
+    }
+    if a.compare.len() % 2 != 0 {
+        return Err(anyhow::anyhow!("--compare takes pairs: TEST.exr REFERENCE.exr").into());
+    }
+    let regions = match &a.regions {
+        None => Vec::new(),
+        Some(p) => load_regions(p)?,
+    };
+    let mut sections = Vec::new();
+    for pair in a.compare.chunks(2) {
+        let (t, r) = (load_rgb(&pair[0])?, load_rgb(&pair[1])?);
+        let c = compare::compare(&t, &r, &regions, a.alpha, 0.01, 0.0)
+            .map_err(|e| anyhow::anyhow!(e))?;
+        sections.push(section(&pair[0], &pair[1], &t, &r, c, a.alpha)?);
+    }
+    if runs.is_empty() && sections.is_empty() {
+        return Err(anyhow::anyhow!("nothing to report: give --results and/or --compare").into());
+    }
+    write_file(&a.out, &html::page(&a.title, &runs, &sections))?;
+    if let Some(p) = &a.markdown {
+        write_file(p, &html::markdown(&runs, &sections))?;
+    }
+    println!("wrote {}", a.out.display());
+    Ok(if html::all_pass(&runs, &sections) {
+        0
+    } else {
+        1
     })
 }
 
@@ -398,38 +540,11 @@ fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    let load = |p: &Path| -> Result<RgbImage, Failure> {
-        let layers = io::read_exr(p).with_context(|| format!("cannot read {}", p.display()))?;
-        Ok(RgbImage::from_layers(&layers).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?)
-    };
-    let test = load(&a.test)?;
-    let reference = load(&a.reference)?;
+    let test = load_rgb(&a.test)?;
+    let reference = load_rgb(&a.reference)?;
     let regions = match &a.regions {
         None => Vec::new(),
-        Some(p) => {
-            let text = std::fs::read_to_string(p)
-                .with_context(|| format!("cannot read {}", p.display()))?;
-            let r: compare::Regions = toml::from_str(&text).map_err(|e| {
-                let at = e
-                    .span()
-                    .map(|s| {
-                        scene::Source {
-                            path: p,
-                            text: &text,
-                        }
-                        .line_column(s.start)
-                    })
-                    .unwrap_or((0, 0));
-                anyhow::anyhow!(
-                    "{}:{}:{}: {}",
-                    p.display(),
-                    at.0,
-                    at.1,
-                    e.message().trim_end()
-                )
-            })?;
-            r.region
-        }
+        Some(p) => load_regions(p)?,
     };
     let c = compare::compare(&test, &reference, &regions, a.alpha, a.fdr, a.rel_tolerance)
         .map_err(|e| anyhow::anyhow!(e))?;
@@ -506,6 +621,20 @@ fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
             .collect();
         io::write_png_srgb(p, test.width, test.height, &img, 1.0)
             .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if a.report.is_some() || a.markdown.is_some() {
+        let differ = c.differ;
+        let sec = section(&a.test, &a.reference, &test, &reference, c.clone(), a.alpha)?;
+        if let Some(p) = &a.report {
+            write_file(
+                p,
+                &html::page("furnace compare", &[], std::slice::from_ref(&sec)),
+            )?;
+        }
+        if let Some(p) = &a.markdown {
+            write_file(p, &html::markdown(&[], std::slice::from_ref(&sec)))?;
+        }
+        debug_assert_eq!(differ, sec.comparison.differ);
     }
     let verdict = if c.differ { "DIFFERENT" } else { "AGREE" };
     println!(

@@ -458,6 +458,35 @@ pub fn write_png_srgb(
     linear_rgb: &[[f64; 3]],
     exposure: f64,
 ) -> Result<(), ImageIoError> {
+    let encoded = encode_png(path, width, height, linear_rgb, exposure)?;
+    create_parent_dirs(path)?;
+    fs::write(path, &encoded).map_err(|source| io_error(path, source))
+}
+
+/// The PNG file [`write_png_srgb`] would write, in memory (for self-contained HTML reports);
+/// errors name the in-memory image as `<in-memory PNG>`.
+pub fn encode_png_srgb(
+    width: usize,
+    height: usize,
+    linear_rgb: &[[f64; 3]],
+    exposure: f64,
+) -> Result<Vec<u8>, ImageIoError> {
+    encode_png(
+        Path::new("<in-memory PNG>"),
+        width,
+        height,
+        linear_rgb,
+        exposure,
+    )
+}
+
+fn encode_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    linear_rgb: &[[f64; 3]],
+    exposure: f64,
+) -> Result<Vec<u8>, ImageIoError> {
     const PNG_MAX_DIMENSION: usize = i32::MAX as usize; // PNG spec: at most 2^31 - 1
     let invalid_size = |reason| ImageIoError::InvalidSize {
         path: path.to_path_buf(),
@@ -520,9 +549,7 @@ pub fn write_png_srgb(
     let mut writer = encoder.write_header().map_err(png_error)?;
     writer.write_image_data(&bytes).map_err(png_error)?;
     writer.finish().map_err(png_error)?;
-
-    create_parent_dirs(path)?;
-    fs::write(path, &encoded).map_err(|source| io_error(path, source))
+    Ok(encoded)
 }
 
 /// Clamp a linear value to [0, 1], apply the sRGB transfer function and round to 8 bits.

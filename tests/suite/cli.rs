@@ -161,3 +161,72 @@ fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
     assert!(zmap.exists());
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn export_writes_a_mitsuba_scene_and_refuses_bad_scenes() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-export-{}", std::process::id()));
+    let out = furnace()
+        .args(["export", "scenes/cornell-box.toml", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    assert!(
+        xml.contains("<scene version=\"3.0.0\">") && dir.join("meshes/shape-007.ply").is_file()
+    );
+    let out = furnace()
+        .args(["export", "tests/manifests/scenes/furnace-box.toml", "--out"])
+        .arg(&dir)
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "a template with ${{albedo}} is not a scene"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn report_builds_one_page_from_results_and_comparisons() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-report-{}", std::process::id()));
+    let (page, md) = (dir.join("r.html"), dir.join("r.md"));
+    let out = furnace()
+        .args([
+            "report",
+            "--results",
+            "reports/check-default.json",
+            "--compare",
+            "reference/mitsuba/furnace-box.exr",
+            "reference/mitsuba/furnace-box.exr",
+            "--out",
+        ])
+        .arg(&page)
+        .arg("--markdown")
+        .arg(&md)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("ALL PASS") && html.matches("data:image/png;base64,").count() == 4);
+    assert!(html.contains("furnace/sphere[albedo=0.5]"));
+    assert!(std::fs::read_to_string(&md)
+        .unwrap()
+        .starts_with("## furnace: all pass"));
+    // Something that is not check results is refused by name.
+    let out = furnace()
+        .args([
+            "report",
+            "--results",
+            "reference/mitsuba/cornell-box.json",
+            "--out",
+        ])
+        .arg(&page)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("furnace.check-results/1"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

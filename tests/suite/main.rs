@@ -9,6 +9,7 @@ mod manifests;
 mod negative;
 mod references;
 mod render;
+mod report_html;
 mod scene_errors;
 mod scene_parse;
 
