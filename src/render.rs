@@ -71,7 +71,7 @@ pub fn render(
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
     let grey = scene.is_grey();
-    let observer = settings.observer;
+    let observer = &settings.observer;
     let y_norm = 1.0 / observer.y_integral();
     let white = observer.white();
     let tiles_x = w.div_ceil(TILE);

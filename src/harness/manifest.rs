@@ -73,6 +73,8 @@ pub struct CheckDesc {
     pub regions: Option<Spanned<String>>,
     /// Colour pipeline the image is rendered with (`cie1931` or `mitsuba3`).
     pub observer: Option<Spanned<String>>,
+    /// Measurement file (TOML: band images, responses, uncertainties), relative to the manifest.
+    pub measurement: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -83,7 +85,7 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 11] = [
+pub const KINDS: [(&str, &[&str]); 12] = [
     (
         "furnace",
         &[
@@ -169,6 +171,10 @@ pub const KINDS: [(&str, &[&str]); 11] = [
             "rel_tolerance",
         ],
     ),
+    (
+        "measured",
+        &["scene", "measurement", "spp", "max_depth", "seed"],
+    ),
 ];
 
 /// A scene-level check's render settings (None = the scene's own value).
@@ -238,6 +244,8 @@ pub struct Params {
     pub regions: Vec<Region>,
     /// Colour pipeline of the render.
     pub observer: Observer,
+    /// Measurement file (measured), resolved against the manifest's folder.
+    pub measurement: Option<PathBuf>,
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -371,7 +379,7 @@ fn check(
             ),
         ));
     };
-    let present: [(&str, Option<Range<usize>>); 24] = [
+    let present: [(&str, Option<Range<usize>>); 25] = [
         ("scene", d.scene.as_ref().map(|v| v.span())),
         ("vary", d.vary.as_ref().map(|v| v.span())),
         ("spp", d.spp.as_ref().map(|v| v.span())),
@@ -395,6 +403,7 @@ fn check(
         ("reference", d.reference.as_ref().map(|v| v.span())),
         ("regions", d.regions.as_ref().map(|v| v.span())),
         ("observer", d.observer.as_ref().map(|v| v.span())),
+        ("measurement", d.measurement.as_ref().map(|v| v.span())),
         ("name", None),
     ];
     for (key, span) in &present {
@@ -547,6 +556,15 @@ fn check(
         reference: reference(src, base, &at, d, c.span(), kind_name)?,
         regions: regions(src, base, &at, d)?,
         observer: observer(src, &at, d)?,
+        measurement: existing_file(
+            src,
+            base,
+            &at,
+            "measurement",
+            &d.measurement,
+            c.span(),
+            *kind_name == "measured",
+        )?,
     };
     if let Some(o) = &d.offsets {
         if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
@@ -691,6 +709,39 @@ fn reference(
                     src,
                     r.span(),
                     format!("{at}.reference"),
+                    format!("{} does not exist or is not a file", p.display()),
+                ));
+            }
+            Ok(Some(p))
+        }
+    }
+}
+
+/// A file a kind needs (`required`), resolved against the manifest's folder; must exist.
+fn existing_file(
+    src: &Source,
+    base: &Path,
+    at: &str,
+    key: &str,
+    v: &Option<Spanned<String>>,
+    span: Range<usize>,
+    required: bool,
+) -> Result<Option<PathBuf>, ManifestError> {
+    match v {
+        None if required => Err(err(
+            src,
+            span,
+            format!("{at}.{key}"),
+            format!("missing; give the {key} file (path relative to the manifest)"),
+        )),
+        None => Ok(None),
+        Some(r) => {
+            let p = base.join(r.get_ref());
+            if !p.is_file() {
+                return Err(err(
+                    src,
+                    r.span(),
+                    format!("{at}.{key}"),
                     format!("{} does not exist or is not a file", p.display()),
                 ));
             }

@@ -9,10 +9,39 @@
 
 use super::cie;
 use super::color::XYZ_TO_SRGB;
-use super::LAMBDA_MIN;
+use super::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use std::sync::Arc;
+
+/// Three spectral response curves that replace x̄, ȳ, z̄: the film's X, Y, Z channels then
+/// hold ∫ L(λ) rₖ(λ) dλ (no normalisation), and R, G, B repeat them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Responses {
+    /// The curves (unitless sensitivities; a zero curve fills an unused channel).
+    pub curves: [Spectrum; 3],
+    /// ∫ rₖ dλ over 360–830 nm, nm (trapezoid at 0.05 nm).
+    pub integrals: [f64; 3],
+}
+
+impl Responses {
+    /// Responses from three curves.
+    pub fn new(curves: [Spectrum; 3]) -> Self {
+        let integrals = std::array::from_fn(|k| {
+            let n = ((LAMBDA_MAX - LAMBDA_MIN) / 0.05).round() as usize;
+            let h = (LAMBDA_MAX - LAMBDA_MIN) / n as f64;
+            (0..=n)
+                .map(|i| {
+                    let w = if i == 0 || i == n { 0.5 } else { 1.0 };
+                    w * curves[k].eval(LAMBDA_MIN + i as f64 * h)
+                })
+                .sum::<f64>()
+                * h
+        });
+        Responses { curves, integrals }
+    }
+}
 
 /// A spectrum-to-colour pipeline.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+#[derive(Debug, Clone, PartialEq, Default)]
 pub enum Observer {
     /// furnace's own: the CIE 1931 2° table at 1 nm with linear interpolation, Y normalised
     /// by its 1 nm sum (106.857 nm), Lindbloom's 7-digit IEC 61966-2-1 sRGB matrix.
@@ -23,6 +52,8 @@ pub enum Observer {
     /// with linear interpolation in between, Y normalised by 1/106.7502593994140625
     /// (`mi.MI_CIE_Y_NORMALIZATION`), and Mitsuba's 6-digit sRGB matrix (`mi.xyz_to_srgb`).
     Mitsuba3,
+    /// Camera or filter responses (the `measured` check kind): channels are band signals.
+    Responses(Arc<Responses>),
 }
 
 /// Mitsuba 3's XYZ → linear sRGB matrix, as `mi.xyz_to_srgb` returns it for unit XYZ vectors.
@@ -47,17 +78,24 @@ impl Observer {
 
     /// The observer called `name`, if any.
     pub fn from_name(name: &str) -> Option<Observer> {
-        Self::ALL.iter().find(|(n, _)| *n == name).map(|(_, o)| *o)
+        Self::ALL
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, o)| o.clone())
     }
 
-    /// The name as written in manifests.
-    pub fn name(self) -> &'static str {
-        Self::ALL.iter().find(|(_, o)| *o == self).unwrap().0
+    /// The name as written in manifests (`responses` for custom curves).
+    pub fn name(&self) -> &'static str {
+        match self {
+            Observer::Cie1931 => "cie1931",
+            Observer::Mitsuba3 => "mitsuba3",
+            Observer::Responses(_) => "responses",
+        }
     }
 
     /// (x̄, ȳ, z̄) at `lambda` nm; zero outside 360–830 nm.
     #[inline]
-    pub fn cmf(self, lambda: f64) -> [f64; 3] {
+    pub fn cmf(&self, lambda: f64) -> [f64; 3] {
         let t = cie::tables();
         match self {
             Observer::Cie1931 => t.cmf(lambda),
@@ -72,26 +110,29 @@ impl Observer {
                 let (a, b) = (t.row(i * MITSUBA_STEP), t.row((i + 1) * MITSUBA_STEP));
                 std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
             }
+            Observer::Responses(r) => std::array::from_fn(|k| r.curves[k].eval(lambda)),
         }
     }
 
     /// ∫ȳ dλ, nm: XYZ = ∫ L (x̄, ȳ, z̄) dλ divided by this, so that a flat radiance of 1 has
     /// Y ≈ 1.
-    pub fn y_integral(self) -> f64 {
+    pub fn y_integral(&self) -> f64 {
         match self {
             Observer::Cie1931 => cie::tables().y_integral(),
             Observer::Mitsuba3 => MITSUBA_Y_INTEGRAL,
+            Observer::Responses(_) => 1.0,
         }
     }
 
     /// XYZ of a constant spectrum of 1 (what grey mode multiplies radiance by): the exact
     /// integral of this observer's interpolated table over 360–830 nm, normalised.
-    pub fn white(self) -> [f64; 3] {
+    pub fn white(&self) -> [f64; 3] {
         let t = cie::tables();
         match self {
             // The 1 nm sum furnace has always used (equal to the trapezoid up to the end rows,
             // which are ~1e-4 of the peak).
-            Observer::Cie1931 => t.spectrum_to_xyz(&super::Spectrum::Constant(1.0)),
+            Observer::Cie1931 => t.spectrum_to_xyz(&Spectrum::Constant(1.0)),
+            Observer::Responses(r) => r.integrals,
             Observer::Mitsuba3 => {
                 // Trapezoid over 5 nm rows: exact for the piecewise-linear table.
                 let mut acc = [0.0; 3];
@@ -109,10 +150,11 @@ impl Observer {
 
     /// XYZ → linear sRGB with this pipeline's matrix.
     #[inline]
-    pub fn xyz_to_rgb(self, xyz: [f64; 3]) -> [f64; 3] {
+    pub fn xyz_to_rgb(&self, xyz: [f64; 3]) -> [f64; 3] {
         let m = match self {
             Observer::Cie1931 => &XYZ_TO_SRGB,
             Observer::Mitsuba3 => &MITSUBA_XYZ_TO_SRGB,
+            Observer::Responses(_) => return xyz,
         };
         std::array::from_fn(|r| m[r][0] * xyz[0] + m[r][1] * xyz[1] + m[r][2] * xyz[2])
     }
@@ -125,7 +167,7 @@ mod tests {
     #[test]
     fn names_round_trip() {
         for (n, o) in Observer::ALL {
-            assert_eq!(Observer::from_name(n), Some(o));
+            assert_eq!(Observer::from_name(n), Some(o.clone()));
             assert_eq!(o.name(), n);
         }
         assert_eq!(Observer::from_name("cie2006"), None);
@@ -159,5 +201,30 @@ mod tests {
         for (a, b) in rgb.iter().zip([1.2066, 0.9492, 0.9076]) {
             assert!((a / b - 1.0).abs() < 4e-3, "{rgb:?}");
         }
+    }
+
+    #[test]
+    fn responses_integrate_radiance_against_their_curves() {
+        let tri = Spectrum::tabulated(
+            vec![500.0, 520.0, 540.0],
+            vec![0.0, 1.0, 0.0],
+            crate::spectrum::Outside::Zero,
+            1.0,
+        )
+        .unwrap();
+        let o = Observer::Responses(Arc::new(Responses::new([
+            tri,
+            Spectrum::Constant(1.0),
+            Spectrum::Constant(0.0),
+        ])));
+        let w = o.white();
+        assert!(
+            (w[0] - 20.0).abs() < 1e-9 && (w[1] - 470.0).abs() < 1e-9 && w[2] == 0.0,
+            "{w:?}"
+        );
+        assert_eq!(o.y_integral(), 1.0);
+        assert_eq!(o.xyz_to_rgb([1.0, 2.0, 3.0]), [1.0, 2.0, 3.0]);
+        assert_eq!(o.cmf(520.0), [1.0, 1.0, 0.0]);
+        assert_eq!(o.name(), "responses");
     }
 }

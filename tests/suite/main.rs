@@ -6,6 +6,7 @@ mod export;
 mod layering;
 mod manifest_errors;
 mod manifests;
+mod measured;
 mod negative;
 mod references;
 mod render;

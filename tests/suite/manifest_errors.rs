@@ -36,6 +36,10 @@ fn manifest_error_messages() {
         ("bad_region", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nregion = [4, 4, 2, 8]\n")),
         ("scale_without_of", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
         ("lambert_scale_with_depth", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"lambert\"\nscene = \"scenes/lambert-sky.toml\"\nmax_depth = 3\n")),
+        ("image_compare_without_reference", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
+        ("image_compare_missing_reference", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nreference = \"nope.exr\"\n")),
+        ("unknown_observer", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nreference = \"../../reference/mitsuba/furnace-sphere.exr\"\nobserver = \"cie2006\"\n")),
+        ("measured_without_measurement", error_of("[[check]]\nname = \"x\"\nkind = \"measured\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
         ("duplicate_names", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\n[[check]]\nname = \"x\"\nkind = \"energy\"\n")),
     ];
     for (name, message) in cases {

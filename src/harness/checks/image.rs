@@ -45,7 +45,7 @@ pub fn run_against(
     );
     s.width = reference.width;
     s.height = reference.height;
-    s.observer = spec.params.observer;
+    s.observer = spec.params.observer.clone();
     let film = ctx.renderer.render(scene, &s)?;
     let test = RgbImage::from_film(&film);
     // Only the per-test p-values are used (the family rate passed is irrelevant); the run's correction applies

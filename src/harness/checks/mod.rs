@@ -8,6 +8,7 @@ pub mod furnace;
 pub mod hg;
 pub mod image;
 pub mod lambert;
+pub mod measured;
 pub mod radiance;
 pub mod reciprocity;
 pub mod scale;
@@ -35,6 +36,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "sample_weights" => weights::run(spec, ctx),
         "scale_invariance" => scale::run(spec, ctx),
         "image_compare" => image::run(spec, ctx),
+        "measured" => measured::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }
