@@ -431,8 +431,7 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
 
 /// Reads an EXR as linear RGB with optional variance channels.
 fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
-    let layers = io::read_exr(p).with_context(|| format!("cannot read {}", p.display()))?;
-    Ok(RgbImage::from_layers(&layers).map_err(|e| anyhow::anyhow!("{}: {e}", p.display()))?)
+    Ok(RgbImage::load(p).map_err(|e| anyhow::anyhow!(e))?)
 }
 
 /// Reads a regions file; a TOML error names file, line and column.

@@ -398,6 +398,7 @@ mod tests {
             height: 4,
             rgb: std::array::from_fn(|_| vec![v; 16]),
             variance: Some(std::array::from_fn(|_| vec![1e-6; 16])),
+            variance_dof: None,
         }
     }
 

@@ -7,7 +7,7 @@ pub mod power;
 pub mod sphere;
 pub mod stability;
 
-use statrs::distribution::{ContinuousCDF, Normal};
+use statrs::distribution::{ContinuousCDF, Normal, StudentsT};
 
 /// Running mean and variance of a stream of f64 values (Welford 1962, "Note on a method
 /// for calculating corrected sums of squares and products", Technometrics 4(3)).
@@ -85,9 +85,47 @@ pub fn z_test(estimate: f64, std_error: f64, expected: f64) -> ZTest {
     ZTest { z, p }
 }
 
+/// Two-sided Welch test of a difference `diff` whose variance is the sum of independent
+/// estimated variances `parts` = [(variance, degrees of freedom)] (`f64::INFINITY` for a known
+/// variance): t = diff/√Σv with the Welch–Satterthwaite degrees of freedom
+/// ν = (Σv)²/Σ(v²/ν) (Welch 1947, Biometrika 34, eq. 9; Satterthwaite 1946). Returns
+/// (t, two-sided p, ν); ν above 1e6 uses the normal distribution.
+pub fn welch_test(diff: f64, parts: &[(f64, f64)]) -> (f64, f64, f64) {
+    let var: f64 = parts.iter().map(|p| p.0).sum();
+    let denom: f64 = parts
+        .iter()
+        .filter(|p| p.0 > 0.0 && p.1.is_finite())
+        .map(|p| p.0 * p.0 / p.1)
+        .sum();
+    let nu = if denom > 0.0 {
+        var * var / denom
+    } else {
+        f64::INFINITY
+    };
+    let z = z_test(diff, var.sqrt(), 0.0);
+    if !(nu.is_finite() && nu < 1e6 && z.z.is_finite()) {
+        return (z.z, z.p, nu);
+    }
+    let t = StudentsT::new(0.0, 1.0, nu).expect("nu > 0");
+    (z.z, (2.0 * t.sf(z.z.abs())).min(1.0), nu)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn welch_matches_tables_and_falls_back_to_z() {
+        // t = 2.262 is the two-sided 5 % point of Student's t with 9 dof.
+        let (t, p, nu) = welch_test(2.262, &[(1.0, 9.0)]);
+        assert!((t - 2.262).abs() < 1e-12 && (p - 0.05).abs() < 2e-4 && (nu - 9.0).abs() < 1e-12);
+        // Two equal parts with 15 dof each: ν = 30.
+        let (_, _, nu) = welch_test(1.0, &[(0.5, 15.0), (0.5, 15.0)]);
+        assert!((nu - 30.0).abs() < 1e-12);
+        // Known variances: the z test.
+        let (_, p, nu) = welch_test(1.96, &[(1.0, f64::INFINITY)]);
+        assert!(nu.is_infinite() && (p - 0.05).abs() < 1e-3);
+    }
 
     #[test]
     fn mean_var_matches_two_pass() {

@@ -17,6 +17,7 @@ fn flat(rgb: [f64; 3]) -> RgbImage {
         height: 32,
         rgb: std::array::from_fn(|c| vec![rgb[c]; 32 * 32]),
         variance: Some(std::array::from_fn(|_| vec![1e-4; 32 * 32])),
+        variance_dof: None,
     }
 }
 

@@ -5,7 +5,6 @@
 //! combination of the smallest region p-value: 1 − (1 − p_min)^m (Šidák 1967).
 
 use super::{fmt_sig, settings_for};
-use crate::film::io;
 use crate::harness::compare::{compare, RgbImage};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
@@ -14,8 +13,7 @@ use crate::integrators::Strategy;
 
 /// Reads an EXR reference as linear RGB with optional variance channels.
 pub fn load_reference(path: &std::path::Path) -> Result<RgbImage, String> {
-    let layers = io::read_exr(path).map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    RgbImage::from_layers(&layers).map_err(|e| format!("{}: {e}", path.display()))
+    RgbImage::load(path)
 }
 
 /// Runs an image comparison with the reference read from the manifest's path.
