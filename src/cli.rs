@@ -44,10 +44,10 @@ enum Command {
 struct ExportArgs {
     /// The furnace scene (TOML).
     scene: PathBuf,
-    /// Target format.
-    #[arg(long, default_value = "mitsuba3", value_parser = ["mitsuba3"])]
+    /// Target format: mitsuba3 (scene.xml + meshes/*.ply) or pbrt-v4 (scene.pbrt, meshes inline; not verified with a pbrt build).
+    #[arg(long, default_value = "mitsuba3", value_parser = ["mitsuba3", "pbrt-v4"])]
     format: String,
-    /// Output folder (created); the scene file inside it is scene.xml.
+    /// Output folder (created); the scene file inside it is scene.xml or scene.pbrt.
     #[arg(long)]
     out: PathBuf,
 }
@@ -101,6 +101,9 @@ struct ReportArgs {
     /// Page title.
     #[arg(long, default_value = "furnace report")]
     title: String,
+    /// A plain-text notes file shown after the banner (findings and their evidence): paragraphs separated by blank lines, "- " list items, "## " headings.
+    #[arg(long)]
+    notes: Option<PathBuf>,
     /// The HTML page (self-contained: images embedded).
     #[arg(long)]
     out: PathBuf,
@@ -137,9 +140,15 @@ struct CheckArgs {
     /// Write a Markdown table here (for CI job summaries).
     #[arg(long)]
     markdown: Option<PathBuf>,
-    /// Write a self-contained HTML report here.
+    /// Write a self-contained HTML report here (renderers side by side when several are given).
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Renderer to judge: furnace (built in) or NAME[:VARIANT] from --renderers; repeatable. External renderers run the renderer-agnostic scene-level kinds; the rest are reported as skipped.
+    #[arg(long = "renderer", default_value = "furnace")]
+    renderers: Vec<String>,
+    /// Adapter descriptions of external renderers (TOML [renderer.NAME] tables).
+    #[arg(long = "renderers", default_value = "renderers.toml")]
+    renderers_file: PathBuf,
 }
 
 #[derive(Debug, Args)]
@@ -232,9 +241,17 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
 fn export_command(a: ExportArgs) -> Result<i32, Failure> {
     let scene =
         Scene::load(&a.scene).with_context(|| format!("invalid scene {}", a.scene.display()))?;
-    let xml = furnace::export::mitsuba::write(&scene, &a.out)
-        .with_context(|| format!("cannot export {}", a.scene.display()))?;
-    println!("wrote {}", xml.display());
+    let written = if a.format == "pbrt-v4" {
+        std::fs::create_dir_all(&a.out)
+            .with_context(|| format!("cannot create {}", a.out.display()))?;
+        let p = a.out.join("scene.pbrt");
+        write_file(&p, &furnace::export::pbrt::export(&scene, "image.exr"))?;
+        p
+    } else {
+        furnace::export::mitsuba::write(&scene, &a.out)
+            .with_context(|| format!("cannot export {}", a.scene.display()))?
+    };
+    println!("wrote {}", written.display());
     Ok(0)
 }
 
@@ -386,47 +403,123 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
         },
         threads: a.threads,
     };
-    let bar = ProgressBar::new(specs.len() as u64);
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg}")
-            .context("progress bar template")?,
-    );
-    let names = files.iter().map(|f| f.display().to_string()).collect();
-    let mut report = harness::run(&specs, &opts, &BuiltIn, names, &mut |name| {
-        bar.inc(1);
-        bar.set_message(name.to_string());
-    });
-    bar.finish_and_clear();
-    for o in &report.outcomes {
-        println!("{}", text::line(o));
+    let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
+    let externals = if a.renderers.iter().any(|r| r != "furnace") {
+        Some(
+            harness::adapter::load_renderers(&a.renderers_file)
+                .map_err(|e| anyhow::anyhow!("invalid renderers file: {e}"))?,
+        )
+    } else {
+        None
+    };
+    let mut reports = Vec::new();
+    for label in &a.renderers {
+        let external = match &externals {
+            Some(map) if label != "furnace" => Some(
+                harness::adapter::External::from_spec(label, map, Path::new("."))
+                    .map_err(|e| anyhow::anyhow!(e))?,
+            ),
+            _ => None,
+        };
+        let renderer: &dyn harness::Renderer = match &external {
+            Some(e) => e,
+            None => &BuiltIn,
+        };
+        let unavailable = external.as_ref().and_then(|e| e.probe().err());
+        let mut report = match &unavailable {
+            Some(why) => {
+                eprintln!("renderer {label} is not available, its checks are skipped: {why}");
+                let mut r = harness::run(&[], &opts, renderer, names.clone(), &mut |_| {});
+                for s in &specs {
+                    let mut o = Outcome::new(&s.name, &s.kind);
+                    o.verdict = Verdict::Skipped;
+                    o.message = format!("renderer {label} is not available: {why}");
+                    r.outcomes.push(o);
+                }
+                r
+            }
+            None => {
+                let bar = ProgressBar::new(specs.len() as u64);
+                bar.set_style(
+                    ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg}")
+                        .context("progress bar template")?,
+                );
+                let r = harness::run(&specs, &opts, renderer, names.clone(), &mut |name| {
+                    bar.inc(1);
+                    bar.set_message(format!("{label}: {name}"));
+                });
+                bar.finish_and_clear();
+                r
+            }
+        };
+        if a.renderers.len() > 1 {
+            println!("== {}", report.renderer);
+        }
+        for o in &report.outcomes {
+            println!("{}", text::line(o));
+        }
+        // checks excluded by --filter are reported as skipped
+        for s in &skipped {
+            let mut o = Outcome::new(&s.name, &s.kind);
+            o.verdict = Verdict::Skipped;
+            o.message = "not matching --filter".into();
+            report.outcomes.push(o);
+        }
+        println!("{}", text::summary(&report));
+        reports.push(report);
     }
-    // checks excluded by --filter are reported as skipped
-    for s in skipped {
-        let mut o = Outcome::new(s.name, s.kind);
-        o.verdict = Verdict::Skipped;
-        o.message = "not matching --filter".into();
-        report.outcomes.push(o);
-    }
-    if let Some(p) = &a.json {
-        write_file(p, &json::to_json(&report))?;
-    }
-    if let Some(p) = &a.junit {
-        write_file(p, &junit::to_junit(&report))?;
+    // One JSON / JUnit / Markdown file per renderer: the first at the given path, the others
+    // with the renderer's label before the extension.
+    let path_for = |p: &Path, i: usize, r: &harness::outcome::RunReport| -> PathBuf {
+        if i == 0 {
+            return p.to_path_buf();
+        }
+        let label: String = r
+            .renderer
+            .chars()
+            .map(|c| {
+                if c.is_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_string())
+            .unwrap_or_default();
+        p.with_extension(format!("{label}.{ext}"))
+    };
+    let mut values = Vec::new();
+    for (i, report) in reports.iter().enumerate() {
+        if let Some(p) = &a.json {
+            write_file(&path_for(p, i, report), &json::to_json(report))?;
+        }
+        if let Some(p) = &a.junit {
+            write_file(&path_for(p, i, report), &junit::to_junit(report))?;
+        }
+        if let Some(p) = &a.markdown {
+            write_file(&path_for(p, i, report), &text::table_markdown(report))?;
+        }
+        values.push(
+            serde_json::from_str::<serde_json::Value>(&json::to_json(report))
+                .context("JSON round trip")?,
+        );
     }
     if let Some(p) = &a.report {
-        let v: serde_json::Value =
-            serde_json::from_str(&json::to_json(&report)).context("JSON round trip")?;
-        write_file(p, &html::page("furnace check", &[v], &[]))?;
+        write_file(p, &html::page("furnace check", &values, &[]))?;
     }
-    if let Some(p) = &a.markdown {
-        write_file(p, &text::table_markdown(&report))?;
-    }
-    println!("{}", text::summary(&report));
-    Ok(if report.outcomes.iter().any(|o| o.is_failure()) {
-        1
-    } else {
-        0
-    })
+    Ok(
+        if reports
+            .iter()
+            .any(|r| r.outcomes.iter().any(|o| o.is_failure()))
+        {
+            1
+        } else {
+            0
+        },
+    )
 }
 
 /// Reads an EXR as linear RGB with optional variance channels.
@@ -516,7 +609,16 @@ fn report_command(a: ReportArgs) -> Result<i32, Failure> {
     if runs.is_empty() && sections.is_empty() {
         return Err(anyhow::anyhow!("nothing to report: give --results and/or --compare").into());
     }
-    write_file(&a.out, &html::page(&a.title, &runs, &sections))?;
+    let notes = match &a.notes {
+        None => None,
+        Some(p) => Some(
+            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+        ),
+    };
+    write_file(
+        &a.out,
+        &html::page_with_notes(&a.title, &runs, &sections, notes.as_deref()),
+    )?;
     if let Some(p) = &a.markdown {
         write_file(p, &html::markdown(&runs, &sections))?;
     }

@@ -6,6 +6,7 @@
 //! attached), not on the TOML text, so what is exported is exactly what furnace renders.
 
 pub mod mitsuba;
+pub mod pbrt;
 
 /// Why a scene could not be exported.
 #[derive(Debug, thiserror::Error)]

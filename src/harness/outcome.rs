@@ -117,6 +117,8 @@ impl Outcome {
 pub struct RunReport {
     /// furnace version.
     pub furnace_version: String,
+    /// The renderer judged (`furnace 0.1.0`, `mitsuba3:scalar_spectral`, …).
+    pub renderer: String,
     /// Manifest files run.
     pub manifests: Vec<String>,
     /// Run seed (each check's seed derives from it unless the check sets one).

@@ -186,6 +186,17 @@ figcaption{font-size:0.8em;max-width:256px}.msg{font-size:0.8em;text-align:left;
 /// The whole report page: a verdict banner, each check run's table, each comparison with its
 /// images and region table.
 pub fn page(title: &str, runs: &[Value], comparisons: &[ComparisonSection]) -> String {
+    page_with_notes(title, runs, comparisons, None)
+}
+
+/// [`page`] with a notes section (plain text: paragraphs separated by blank lines, lines
+/// starting with "- " as list items) after the banner: findings and their evidence.
+pub fn page_with_notes(
+    title: &str,
+    runs: &[Value],
+    comparisons: &[ComparisonSection],
+    notes: Option<&str>,
+) -> String {
     let mut h = String::new();
     let ok = all_pass(runs, comparisons);
     let _ = write!(
@@ -205,10 +216,34 @@ pub fn page(title: &str, runs: &[Value], comparisons: &[ComparisonSection]) -> S
         },
         env!("CARGO_PKG_VERSION")
     );
+    if let Some(n) = notes {
+        h.push_str("<h2>Notes and findings</h2>\n");
+        for para in n.split("\n\n").map(str::trim).filter(|p| !p.is_empty()) {
+            if para.lines().all(|l| l.trim_start().starts_with("- ")) {
+                h.push_str("<ul>");
+                for l in para.lines() {
+                    let _ = write!(
+                        h,
+                        "<li>{}</li>",
+                        escape(l.trim_start().trim_start_matches("- "))
+                    );
+                }
+                h.push_str("</ul>\n");
+            } else if let Some(head) = para.strip_prefix("## ") {
+                let _ = writeln!(h, "<h3>{}</h3>", escape(head));
+            } else {
+                let _ = writeln!(h, "<p>{}</p>", escape(para));
+            }
+        }
+    }
+    if runs.len() > 1 {
+        side_by_side(&mut h, runs);
+    }
     for run in runs {
         let _ = writeln!(
             h,
-            "<h2>Checks</h2>\n<p>manifests {}; seed {}; family-wise false-alarm rate {} ({}, {} stochastic tests); renderer {}</p>",
+            "<h2>Checks: {}</h2>\n<p>manifests {}; seed {}; family-wise false-alarm rate {} ({}, {} stochastic tests); renderer {}</p>",
+            escape(run["renderer"].as_str().unwrap_or("furnace")),
             escape(&run["manifests"].as_array().map(|m| m.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(", ")).unwrap_or_default()),
             num(&run["seed"]),
             num(&run["family_alpha"]),
@@ -247,6 +282,95 @@ pub fn page(title: &str, runs: &[Value], comparisons: &[ComparisonSection]) -> S
     }
     h.push_str("</body></html>\n");
     h
+}
+
+/// Renderers side by side: per check, each renderer's estimate ± standard error, its deviation
+/// from the expected value in % and in standard errors, verdict, time and samples per second.
+fn side_by_side(h: &mut String, runs: &[Value]) {
+    let mut names: Vec<(String, String)> = Vec::new();
+    for r in runs {
+        for o in r["outcomes"].as_array().into_iter().flatten() {
+            let n = o["name"].as_str().unwrap_or("").to_string();
+            if !names.iter().any(|x| x.0 == n) {
+                names.push((n, o["kind"].as_str().unwrap_or("").to_string()));
+            }
+        }
+    }
+    h.push_str("<h2>Renderers side by side</h2>\n<table><tr><th class=\"l\">check</th><th class=\"l\">kind</th><th>expected</th>");
+    for r in runs {
+        let _ = write!(
+            h,
+            "<th colspan=\"5\">{}</th>",
+            escape(r["renderer"].as_str().unwrap_or("?"))
+        );
+    }
+    h.push_str("</tr>\n<tr><th></th><th></th><th></th>");
+    for _ in runs {
+        h.push_str(
+            "<th>verdict</th><th>estimate ± se</th><th>deviation</th><th>s</th><th>samples/s</th>",
+        );
+    }
+    h.push_str("</tr>\n");
+    for (name, kind) in &names {
+        let find = |r: &Value| -> Option<Value> {
+            r["outcomes"]
+                .as_array()?
+                .iter()
+                .find(|o| o["name"].as_str() == Some(name.as_str()))
+                .cloned()
+        };
+        let expected = runs
+            .iter()
+            .filter_map(&find)
+            .map(|o| o["expected"].clone())
+            .find(|e| !e.is_null())
+            .unwrap_or(Value::Null);
+        let _ = write!(
+            h,
+            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td>",
+            escape(name),
+            escape(kind),
+            num(&expected)
+        );
+        for r in runs {
+            match find(r) {
+                None => h.push_str("<td class=\"skip\" colspan=\"5\">not run</td>"),
+                Some(o) => {
+                    let v = o["verdict"].as_str().unwrap_or("?");
+                    let dev = match (
+                        o["estimate"].as_f64(),
+                        o["expected"].as_f64(),
+                        o["std_error"].as_f64(),
+                    ) {
+                        (Some(e), Some(x), se) if x != 0.0 => format!(
+                            "{:+.3} %{}",
+                            100.0 * (e / x - 1.0),
+                            // σ only for a real standard error (not rounding-level)
+                            se.filter(|s| *s > 1e-9 * x.abs())
+                                .map(|s| format!(" ({:+.1}σ)", (e - x) / s))
+                                .unwrap_or_default()
+                        ),
+                        _ => "–".into(),
+                    };
+                    let secs = o["seconds"].as_f64().unwrap_or(0.0);
+                    let rate = o["samples"]
+                        .as_f64()
+                        .filter(|_| secs > 0.0)
+                        .map(|n| format!("{:.3e}", n / secs))
+                        .unwrap_or("–".into());
+                    let _ = write!(
+                        h,
+                        "<td class=\"{}\">{v}</td><td>{} ± {}</td><td>{dev}</td><td>{secs:.2}</td><td>{rate}</td>",
+                        verdict_class(v),
+                        num(&o["estimate"]),
+                        num(&o["std_error"]),
+                    );
+                }
+            }
+        }
+        h.push_str("</tr>\n");
+    }
+    h.push_str("</table>\n");
 }
 
 fn comparison_html(h: &mut String, s: &ComparisonSection) {
@@ -310,26 +434,40 @@ pub fn markdown(runs: &[Value], comparisons: &[ComparisonSection]) -> String {
         "## furnace: {}\n",
         if ok { "all pass" } else { "failures" }
     );
-    let c: Vec<String> = counts(runs)
-        .into_iter()
-        .map(|(v, n)| format!("{n} {v}"))
-        .collect();
-    if !c.is_empty() {
-        let _ = writeln!(m, "Checks: {}\n", c.join(", "));
+    for run in runs {
+        let c: Vec<String> = counts(std::slice::from_ref(run))
+            .into_iter()
+            .map(|(v, n)| format!("{n} {v}"))
+            .collect();
+        if !c.is_empty() {
+            let _ = writeln!(
+                m,
+                "Checks ({}): {}\n",
+                run["renderer"].as_str().unwrap_or("furnace"),
+                c.join(", ")
+            );
+        }
     }
-    let bad: Vec<&Value> = runs
+    let bad: Vec<(&str, &Value)> = runs
         .iter()
-        .flat_map(|r| r["outcomes"].as_array().into_iter().flatten())
-        .filter(|o| !matches!(o["verdict"].as_str(), Some("PASS") | Some("SKIPPED")))
+        .flat_map(|r| {
+            let name = r["renderer"].as_str().unwrap_or("furnace");
+            r["outcomes"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(move |o| (name, o))
+        })
+        .filter(|(_, o)| !matches!(o["verdict"].as_str(), Some("PASS") | Some("SKIPPED")))
         .collect();
     if !bad.is_empty() {
         m.push_str(
-            "| check | verdict | estimate | expected | p | what |\n|---|---|---|---|---|---|\n",
+            "| check | renderer | verdict | estimate | expected | p | what |\n|---|---|---|---|---|---|---|\n",
         );
-        for o in bad {
+        for (renderer, o) in bad {
             let _ = writeln!(
                 m,
-                "| {} | {} | {} ± {} | {} | {} | {} |",
+                "| {} | {renderer} | {} | {} ± {} | {} | {} | {} |",
                 o["name"].as_str().unwrap_or(""),
                 o["verdict"].as_str().unwrap_or(""),
                 num(&o["estimate"]),
@@ -436,7 +574,7 @@ mod tests {
         let md = markdown(&[run], &[s]);
         assert!(md.starts_with("## furnace: failures"), "{md}");
         assert!(
-            md.contains("Checks: 1 FAIL, 1 PASS") && md.contains("x \\| y"),
+            md.contains("Checks (furnace): 1 FAIL, 1 PASS") && md.contains("x \\| y"),
             "{md}"
         );
         assert!(md.contains("**t vs r**: DIFFERENT"), "{md}");

@@ -25,6 +25,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 |---|---|---|---|
 | `schema` | string | — | Always `"furnace.check-results/1"`. |
 | `furnace_version` | string | — | Version of furnace that ran the checks. |
+| `renderer` | string | — | The renderer judged: `"furnace X.Y.Z"` (the built-in path tracer) or an external renderer as `NAME` or `NAME:VARIANT` (`--renderer`). |
 | `manifests` | array of string | — | Manifest files that were run, in order. |
 | `seed` | integer (u64) | — | Run seed; each check's seed derives from it unless the check sets its own. May exceed 2^53: parse as a 64-bit integer. |
 | `family_alpha` | number or null | probability | Family-wise false-alarm rate that the multiple-testing correction holds over all stochastic tests of the run. |
@@ -154,6 +155,7 @@ mod tests {
         let expected_run_keys = [
             "schema",
             "furnace_version",
+            "renderer",
             "manifests",
             "seed",
             "family_alpha",

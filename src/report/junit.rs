@@ -470,6 +470,7 @@ mod tests {
             }
         }
         let r = RunReport {
+            renderer: "furnace 0.1.0".into(),
             furnace_version: "\u{0}".into(),
             manifests: names.iter().map(|n| n.to_string()).collect(),
             seed: u64::MAX,

@@ -112,6 +112,7 @@ pub(crate) mod fixture {
     /// The fixed run used by the snapshot tests.
     pub(crate) fn report() -> RunReport {
         RunReport {
+            renderer: "furnace 0.1.0".into(),
             furnace_version: "0.1.0".into(),
             manifests: vec!["scenes/furnace.toml".into(), "scenes/sampling.toml".into()],
             seed: 42,

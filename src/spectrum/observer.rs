@@ -148,6 +148,17 @@ impl Observer {
         }
     }
 
+    /// Linear sRGB → XYZ: the inverse of [`Observer::xyz_to_rgb`] (identity for responses).
+    pub fn rgb_to_xyz(&self, rgb: [f64; 3]) -> [f64; 3] {
+        let m = match self {
+            Observer::Cie1931 => &XYZ_TO_SRGB,
+            Observer::Mitsuba3 => &MITSUBA_XYZ_TO_SRGB,
+            Observer::Responses(_) => return rgb,
+        };
+        let inv = invert3(m);
+        std::array::from_fn(|r| inv[r][0] * rgb[0] + inv[r][1] * rgb[1] + inv[r][2] * rgb[2])
+    }
+
     /// XYZ → linear sRGB with this pipeline's matrix.
     #[inline]
     pub fn xyz_to_rgb(&self, xyz: [f64; 3]) -> [f64; 3] {
@@ -160,9 +171,31 @@ impl Observer {
     }
 }
 
+/// Inverse of a 3×3 matrix by cofactors (the sRGB matrices are well conditioned).
+fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    let c = |r: usize, k: usize| {
+        let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
+        let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
+        m[r1][k1] * m[r2][k2] - m[r1][k2] * m[r2][k1]
+    };
+    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
+    std::array::from_fn(|r| std::array::from_fn(|k| c(k, r) / det))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn rgb_to_xyz_inverts_xyz_to_rgb() {
+        for o in [Observer::Cie1931, Observer::Mitsuba3] {
+            let xyz = [0.3, 0.5, 0.7];
+            let back = o.rgb_to_xyz(o.xyz_to_rgb(xyz));
+            for k in 0..3 {
+                assert!((back[k] - xyz[k]).abs() < 1e-12, "{back:?}");
+            }
+        }
+    }
 
     #[test]
     fn names_round_trip() {

@@ -288,6 +288,41 @@ fn committed_reference_exports_are_current() {
 }
 
 #[test]
+fn pbrt_export_snapshot_and_every_scene() {
+    for (path, scene) in bundled() {
+        let text = furnace::export::pbrt::export(&scene, "out.exr");
+        // Every shape in its own attribute block, every emitter with its luminance scale.
+        assert_eq!(
+            text.matches("AttributeBegin").count(),
+            scene.aggregate.shapes().len(),
+            "{}",
+            path.display()
+        );
+        assert_eq!(
+            text.matches("AttributeBegin").count(),
+            text.matches("AttributeEnd").count()
+        );
+        assert!(
+            !text
+                .split_whitespace()
+                .any(|t| ["NaN", "inf", "-inf"].contains(&t)),
+            "{}",
+            path.display()
+        );
+    }
+    let s = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
+    insta::assert_snapshot!(
+        "pbrt_cornell_box",
+        furnace::export::pbrt::export(&s, "cbox.exr")
+    );
+    let s = Scene::load(&root("scenes/furnace-sphere.toml")).unwrap();
+    insta::assert_snapshot!(
+        "pbrt_furnace_sphere",
+        furnace::export::pbrt::export(&s, "sphere.exr")
+    );
+}
+
+#[test]
 fn two_sided_emission_is_refused_by_name() {
     let text = std::fs::read_to_string(root("scenes/furnace-sphere.toml"))
         .unwrap()

@@ -1,5 +1,6 @@
 //! furnace integration tests: one binary, one module per concern.
 
+mod adapter;
 mod cli;
 mod colorimetry;
 mod export;

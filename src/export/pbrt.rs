@@ -1,0 +1,210 @@
+//! pbrt-v4 scene text (one self-contained `.pbrt` file, meshes inline).
+//!
+//! Not run here (pbrt-v4 is not packaged on these machines): the text is snapshot-tested
+//! and the mapping below is written from the pbrt-v4 file-format documentation; treat it as
+//! a starting point to verify with a pbrt build before trusting a comparison.
+//! - camera: `Scale -1 1 1` then `LookAt` (pbrt's camera space is left-handed; the mirror
+//!   keeps furnace's image orientation), `perspective` with `fov` of the *shorter* image axis;
+//! - `Film "rgb"` (linear sRGB, default `cie1931` sensor), `PixelFilter "box"` (radius 0.5 px =
+//!   one pixel, as furnace), `Sampler "independent"`, `Integrator "path"` with `maxdepth` =
+//!   furnace bounces (65536 for unlimited: Russian roulette ends paths);
+//! - spectra as `λ v` pairs (pbrt's piecewise-linear spectrum is zero outside its samples, as
+//!   furnace's `outside = "zero"`; constants and `clamp` become two-point or extended tables
+//!   over 360–830 nm), blackbodies as `blackbody` (normalised by pbrt, so given a scale);
+//! - pbrt-v4 normalises light spectra to unit luminance (`SpectrumToPhotometric`) before
+//!   applying `scale`: every light gets `scale` = ∫ S ȳ dλ (CIE 1931, 1 nm) so that the
+//!   radiance it emits is the spectrum as written;
+//! - `diffuse` material (two-sided in pbrt), emitting shapes with `AreaLightSource "diffuse"`
+//!   (`twosided` as in the scene), `flip_normals` → `ReverseOrientation`; quads and meshes as
+//!   inline `trianglemesh` with furnace's winding (pbrt's normal (p0 − p2) × (p1 − p2) equals
+//!   furnace's (p1 − p0) × (p2 − p0)); spheres with `Translate`.
+
+use crate::geometry::Shape;
+use crate::lights::Light;
+use crate::math::Vec3;
+use crate::scattering::Bsdf;
+use crate::scene::Scene;
+use crate::spectrum::{cie, Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use std::fmt::Write as _;
+
+/// The scene as pbrt-v4 text; `out` names the image pbrt writes.
+pub fn export(scene: &Scene, out: &str) -> String {
+    let mut x = String::new();
+    let r = &scene.render;
+    let cam = &scene.camera;
+    let _ = writeln!(
+        x,
+        "# Exported by furnace {} (src/export/pbrt.rs); not verified with a pbrt build.",
+        env!("CARGO_PKG_VERSION")
+    );
+    // pbrt's fov is that of the shorter image axis; furnace's is vertical.
+    let aspect = r.width as f64 / r.height as f64;
+    let fov = if aspect >= 1.0 {
+        cam.fov_y
+    } else {
+        (2.0 * ((cam.fov_y.to_radians() / 2.0).tan() * aspect).atan()).to_degrees()
+    };
+    x.push_str("Scale -1 1 1\n");
+    let _ = writeln!(
+        x,
+        "LookAt {}  {}  {}",
+        v3(cam.position),
+        v3(cam.look_at),
+        v3(cam.up)
+    );
+    let _ = writeln!(x, "Camera \"perspective\" \"float fov\" [ {fov} ]");
+    let _ = writeln!(
+        x,
+        "Film \"rgb\" \"string filename\" [ \"{out}\" ] \"integer xresolution\" [ {} ] \"integer yresolution\" [ {} ]",
+        r.width, r.height
+    );
+    x.push_str("PixelFilter \"box\"\n");
+    let _ = writeln!(
+        x,
+        "Sampler \"independent\" \"integer pixelsamples\" [ {} ]",
+        r.spp
+    );
+    let _ = writeln!(
+        x,
+        "Integrator \"path\" \"integer maxdepth\" [ {} ]",
+        r.max_depth.unwrap_or(65536)
+    );
+    x.push_str("WorldBegin\n");
+    for light in &scene.lights {
+        match light {
+            Light::Area { .. } => {}
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let _ = writeln!(
+                    x,
+                    "LightSource \"point\" \"point3 from\" [ {} ] {} \"float scale\" [ {} ]",
+                    v3(*position),
+                    spectrum("I", intensity),
+                    luminance(intensity)
+                );
+            }
+            Light::Environment { radiance } => {
+                let _ = writeln!(
+                    x,
+                    "LightSource \"infinite\" {} \"float scale\" [ {} ]",
+                    spectrum("L", radiance),
+                    luminance(radiance)
+                );
+            }
+        }
+    }
+    for (i, shape) in scene.aggregate.shapes().iter().enumerate() {
+        let _ = writeln!(x, "AttributeBegin  # shape[{i}]");
+        match &scene.bsdfs[i] {
+            Bsdf::Diffuse(l) => {
+                let _ = writeln!(
+                    x,
+                    "  Material \"diffuse\" {}",
+                    spectrum("reflectance", &l.reflectance)
+                );
+            }
+        }
+        if let Some(li) = scene.shape_light[i] {
+            if let Light::Area {
+                radiance,
+                two_sided,
+                ..
+            } = &scene.lights[li as usize]
+            {
+                let _ = writeln!(
+                    x,
+                    "  AreaLightSource \"diffuse\" {} \"float scale\" [ {} ] \"bool twosided\" [ {two_sided} ]",
+                    spectrum("L", radiance),
+                    luminance(radiance)
+                );
+            }
+        }
+        match shape {
+            Shape::Sphere(s) => {
+                let _ = writeln!(x, "  Translate {}", v3(s.center));
+                if s.flip_normals {
+                    x.push_str("  ReverseOrientation\n");
+                }
+                let _ = writeln!(x, "  Shape \"sphere\" \"float radius\" [ {} ]", s.radius);
+            }
+            Shape::Quad(q) => {
+                if q.flip_normals {
+                    x.push_str("  ReverseOrientation\n");
+                }
+                let c = q.corner;
+                let p = [c, c + q.edge_u, c + q.edge_u + q.edge_v, c + q.edge_v];
+                mesh(&mut x, &p, &[[0, 1, 2], [0, 2, 3]]);
+            }
+            Shape::Mesh(m) => {
+                if m.flip_normals {
+                    x.push_str("  ReverseOrientation\n");
+                }
+                mesh(&mut x, &m.positions, &m.triangles);
+            }
+        }
+        x.push_str("AttributeEnd\n");
+    }
+    x
+}
+
+fn v3(p: Vec3) -> String {
+    format!("{} {} {}", p.x, p.y, p.z)
+}
+
+fn mesh(x: &mut String, p: &[Vec3], t: &[[u32; 3]]) {
+    let pts: Vec<String> = p.iter().map(|&q| v3(q)).collect();
+    let idx: Vec<String> = t
+        .iter()
+        .map(|t| format!("{} {} {}", t[0], t[1], t[2]))
+        .collect();
+    let _ = writeln!(
+        x,
+        "  Shape \"trianglemesh\" \"point3 P\" [ {} ] \"integer indices\" [ {} ]",
+        pts.join("  "),
+        idx.join("  ")
+    );
+}
+
+/// ∫ S ȳ dλ over 360–830 nm (1 nm), the value pbrt-v4 divides light spectra by.
+fn luminance(s: &Spectrum) -> f64 {
+    let t = cie::tables();
+    t.spectrum_to_xyz(s)[1] * t.y_integral()
+}
+
+fn spectrum(name: &str, s: &Spectrum) -> String {
+    let pairs: Vec<(f64, f64)> = match s {
+        Spectrum::Constant(c) => vec![(LAMBDA_MIN, *c), (LAMBDA_MAX, *c)],
+        Spectrum::Tabulated {
+            wavelengths,
+            values,
+            outside,
+        } => {
+            let mut p: Vec<(f64, f64)> = wavelengths
+                .iter()
+                .copied()
+                .zip(values.iter().copied())
+                .collect();
+            if *outside == Outside::Clamp {
+                let (first, last) = (p[0], p[p.len() - 1]);
+                if first.0 > LAMBDA_MIN {
+                    p.insert(0, (LAMBDA_MIN, first.1));
+                }
+                if last.0 < LAMBDA_MAX {
+                    p.push((LAMBDA_MAX, last.1));
+                }
+            }
+            if p.len() == 1 {
+                // A one-sample table is a spike; pbrt needs two samples.
+                p.push((p[0].0 + 1e-3, 0.0));
+            }
+            p
+        }
+        Spectrum::Blackbody { kelvin, .. } => {
+            return format!("\"blackbody {name}\" [ {kelvin} ]");
+        }
+    };
+    let body: Vec<String> = pairs.iter().map(|(l, v)| format!("{l} {v}")).collect();
+    format!("\"spectrum {name}\" [ {} ]", body.join(" "))
+}

@@ -1,0 +1,125 @@
+//! External renderers through the adapter, without Python: a stand-in renderer that is the
+//! `furnace render` command itself (ignoring the exported scene and rendering a fixed scene
+//! file) goes through the whole black-box path: export, K independent runs, EXR reading, RGB →
+//! XYZ, statistics. It must pass the furnace check of the scene it renders and fail the check
+//! of a scene with another albedo (negative control); an unavailable renderer is skipped.
+
+use crate::root;
+use furnace::harness::adapter::{load_renderers, External};
+use furnace::harness::manifest;
+use furnace::harness::outcome::Verdict;
+use furnace::harness::{self, RunOptions};
+use std::process::Command;
+
+fn renderers(scene: &str, probe: &str) -> std::path::PathBuf {
+    let text = format!(
+        "[renderer.stand-in]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 4\nprobe = [{probe}]\ncommand = [{:?}, \"render\", {scene:?}, \"--out\", \"{{out}}\", \"--spp\", \"{{spp}}\", \"--seed\", \"{{seed}}\", \"--width\", \"{{width}}\", \"--height\", \"{{height}}\", \"--threads\", \"{{threads}}\", \"--quiet\"]\n",
+        env!("CARGO_BIN_EXE_furnace")
+    );
+    let p = std::env::temp_dir().join(format!(
+        "furnace-adapter-{}-{}.toml",
+        std::process::id(),
+        scene.len() + probe.len()
+    ));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn verdict(scene: &str) -> (Verdict, String) {
+    let r = load_renderers(&renderers(scene, "\"true\"")).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let specs: Vec<_> = manifest::load(&root("tests/manifests/furnace.toml"))
+        .unwrap()
+        .into_iter()
+        .filter(|s| s.name == "furnace/sphere[albedo=0.5]")
+        .collect();
+    let opts = RunOptions {
+        family_alpha: 1e-4,
+        ..RunOptions::default()
+    };
+    let report = harness::run(&specs, &opts, &ext, vec![], &mut |_| {});
+    assert_eq!(report.renderer, "stand-in");
+    let o = &report.outcomes[0];
+    (o.verdict, o.message.clone())
+}
+
+#[test]
+fn a_black_box_renderer_is_judged_by_the_same_statistics() {
+    let (v, m) = verdict("tests/manifests/scenes/furnace-sphere-0.5.toml");
+    assert_eq!(v, Verdict::Pass, "{m}");
+    // Negative control: the stand-in renders albedo 0.45 where the check's scene says 0.5.
+    let wrong =
+        std::env::temp_dir().join(format!("furnace-adapter-wrong-{}.toml", std::process::id()));
+    let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-sphere-0.5.toml"))
+        .unwrap()
+        .replace("reflectance = 0.5", "reflectance = 0.45");
+    assert!(text.contains("0.45"));
+    std::fs::write(&wrong, text).unwrap();
+    let (v, m) = verdict(wrong.to_str().unwrap());
+    assert_eq!(v, Verdict::Fail, "{m}");
+}
+
+#[test]
+fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
+    let file = renderers("scenes/furnace-sphere.toml", "\"false\"");
+    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args([
+            "check",
+            "tests/manifests/lambert.toml",
+            "--renderer",
+            "stand-in",
+            "--renderers",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(0), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("renderer stand-in is not available"),
+        "{stderr}"
+    );
+    assert!(stdout.contains("0 passed, 0 failed, 5 skipped"), "{stdout}");
+    // An unknown renderer is a usage error (exit 2) that lists the known ones.
+    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args(["check", "--renderer", "blender", "--renderers"])
+        .arg(&file)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("unknown renderer \"blender\"; known: furnace, stand-in"),
+        "{stderr}"
+    );
+}
+
+#[test]
+fn the_recorded_mitsuba_run_rebuilds_the_comparison_report_without_python() {
+    let dir = std::env::temp_dir().join(format!("furnace-adapter-report-{}", std::process::id()));
+    let page = dir.join("comparison.html");
+    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args([
+            "report",
+            "--results",
+            "reports/renderers/check.json",
+            "--results",
+            "reports/renderers/check.mitsuba3_scalar_spectral.json",
+            "--out",
+        ])
+        .arg(&page)
+        .output()
+        .unwrap();
+    // Mitsuba fails some checks (README: findings), so the report exits 1.
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let html = std::fs::read_to_string(&page).unwrap();
+    assert!(html.contains("Renderers side by side"));
+    assert!(html.contains("mitsuba3:scalar_spectral") && html.contains("furnace 0.1.0"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
