@@ -33,6 +33,7 @@ fn cornell_frame(c: &mut Criterion) {
             ..PathTracer::default()
         },
         observer: Default::default(),
+        sampler: Default::default(),
     };
     let mut g = c.benchmark_group("cornell_frame");
     g.sample_size(20);

@@ -4,7 +4,7 @@
 
 use crate::film::Film;
 use crate::integrators::PathTracer;
-use crate::math::rng::SampleStream;
+use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::{Observer, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
@@ -30,6 +30,8 @@ pub struct RenderSettings {
     pub integrator: PathTracer,
     /// How spectral samples become XYZ and RGB on the film.
     pub observer: Observer,
+    /// How each pixel's sample numbers are placed.
+    pub sampler: Sampler,
 }
 
 /// Why a render could not start.
@@ -91,7 +93,13 @@ pub fn render(
                         let mut px = crate::film::Pixel::default();
                         let pixel_index = (y * w + x) as u64;
                         for s in 0..settings.spp {
-                            let mut rng = SampleStream::new(settings.seed, pixel_index, s);
+                            let mut rng = SampleStream::with_sampler(
+                                settings.sampler,
+                                settings.seed,
+                                pixel_index,
+                                s,
+                                settings.spp,
+                            );
                             let u_lambda = rng.next_f64();
                             let wl = Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
                             let [jx, jy] = rng.next_2d();

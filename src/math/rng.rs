@@ -4,6 +4,18 @@
 //!
 //! Mixing is the SplitMix64 finaliser (Steele, Lea & Flood 2014, "Fast splittable
 //! pseudorandom number generators", OOPSLA; constants of Stafford's "Mix13").
+//!
+//! Three sample patterns ([`Sampler`]), all pure functions of (seed, pixel, sample,
+//! dimension) and all with uniform marginals (so every estimator stays unbiased):
+//! - independent: every number from the hash;
+//! - stratified: a jittered a×b grid (a = ⌊√spp⌋, b = ⌊spp/a⌋) for each 2D draw and spp
+//!   jittered strata for each 1D draw, the cells visited in a random order per pixel and
+//!   dimension (samples beyond a·b fall back to independent numbers). Jittered sampling of a
+//!   smooth 2D integrand converges as N^-1 in RMSE, across an edge as N^-0.75 (Mitchell 1996,
+//!   "Consequences of stratified sampling in graphics", SIGGRAPH);
+//! - sobol: Owen-scrambled Sobol points (Burley 2020, "Practical hash-based Owen scrambling",
+//!   JCGT 9(4), via the `sobol_burley` crate), seeded per pixel, for the first 256 dimensions
+//!   and the first 2^16 samples; later dimensions are independent numbers.
 
 /// One 64-bit mixing step (bijective on u64).
 #[inline]
@@ -15,33 +27,174 @@ pub fn mix64(mut z: u64) -> u64 {
 
 const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
 
+/// How the numbers of a pixel's samples are placed (see the module doc).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Sampler {
+    /// Independent uniform numbers.
+    #[default]
+    Independent,
+    /// Jittered strata, cells in random order.
+    Stratified,
+    /// Owen-scrambled Sobol.
+    Sobol,
+}
+
+impl Sampler {
+    /// All samplers with their names as written in manifests and on the command line.
+    pub const ALL: [(&'static str, Sampler); 3] = [
+        ("independent", Sampler::Independent),
+        ("stratified", Sampler::Stratified),
+        ("sobol", Sampler::Sobol),
+    ];
+
+    /// The sampler called `name`.
+    pub fn from_name(name: &str) -> Option<Sampler> {
+        Self::ALL.iter().find(|(n, _)| *n == name).map(|(_, s)| *s)
+    }
+
+    /// Its name.
+    pub fn name(self) -> &'static str {
+        Self::ALL
+            .iter()
+            .find(|(_, s)| *s == self)
+            .map_or("?", |x| x.0)
+    }
+}
+
+/// Largest sample count for which Sobol points are used (the crate's sequence length).
+pub const SOBOL_MAX_SAMPLES: u64 = 1 << 16;
+
 /// A stream of uniform numbers for one sample: the key fixes (seed, pixel, sample) and
-/// the dimension counter advances by one per draw.
+/// the dimension counter advances by one per draw (by two for a 2D draw).
 #[derive(Debug, Clone)]
 pub struct SampleStream {
     key: u64,
     dimension: u64,
+    sampler: Sampler,
+    /// Key of (seed, pixel): fixes the cell order and the scramble.
+    pixel_key: u64,
+    sample: u64,
+    spp: u64,
 }
 
 impl SampleStream {
-    /// Stream for sample `sample` of pixel `pixel` under run seed `seed`.
+    /// Independent stream for sample `sample` of pixel `pixel` under run seed `seed`.
     pub fn new(seed: u64, pixel: u64, sample: u64) -> Self {
-        let key = mix64(mix64(mix64(seed ^ GOLDEN).wrapping_add(pixel)).wrapping_add(sample));
-        SampleStream { key, dimension: 0 }
+        Self::with_sampler(Sampler::Independent, seed, pixel, sample, 1)
     }
 
-    /// Next uniform number in [0, 1), 53 random bits.
+    /// Stream for sample `sample` of `spp` of pixel `pixel` with the pattern `sampler`.
+    pub fn with_sampler(sampler: Sampler, seed: u64, pixel: u64, sample: u64, spp: u64) -> Self {
+        let pixel_key = mix64(mix64(seed ^ GOLDEN).wrapping_add(pixel));
+        let key = mix64(pixel_key.wrapping_add(sample));
+        let sampler = match sampler {
+            Sampler::Sobol if spp > SOBOL_MAX_SAMPLES => Sampler::Independent,
+            s => s,
+        };
+        SampleStream {
+            key,
+            dimension: 0,
+            sampler,
+            pixel_key,
+            sample,
+            spp: spp.max(1),
+        }
+    }
+
+    #[inline]
+    fn hash_f64(&self, dimension: u64) -> f64 {
+        let bits = mix64(self.key.wrapping_add(dimension.wrapping_mul(GOLDEN)));
+        (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+    }
+
+    #[inline]
+    fn sobol(&self, dimension: u64) -> Option<f64> {
+        (dimension < sobol_burley::NUM_DIMENSIONS as u64).then(|| {
+            sobol_burley::sample(
+                self.sample as u32,
+                dimension as u32,
+                (self.pixel_key ^ (self.pixel_key >> 32)) as u32,
+            ) as f64
+        })
+    }
+
+    /// Next uniform number in [0, 1).
     #[inline]
     pub fn next_f64(&mut self) -> f64 {
-        let bits = mix64(self.key.wrapping_add(self.dimension.wrapping_mul(GOLDEN)));
+        let d = self.dimension;
         self.dimension += 1;
-        (bits >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+        match self.sampler {
+            Sampler::Independent => self.hash_f64(d),
+            Sampler::Sobol => self.sobol(d).unwrap_or_else(|| self.hash_f64(d)),
+            Sampler::Stratified => {
+                let n = self.spp;
+                let cell = permute(
+                    self.sample,
+                    n,
+                    mix64(self.pixel_key ^ d.wrapping_mul(GOLDEN)),
+                );
+                ((cell as f64 + self.hash_f64(d)) / n as f64).min(ONE_MINUS_EPS)
+            }
+        }
     }
 
     /// Next pair of uniform numbers in [0, 1)².
     #[inline]
     pub fn next_2d(&mut self) -> [f64; 2] {
-        [self.next_f64(), self.next_f64()]
+        match self.sampler {
+            Sampler::Stratified => {
+                let d = self.dimension;
+                self.dimension += 2;
+                let a = (self.spp as f64).sqrt().floor() as u64;
+                let b = self.spp / a;
+                if self.sample >= a * b {
+                    return [self.hash_f64(d), self.hash_f64(d + 1)];
+                }
+                let cell = permute(
+                    self.sample,
+                    a * b,
+                    mix64(self.pixel_key ^ d.wrapping_mul(GOLDEN)),
+                );
+                let (cx, cy) = (cell % a, cell / a);
+                [
+                    ((cx as f64 + self.hash_f64(d)) / a as f64).min(ONE_MINUS_EPS),
+                    ((cy as f64 + self.hash_f64(d + 1)) / b as f64).min(ONE_MINUS_EPS),
+                ]
+            }
+            _ => [self.next_f64(), self.next_f64()],
+        }
+    }
+}
+
+/// The largest f64 below 1.
+const ONE_MINUS_EPS: f64 = 1.0 - f64::EPSILON / 2.0;
+
+/// A pseudo-random permutation of 0..n evaluated at `i` (a bijection for each `key`):
+/// cycle-walking over a hashed bijection of the next power of two (the construction of
+/// Kensler 2013, "Correlated multi-jittered sampling", Pixar TM 13-01, §3, with SplitMix64's
+/// finaliser restricted to the mask as the bijection: xor-shift, odd multiply and xor with a
+/// key are each invertible modulo 2^k).
+pub fn permute(i: u64, n: u64, key: u64) -> u64 {
+    if n <= 1 {
+        return 0;
+    }
+    let bits = 64 - (n - 1).leading_zeros();
+    let mask = if bits == 64 {
+        u64::MAX
+    } else {
+        (1u64 << bits) - 1
+    };
+    let mut x = i;
+    loop {
+        x ^= key & mask;
+        x = x.wrapping_mul(0xbf58_476d_1ce4_e5b9 | 1) & mask;
+        x ^= x >> (bits / 2 + 1);
+        x = x.wrapping_add(key >> 32) & mask;
+        x = x.wrapping_mul(0x94d0_49bb_1331_11eb | 1) & mask;
+        x ^= x >> (bits / 3 + 1);
+        if x < n {
+            return x;
+        }
     }
 }
 
@@ -63,6 +216,68 @@ mod tests {
         }
         let mut other = SampleStream::new(1, 2, 4);
         assert_ne!(a[0], other.next_f64());
+    }
+
+    #[test]
+    fn permute_is_a_bijection() {
+        for n in [1u64, 2, 3, 7, 16, 100, 1000] {
+            for key in [0u64, 1, 0xdead_beef, u64::MAX] {
+                let mut seen = vec![false; n as usize];
+                for i in 0..n {
+                    let j = permute(i, n, key) as usize;
+                    assert!(!seen[j], "n {n} key {key}");
+                    seen[j] = true;
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn stratified_draws_fill_every_stratum_once() {
+        for spp in [4u64, 8, 16, 64] {
+            let mut ones = vec![0; spp as usize];
+            let a = (spp as f64).sqrt().floor() as u64;
+            let b = spp / a;
+            let mut cells = vec![0; (a * b) as usize];
+            for s in 0..spp {
+                let mut st = SampleStream::with_sampler(Sampler::Stratified, 3, 5, s, spp);
+                let u = st.next_f64();
+                ones[(u * spp as f64) as usize] += 1;
+                let [x, y] = st.next_2d();
+                if s < a * b {
+                    cells[((y * b as f64) as u64 * a + (x * a as f64) as u64) as usize] += 1;
+                }
+            }
+            assert!(ones.iter().all(|&c| c == 1), "{spp}: {ones:?}");
+            assert!(cells.iter().all(|&c| c == 1), "{spp}: {cells:?}");
+        }
+    }
+
+    #[test]
+    fn samplers_have_uniform_marginals_and_are_deterministic() {
+        for sampler in [Sampler::Independent, Sampler::Stratified, Sampler::Sobol] {
+            let (n, spp) = (4096u64, 16u64);
+            let mut sum = [0.0; 4];
+            for p in 0..n / spp {
+                for s in 0..spp {
+                    let mut st = SampleStream::with_sampler(sampler, 9, p, s, spp);
+                    let v = [st.next_f64(), st.next_2d()[0], st.next_f64(), st.next_f64()];
+                    let mut again = SampleStream::with_sampler(sampler, 9, p, s, spp);
+                    assert_eq!(v[0], again.next_f64());
+                    for k in 0..4 {
+                        assert!((0.0..1.0).contains(&v[k]));
+                        sum[k] += v[k];
+                    }
+                }
+            }
+            let se = (1.0 / 12.0 / n as f64).sqrt();
+            for k in 0..4 {
+                assert!(
+                    (sum[k] / n as f64 - 0.5).abs() < 5.0 * se,
+                    "{sampler:?} {k}: {sum:?}"
+                );
+            }
+        }
     }
 
     #[test]
