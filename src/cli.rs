@@ -9,6 +9,7 @@ use furnace::harness::compare::{self, RgbImage};
 use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
 use furnace::integrators::{PathTracer, Strategy};
+use furnace::math::rng::Sampler;
 use furnace::render::{render, RenderSettings};
 use furnace::report::{html, json, junit, text};
 use furnace::scene;
@@ -34,6 +35,8 @@ enum Command {
     Check(CheckArgs),
     /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
     Compare(CompareArgs),
+    /// Measure convergence ladders (the `convergence` checks of the manifests): RMSE vs samples per sampler, fitted rates, time per sample, efficiency; writes an HTML page with log-log and time-error plots.
+    Converge(ConvergeArgs),
     /// Turn check results (JSON) and image comparisons into one self-contained HTML page and a Markdown summary; exit 1 when something failed.
     Report(ReportArgs),
     /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
@@ -82,6 +85,24 @@ struct CompareArgs {
     /// Write a Markdown summary here (for CI job summaries).
     #[arg(long)]
     markdown: Option<PathBuf>,
+}
+
+#[derive(Debug, Args)]
+struct ConvergeArgs {
+    /// Manifests with `convergence` checks.
+    manifests: Vec<PathBuf>,
+    /// Run seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Render threads; 0 uses every core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Relative error (RMSE over the region mean) for the "time to reach" column.
+    #[arg(long, default_value_t = 1e-3)]
+    target: f64,
+    /// Write the HTML page (table and SVG plots) here.
+    #[arg(long)]
+    report: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -182,6 +203,9 @@ struct RenderArgs {
     /// Colour pipeline of the film: cie1931 (furnace's: CIE 1931 at 1 nm, Y/106.857, IEC matrix) or mitsuba3 (Mitsuba 3's: the same table at 5 nm, Y/106.750, its matrix), to compare RGB with a Mitsuba render without a colour-conversion difference.
     #[arg(long, default_value = "cie1931", value_parser = ["cie1931", "mitsuba3"])]
     observer: String,
+    /// Sample pattern per pixel: independent, stratified (jittered strata in random order) or sobol (Owen-scrambled, up to 65536 spp).
+    #[arg(long, default_value = "independent", value_parser = ["independent", "stratified", "sobol"])]
+    sampler: String,
     /// Output EXR path [default: out/<scene name>.exr].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -235,6 +259,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Compare(args) => compare_command(args),
         Command::Export(args) => export_command(args),
         Command::Report(args) => report_command(args),
+        Command::Converge(args) => converge_command(args),
     }
 }
 
@@ -275,6 +300,7 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
             },
         },
         observer: Observer::from_name(&a.observer).expect("clap restricts --observer"),
+        sampler: Sampler::from_name(&a.sampler).expect("clap restricts --sampler"),
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
@@ -321,6 +347,7 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.strategy".to_string(), a.strategy.clone()),
         ("furnace.filter".to_string(), "box".to_string()),
         ("furnace.observer".to_string(), settings.observer.name().to_string()),
+        ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
     io::write_exr(&exr_path, &film.to_layers(attrs))
@@ -569,6 +596,102 @@ fn section(
         family_alpha,
         panels,
     })
+}
+
+fn converge_command(a: ConvergeArgs) -> Result<i32, Failure> {
+    use furnace::harness::checks::convergence;
+    use furnace::report::plot::{loglog, Series};
+    if !(a.target > 0.0 && a.target < 1.0) {
+        return Err(anyhow::anyhow!("--target {} must lie in (0, 1)", a.target).into());
+    }
+    if a.manifests.is_empty() {
+        return Err(anyhow::anyhow!(
+            "give at least one manifest, e.g. tests/manifests/convergence.toml"
+        )
+        .into());
+    }
+    let mut page = String::new();
+    let mut pareto = Vec::new();
+    let mut table = Vec::new();
+    for f in &a.manifests {
+        let specs =
+            manifest::load(f).with_context(|| format!("invalid manifest {}", f.display()))?;
+        let mut series = Vec::new();
+        for spec in specs.iter().filter(|s| s.kind == "convergence") {
+            let ctx = harness::Context {
+                renderer: &BuiltIn,
+                seed: harness::check_seed(spec, a.seed),
+                threads: a.threads,
+                alpha: 0.01,
+            };
+            let l = convergence::ladder(spec, &ctx)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", spec.name))?;
+            let last = l.rungs.last().expect("a ladder has rungs");
+            let per_sample = last.seconds / last.samples.max(1) as f64;
+            let mean = last.reference_mean.abs().max(f64::MIN_POSITIVE);
+            // Efficiency 1/(MSE·time) at the top rung; time to reach the target relative
+            // RMSE from the fitted line: N* = (target·mean / C)^(1/slope).
+            let efficiency = 1.0 / (last.rmse * last.rmse * last.seconds);
+            let n_star = (a.target * mean / l.fit.intercept.exp()).powf(1.0 / l.fit.slope);
+            let t_star = n_star * last.seconds / last.spp as f64;
+            let ci =
+                furnace::stats::regression::t_two_sided_quantile(0.05, l.fit.dof) * l.fit.se_slope;
+            let r = (
+                spec.name.clone(),
+                l.sampler.clone(),
+                l.fit.slope,
+                ci,
+                l.fit.intercept.exp(),
+                per_sample,
+                efficiency,
+                n_star,
+                t_star,
+            );
+            println!(
+                "{:<34} {:<11} {:>7.3} ± {:<5.3} {:>10.3e} {:>10.3e} {:>11.3e} {:>9.0} {:>9.3e}",
+                r.0, r.1, r.2, r.3, r.4, r.5, r.6, r.7, r.8
+            );
+            table.push(r);
+            let label = spec.name.rsplit('/').next().unwrap_or(&spec.name);
+            let curve = |x: &dyn Fn(&convergence::Rung) -> f64| Series {
+                name: label.to_string(),
+                points: l.rungs.iter().map(|r| (x(r), r.rmse / mean)).collect(),
+            };
+            series.push(curve(&|r| r.spp as f64));
+            pareto.push(curve(&|r| r.seconds));
+        }
+        page.push_str(&format!(
+            "<h2>{}</h2>\n",
+            html::escape(&f.display().to_string())
+        ));
+        page.push_str(&loglog(
+            "relative RMSE vs samples per pixel",
+            "samples per pixel",
+            "RMSE / mean",
+            &series,
+        ));
+    }
+    if let Some(p) = &a.report {
+        let mut h = String::from("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>furnace converge</title><style>body{font-family:system-ui,sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:0.2em 0.5em;text-align:right}td.l{text-align:left}</style></head><body><h1>Convergence</h1>\n");
+        h.push_str(&format!("<p>seed {}; RMSE of each pixel against its closed-form footprint average, over the region and 8 seeds per rung; slope and constant of ln RMSE = ln C + slope·ln N by least squares (95 % CI, Student t); efficiency 1/(MSE·time) at the top rung; N* and time to reach RMSE = {} × mean from the fitted line.</p>\n", a.seed, a.target));
+        h.push_str("<table><tr><th>configuration</th><th>sampler</th><th>slope ± 95 % CI</th><th>C</th><th>s / sample</th><th>efficiency</th><th>N*</th><th>time to target, s</th></tr>\n");
+        for r in &table {
+            h.push_str(&format!("<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.3} ± {:.3}</td><td>{:.3e}</td><td>{:.3e}</td><td>{:.3e}</td><td>{:.0}</td><td>{:.3e}</td></tr>\n", html::escape(&r.0), r.1, r.2, r.3, r.4, r.5, r.6, r.7, r.8));
+        }
+        h.push_str("</table>\n");
+        h.push_str(&page);
+        h.push_str("<h2>Time against error (all rungs)</h2>\n");
+        h.push_str(&loglog(
+            "relative RMSE vs render time",
+            "seconds per render",
+            "RMSE / mean",
+            &pareto,
+        ));
+        h.push_str("</body></html>\n");
+        write_file(p, &h)?;
+        println!("wrote {}", p.display());
+    }
+    Ok(0)
 }
 
 fn report_command(a: ReportArgs) -> Result<i32, Failure> {

@@ -3,6 +3,7 @@
 //! line, column and key. Paths (scenes, templates) are relative to the manifest's folder.
 
 use super::compare::{Region, Regions};
+use crate::math::rng::Sampler;
 use crate::scene::{Scene, SceneError, Source};
 use crate::spectrum::Observer;
 use serde::Deserialize;
@@ -75,6 +76,14 @@ pub struct CheckDesc {
     pub observer: Option<Spanned<String>>,
     /// Measurement file (TOML: band images, responses, uncertainties), relative to the manifest.
     pub measurement: Option<Spanned<String>>,
+    /// Sample pattern: independent, stratified or sobol.
+    pub sampler: Option<Spanned<String>>,
+    /// Sample counts of a convergence ladder.
+    pub ladder: Option<Spanned<Vec<i64>>>,
+    /// Independent seeds per ladder rung.
+    pub seeds: Option<Spanned<i64>>,
+    /// Allowed range [min, max] of a convergence slope.
+    pub slope: Option<Spanned<[f64; 2]>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -85,7 +94,7 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 12] = [
+pub const KINDS: [(&str, &[&str]); 13] = [
     (
         "furnace",
         &[
@@ -175,6 +184,13 @@ pub const KINDS: [(&str, &[&str]); 12] = [
         "measured",
         &["scene", "measurement", "spp", "max_depth", "seed"],
     ),
+    (
+        "convergence",
+        &[
+            "scene", "of", "sampler", "ladder", "seeds", "slope", "width", "height", "region",
+            "seed",
+        ],
+    ),
 ];
 
 /// A scene-level check's render settings (None = the scene's own value).
@@ -246,6 +262,14 @@ pub struct Params {
     pub observer: Observer,
     /// Measurement file (measured), resolved against the manifest's folder.
     pub measurement: Option<PathBuf>,
+    /// Sample pattern.
+    pub sampler: Sampler,
+    /// Ladder of sample counts (convergence), increasing.
+    pub ladder: Vec<u64>,
+    /// Seeds per rung (convergence).
+    pub seeds: u64,
+    /// Allowed slope range (convergence).
+    pub slope: Option<[f64; 2]>,
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -379,7 +403,7 @@ fn check(
             ),
         ));
     };
-    let present: [(&str, Option<Range<usize>>); 25] = [
+    let present: [(&str, Option<Range<usize>>); 29] = [
         ("scene", d.scene.as_ref().map(|v| v.span())),
         ("vary", d.vary.as_ref().map(|v| v.span())),
         ("spp", d.spp.as_ref().map(|v| v.span())),
@@ -404,6 +428,10 @@ fn check(
         ("regions", d.regions.as_ref().map(|v| v.span())),
         ("observer", d.observer.as_ref().map(|v| v.span())),
         ("measurement", d.measurement.as_ref().map(|v| v.span())),
+        ("sampler", d.sampler.as_ref().map(|v| v.span())),
+        ("ladder", d.ladder.as_ref().map(|v| v.span())),
+        ("seeds", d.seeds.as_ref().map(|v| v.span())),
+        ("slope", d.slope.as_ref().map(|v| v.span())),
         ("name", None),
     ];
     for (key, span) in &present {
@@ -490,25 +518,33 @@ fn check(
             format!("g = {bad} is not allowed; Henyey-Greenstein needs |g| < 1"),
         ));
     }
+    let of_allowed: &[&str] = if *kind_name == "convergence" {
+        &["lambert", "emission"]
+    } else {
+        &["furnace", "lambert"]
+    };
+    let of_list = of_allowed
+        .iter()
+        .map(|o| format!("{o:?}"))
+        .collect::<Vec<_>>()
+        .join(", ");
     let of = match &d.of {
-        None if *kind_name == "scale_invariance" => {
+        None if *kind_name == "scale_invariance" || *kind_name == "convergence" => {
             return Err(err(
                 src,
                 c.span(),
                 format!("{at}.of"),
-                "missing; allowed: \"furnace\", \"lambert\"".into(),
+                format!("missing; allowed: {of_list}"),
             ))
         }
         None => None,
-        Some(o) if ["furnace", "lambert"].contains(&o.get_ref().as_str()) => {
-            Some(o.get_ref().clone())
-        }
+        Some(o) if of_allowed.contains(&o.get_ref().as_str()) => Some(o.get_ref().clone()),
         Some(o) => {
             return Err(err(
                 src,
                 o.span(),
                 format!("{at}.of"),
-                format!("{:?}: allowed \"furnace\", \"lambert\"", o.get_ref()),
+                format!("{:?}: allowed {of_list}", o.get_ref()),
             ))
         }
     };
@@ -565,6 +601,10 @@ fn check(
             c.span(),
             *kind_name == "measured",
         )?,
+        sampler: sampler(src, &at, d)?,
+        ladder: ladder(src, &at, d, c.span(), *kind_name == "convergence")?,
+        seeds: uint(src, &d.seeds, &format!("{at}.seeds"), 2, 1024)?.unwrap_or(8),
+        slope: slope(src, &at, d, c.span(), *kind_name == "convergence")?,
     };
     if let Some(o) = &d.offsets {
         if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
@@ -713,6 +753,92 @@ fn reference(
                 ));
             }
             Ok(Some(p))
+        }
+    }
+}
+
+/// The sample pattern named by `sampler` (default independent).
+fn sampler(src: &Source, at: &str, d: &CheckDesc) -> Result<Sampler, ManifestError> {
+    let Some(v) = &d.sampler else {
+        return Ok(Sampler::default());
+    };
+    Sampler::from_name(v.get_ref()).ok_or_else(|| {
+        err(
+            src,
+            v.span(),
+            format!("{at}.sampler"),
+            format!(
+                "unknown sampler {:?}; allowed: independent, stratified, sobol",
+                v.get_ref()
+            ),
+        )
+    })
+}
+
+/// A convergence ladder: at least three strictly increasing sample counts in 1..=2^20.
+fn ladder(
+    src: &Source,
+    at: &str,
+    d: &CheckDesc,
+    span: Range<usize>,
+    required: bool,
+) -> Result<Vec<u64>, ManifestError> {
+    let Some(v) = &d.ladder else {
+        if required {
+            return Err(err(
+                src,
+                span,
+                format!("{at}.ladder"),
+                "missing; give at least three increasing sample counts, e.g. [4, 16, 64, 256]"
+                    .into(),
+            ));
+        }
+        return Ok(Vec::new());
+    };
+    let l = v.get_ref();
+    let ok = l.len() >= 3
+        && l.iter().all(|n| (1..=1 << 20).contains(n))
+        && l.windows(2).all(|w| w[0] < w[1]);
+    if !ok {
+        return Err(err(
+            src,
+            v.span(),
+            format!("{at}.ladder"),
+            format!("{l:?}: need at least three strictly increasing sample counts in 1..=1048576"),
+        ));
+    }
+    Ok(l.iter().map(|n| *n as u64).collect())
+}
+
+/// The allowed slope range [min, max] with min < max < 0.
+fn slope(
+    src: &Source,
+    at: &str,
+    d: &CheckDesc,
+    span: Range<usize>,
+    required: bool,
+) -> Result<Option<[f64; 2]>, ManifestError> {
+    match &d.slope {
+        None if required => Err(err(
+            src,
+            span,
+            format!("{at}.slope"),
+            "missing; give the allowed range of the RMSE slope, e.g. [-0.55, -0.45]".into(),
+        )),
+        None => Ok(None),
+        Some(v) => {
+            let [a, b] = *v.get_ref();
+            if !(a.is_finite() && b.is_finite() && a < b && b < 0.0) {
+                return Err(err(
+                    src,
+                    v.span(),
+                    format!("{at}.slope"),
+                    format!(
+                        "[{a}, {b}] must be [min, max] with min < max < 0 (errors fall as N^slope)"
+                    ),
+                ));
+            }
+            Ok(Some([a, b]))
         }
     }
 }

@@ -4,6 +4,7 @@
 pub mod html;
 pub mod json;
 pub mod junit;
+pub mod plot;
 pub mod text;
 
 /// A small fixed run covering every verdict and every statistic, shared by the

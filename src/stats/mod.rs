@@ -4,6 +4,7 @@
 pub mod chi2;
 pub mod multiple;
 pub mod power;
+pub mod regression;
 pub mod sphere;
 pub mod stability;
 

@@ -51,6 +51,7 @@ fn synthesize(dir: &Path) {
             threads: 0,
             integrator: PathTracer::default(),
             observer: Observer::Responses(Arc::new(Responses::new(curves))),
+            sampler: Default::default(),
         };
         let film = render(&scene, &s, &|_| {}).unwrap();
         for (k, c) in chunk.iter().enumerate() {

@@ -434,3 +434,22 @@ fn chi2_rejects_a_sampler_whose_pdf_is_wrong() {
     let m = chi2::measure_sampler(&CosineClaimUniformDraw, 50_000, [24, 48], 1);
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
+
+#[test]
+fn convergence_rejects_a_sampler_regression() {
+    // The stratified check's expectation (RMSE ∝ N^-1 on a smooth pixel integrand) run with
+    // independent sampling (what a broken stratifier degrades to): slope -0.5, rejected.
+    let mut s = specs(
+        "tests/manifests/convergence.toml",
+        "convergence/stratified-smooth",
+    );
+    s[0].params.sampler = furnace::math::rng::Sampler::Independent;
+    let ctx = harness::Context {
+        renderer: &BuiltIn,
+        seed: 3,
+        threads: 0,
+        alpha: ALPHA,
+    };
+    let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}

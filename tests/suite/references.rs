@@ -135,6 +135,7 @@ fn the_cornell_colour_difference_is_the_colour_conversion() {
             threads: 0,
             integrator: PathTracer::default(),
             observer,
+            sampler: Default::default(),
         };
         render(&scene, &s, &|_| {}).unwrap()
     };

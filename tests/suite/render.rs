@@ -20,6 +20,7 @@ fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSe
         threads,
         integrator: PathTracer::default(),
         observer: Default::default(),
+        sampler: Default::default(),
     }
 }
 

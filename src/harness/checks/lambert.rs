@@ -129,8 +129,19 @@ pub fn region_average(
     region: [usize; 4],
     f: &RayClosedForm<'_>,
 ) -> Result<f64, String> {
+    region_average_k(scene, width, height, region, f, 9)
+}
+
+/// [`region_average`] with k×k midpoint quadrature (finer for convergence references).
+pub fn region_average_k(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &RayClosedForm<'_>,
+    k: usize,
+) -> Result<f64, String> {
     let camera = scene.camera.build(width, height)?;
-    let k = 9;
     let mut sum = 0.0;
     for j in 0..k {
         for i in 0..k {
@@ -146,8 +157,12 @@ pub fn region_average(
     Ok(sum / (k * k) as f64)
 }
 
-/// The closed form along one camera ray's hit: R·H/π.
-fn reflected(scene: &Scene, hit: Option<&crate::geometry::Hit>, d: Vec3) -> Result<f64, String> {
+/// The closed form along one camera ray's hit: R·H/π (direct light only).
+pub fn reflected(
+    scene: &Scene,
+    hit: Option<&crate::geometry::Hit>,
+    d: Vec3,
+) -> Result<f64, String> {
     let hit = hit.ok_or("a camera ray of the region hits nothing")?;
     let Bsdf::Diffuse(l) = &scene.bsdfs[hit.shape as usize];
     let r = constant(&l.reflectance)?;
@@ -170,15 +185,28 @@ pub fn per_pixel(
     region: [usize; 4],
     f: &RayClosedForm<'_>,
 ) -> Result<Vec<f64>, String> {
+    per_pixel_k(scene, width, height, region, f, 9)
+}
+
+/// [`per_pixel`] with k×k midpoint quadrature per pixel.
+pub fn per_pixel_k(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &RayClosedForm<'_>,
+    k: usize,
+) -> Result<Vec<f64>, String> {
     let mut v = Vec::new();
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
-            v.push(region_average(
+            v.push(region_average_k(
                 scene,
                 width,
                 height,
                 [x, y, x + 1, y + 1],
                 f,
+                k,
             )?);
         }
     }

@@ -2,6 +2,7 @@
 //! region of an image and turning it into a mean, a standard error and a stability verdict.
 
 pub mod chi2;
+pub mod convergence;
 pub mod energy;
 pub mod estimators;
 pub mod furnace;
@@ -37,6 +38,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "scale_invariance" => scale::run(spec, ctx),
         "image_compare" => image::run(spec, ctx),
         "measured" => measured::run(spec, ctx),
+        "convergence" => convergence::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }
@@ -86,6 +88,7 @@ pub fn settings_for(
             strategy,
         },
         observer: Default::default(),
+        sampler: spec.params.sampler,
     }
 }
 

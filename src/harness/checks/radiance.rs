@@ -3,7 +3,7 @@
 //! The camera is moved along its view axis to each distance from its look-at point; with
 //! emission only (max_depth 0) every pixel must read the emitter's radiance (Y).
 
-use super::lambert::per_pixel;
+use super::lambert::per_pixel_k;
 use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
@@ -26,33 +26,51 @@ pub fn emitted_along(
     height: usize,
     region: [usize; 4],
 ) -> Result<Vec<f64>, String> {
-    per_pixel(scene, width, height, region, &|hit, d| match hit {
-        None => Ok(scene
-            .lights
-            .iter()
-            .map(|l| match l {
-                Light::Environment { radiance } => luminance_y(radiance),
-                _ => 0.0,
-            })
-            .sum()),
-        Some(h) => Ok(
-            match scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize]) {
-                Some(Light::Area {
-                    radiance,
-                    two_sided,
-                    ..
-                }) => {
-                    let facing = *two_sided || h.point.n.dot(-d) > 0.0;
-                    if facing {
-                        luminance_y(radiance)
-                    } else {
-                        0.0
+    emitted_along_k(scene, width, height, region, 9)
+}
+
+/// [`emitted_along`] with k×k midpoint quadrature per pixel.
+pub fn emitted_along_k(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    k: usize,
+) -> Result<Vec<f64>, String> {
+    per_pixel_k(
+        scene,
+        width,
+        height,
+        region,
+        &|hit, d| match hit {
+            None => Ok(scene
+                .lights
+                .iter()
+                .map(|l| match l {
+                    Light::Environment { radiance } => luminance_y(radiance),
+                    _ => 0.0,
+                })
+                .sum()),
+            Some(h) => Ok(
+                match scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize]) {
+                    Some(Light::Area {
+                        radiance,
+                        two_sided,
+                        ..
+                    }) => {
+                        let facing = *two_sided || h.point.n.dot(-d) > 0.0;
+                        if facing {
+                            luminance_y(radiance)
+                        } else {
+                            0.0
+                        }
                     }
-                }
-                _ => 0.0,
-            },
-        ),
-    })
+                    _ => 0.0,
+                },
+            ),
+        },
+        k,
+    )
 }
 
 /// Runs a radiance-invariance check.

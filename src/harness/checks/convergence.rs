@@ -1,0 +1,184 @@
+//! Convergence rates (the `convergence` kind): the scene is rendered at a ladder of sample
+//! counts N with K independent seeds each; the error of every pixel of the region against
+//! its closed-form footprint average (k×k quadrature, fine enough to sit far below the
+//! errors measured) gives RMSE(N) over pixels and seeds. A least-squares line through
+//! (ln N, ln RMSE) gives the rate: RMSE ∝ N^slope. The check asserts that the slope lies in
+//! the stated range: with β̂ ± se (Student t, rungs − 2 dof) the p-value is that of
+//! |β̂ − mid| exceeding the half-width (the tolerance form of `z_with_tolerance`).
+//!
+//! Expected rates: independent sampling −0.5; jittered (stratified) sampling of a smooth 2D
+//! pixel integrand −1, across an edge −0.75 (Mitchell 1996, "Consequences of stratified
+//! sampling in graphics", SIGGRAPH, §3); Owen-scrambled Sobol at least as fast as jittered for
+//! these integrands (Owen 1997, "Scrambled net variance for integrals of smooth functions",
+//! Ann. Stat. 25: N^-1.5 for smooth integrands in the limit).
+//!
+//! `of = "lambert"` renders direct light only (max_depth 1) and compares with R·H/π;
+//! `of = "emission"` renders emission only (max_depth 0) and compares with the emitted
+//! radiance, whose footprint integrand is a step across every emitter edge.
+
+use super::lambert::{per_pixel_k, reflected};
+use super::radiance::emitted_along_k;
+use super::{region_of, settings_for};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::outcome::Statistic;
+use crate::harness::{Context, Measurement};
+use crate::integrators::Strategy;
+use crate::stats::regression::{fit_line, t_sf, t_two_sided_quantile, LineFit};
+use std::time::Instant;
+
+/// Quadrature points per pixel side for the reference (k² rays per pixel).
+pub const REFERENCE_K: usize = 128;
+
+/// One rung of the ladder.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Rung {
+    /// Samples per pixel.
+    pub spp: u64,
+    /// Root-mean-square error over the region's pixels and the seeds.
+    pub rmse: f64,
+    /// Mean of the closed form over the region (for relative errors).
+    pub reference_mean: f64,
+    /// Wall time per render, seconds (mean over seeds).
+    pub seconds: f64,
+    /// Camera paths per render.
+    pub samples: u64,
+}
+
+/// A measured ladder and its fitted rate.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Ladder {
+    /// Sampler name.
+    pub sampler: String,
+    /// Rungs in ladder order.
+    pub rungs: Vec<Rung>,
+    /// Fit of ln RMSE against ln N.
+    pub fit: LineFit,
+}
+
+/// Renders the ladder of a convergence check.
+pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
+    let scene = spec.scene.as_ref().ok_or("convergence needs a scene")?;
+    let p = &spec.params;
+    let of = p.of.as_deref().unwrap_or("lambert");
+    let depth = if of == "emission" { 0 } else { 1 };
+    let mut rungs = Vec::new();
+    let mut reference: Option<(Vec<f64>, f64)> = None;
+    for (r, &spp) in p.ladder.iter().enumerate() {
+        let (mut se, mut n, mut secs) = (0.0, 0.0, 0.0);
+        let mut samples = 0;
+        for k in 0..p.seeds {
+            let seed = crate::math::rng::mix64(ctx.seed ^ ((r as u64) << 32) ^ k);
+            let mut s = settings_for(spec, scene, ctx, seed, Some(depth), Strategy::Mis);
+            s.spp = spp;
+            s.sampler = p.sampler;
+            let region = region_of(spec, &s)?;
+            if reference.is_none() {
+                let px = if of == "emission" {
+                    emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)?
+                } else {
+                    per_pixel_k(
+                        scene,
+                        s.width,
+                        s.height,
+                        region,
+                        &|h, d| reflected(scene, h, d),
+                        REFERENCE_K,
+                    )?
+                };
+                let mean = px.iter().sum::<f64>() / px.len() as f64;
+                reference = Some((px, mean));
+            }
+            let (ref_px, _) = reference.as_ref().expect("set above");
+            let t0 = Instant::now();
+            let film = ctx.renderer.render(scene, &s)?;
+            secs += t0.elapsed().as_secs_f64();
+            samples = (s.width * s.height) as u64 * spp;
+            let y = film.means(1);
+            let mut i = 0;
+            for py in region[1]..region[3] {
+                for px in region[0]..region[2] {
+                    let e = y[py * s.width + px] - ref_px[i];
+                    se += e * e;
+                    n += 1.0;
+                    i += 1;
+                }
+            }
+        }
+        rungs.push(Rung {
+            spp,
+            rmse: (se / n).sqrt(),
+            reference_mean: reference.as_ref().map_or(0.0, |r| r.1),
+            seconds: secs / p.seeds as f64,
+            samples,
+        });
+    }
+    if rungs.iter().any(|r| !r.rmse.is_finite() || r.rmse <= 0.0) {
+        return Err(format!(
+            "an RMSE is 0 or not finite ({:?}): the region has no Monte Carlo error to converge",
+            rungs.iter().map(|r| r.rmse).collect::<Vec<_>>()
+        ));
+    }
+    let x: Vec<f64> = rungs.iter().map(|r| (r.spp as f64).ln()).collect();
+    let y: Vec<f64> = rungs.iter().map(|r| r.rmse.ln()).collect();
+    let fit = fit_line(&x, &y).ok_or("a ladder needs at least three distinct sample counts")?;
+    Ok(Ladder {
+        sampler: p.sampler.name().to_string(),
+        rungs,
+        fit,
+    })
+}
+
+/// Runs a convergence check.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let l = ladder(spec, ctx)?;
+    let [lo, hi] = spec
+        .params
+        .slope
+        .ok_or("convergence needs `slope = [min, max]`")?;
+    let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    let f = l.fit;
+    let d = (f.slope - mid).abs();
+    // p of H0: |slope − mid| ≤ half, at the boundary (as z_with_tolerance, with t tails).
+    let p = if f.se_slope > 0.0 {
+        t_sf((d - half) / f.se_slope, f.dof) + t_sf((d + half) / f.se_slope, f.dof)
+    } else if d > half {
+        0.0
+    } else {
+        1.0
+    };
+    let ci = t_two_sided_quantile(0.05, f.dof) * f.se_slope;
+    let rungs: Vec<String> = l
+        .rungs
+        .iter()
+        .map(|r| {
+            format!(
+                "N={} RMSE {:.3e} ({:.3}% of mean) {:.3} us/sample",
+                r.spp,
+                r.rmse,
+                100.0 * r.rmse / r.reference_mean.abs().max(f64::MIN_POSITIVE),
+                1e6 * r.seconds / r.samples.max(1) as f64
+            )
+        })
+        .collect();
+    Ok(Measurement {
+        estimate: Some(f.slope),
+        std_error: Some(f.se_slope),
+        expected: Some(mid),
+        statistic: Some(Statistic::Z {
+            z: (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE),
+        }),
+        p_value: Some(p.min(1.0)),
+        samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * spec.params.seeds,
+        message: format!(
+            "{} sampler: RMSE ∝ N^{:.3} (95% CI ±{:.3}, t with {} dof), constant {:.3e}; allowed slope [{lo}, {hi}]; {} seeds per rung; {}",
+            l.sampler,
+            f.slope,
+            ci,
+            f.dof,
+            f.intercept.exp(),
+            spec.params.seeds,
+            rungs.join("; ")
+        ),
+        ..Default::default()
+    })
+}
