@@ -3,6 +3,7 @@
 //! line, column and key. Paths (scenes, templates) are relative to the manifest's folder.
 
 use super::compare::{Region, Regions};
+use crate::integrators::Strategy;
 use crate::math::rng::Sampler;
 use crate::scene::{Scene, SceneError, Source};
 use crate::spectrum::Observer;
@@ -84,6 +85,8 @@ pub struct CheckDesc {
     pub seeds: Option<Spanned<i64>>,
     /// Allowed range [min, max] of a convergence slope.
     pub slope: Option<Spanned<[f64; 2]>>,
+    /// How emitters are found: mis, bsdf or light.
+    pub strategy: Option<Spanned<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -187,8 +190,8 @@ pub const KINDS: [(&str, &[&str]); 13] = [
     (
         "convergence",
         &[
-            "scene", "of", "sampler", "ladder", "seeds", "slope", "width", "height", "region",
-            "seed",
+            "scene", "of", "sampler", "strategy", "ladder", "seeds", "slope", "width", "height",
+            "region", "seed",
         ],
     ),
 ];
@@ -270,6 +273,8 @@ pub struct Params {
     pub seeds: u64,
     /// Allowed slope range (convergence).
     pub slope: Option<[f64; 2]>,
+    /// Emitter-finding strategy (convergence).
+    pub strategy: Strategy,
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -403,7 +408,7 @@ fn check(
             ),
         ));
     };
-    let present: [(&str, Option<Range<usize>>); 29] = [
+    let present: [(&str, Option<Range<usize>>); 30] = [
         ("scene", d.scene.as_ref().map(|v| v.span())),
         ("vary", d.vary.as_ref().map(|v| v.span())),
         ("spp", d.spp.as_ref().map(|v| v.span())),
@@ -432,6 +437,7 @@ fn check(
         ("ladder", d.ladder.as_ref().map(|v| v.span())),
         ("seeds", d.seeds.as_ref().map(|v| v.span())),
         ("slope", d.slope.as_ref().map(|v| v.span())),
+        ("strategy", d.strategy.as_ref().map(|v| v.span())),
         ("name", None),
     ];
     for (key, span) in &present {
@@ -605,6 +611,19 @@ fn check(
         ladder: ladder(src, &at, d, c.span(), *kind_name == "convergence")?,
         seeds: uint(src, &d.seeds, &format!("{at}.seeds"), 2, 1024)?.unwrap_or(8),
         slope: slope(src, &at, d, c.span(), *kind_name == "convergence")?,
+        strategy: match d.strategy.as_ref().map(|v| (v, v.get_ref().as_str())) {
+            None | Some((_, "mis")) => Strategy::Mis,
+            Some((_, "bsdf")) => Strategy::BsdfOnly,
+            Some((_, "light")) => Strategy::LightOnly,
+            Some((v, other)) => {
+                return Err(err(
+                    src,
+                    v.span(),
+                    format!("{at}.strategy"),
+                    format!("unknown strategy {other:?}; allowed: mis, bsdf, light"),
+                ))
+            }
+        },
     };
     if let Some(o) = &d.offsets {
         if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {

@@ -17,9 +17,10 @@ use crate::spectrum::{SampledSpectrum, Wavelengths};
 
 /// How emitted light is found at each path vertex; the three are independent estimators of
 /// the same integral (except that BSDF sampling alone cannot find point lights).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Strategy {
     /// Light sampling and BSDF sampling combined with the power heuristic.
+    #[default]
     Mis,
     /// BSDF sampling only: emitters count when a sampled ray hits them.
     BsdfOnly,

@@ -22,7 +22,6 @@ use super::{region_of, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
-use crate::integrators::Strategy;
 use crate::stats::regression::{fit_line, t_sf, t_two_sided_quantile, LineFit};
 use std::time::Instant;
 
@@ -68,7 +67,7 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
         let mut samples = 0;
         for k in 0..p.seeds {
             let seed = crate::math::rng::mix64(ctx.seed ^ ((r as u64) << 32) ^ k);
-            let mut s = settings_for(spec, scene, ctx, seed, Some(depth), Strategy::Mis);
+            let mut s = settings_for(spec, scene, ctx, seed, Some(depth), p.strategy);
             s.spp = spp;
             s.sampler = p.sampler;
             let region = region_of(spec, &s)?;
@@ -170,8 +169,9 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         p_value: Some(p.min(1.0)),
         samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * spec.params.seeds,
         message: format!(
-            "{} sampler: RMSE ∝ N^{:.3} (95% CI ±{:.3}, t with {} dof), constant {:.3e}; allowed slope [{lo}, {hi}]; {} seeds per rung; {}",
+            "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, t with {} dof), constant {:.3e}; allowed slope [{lo}, {hi}]; {} seeds per rung; {}",
             l.sampler,
+            spec.params.strategy,
             f.slope,
             ci,
             f.dof,
