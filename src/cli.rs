@@ -206,6 +206,12 @@ struct RenderArgs {
     /// Sample pattern per pixel: independent, stratified (jittered strata in random order) or sobol (Owen-scrambled, up to 65536 spp).
     #[arg(long, default_value = "independent", value_parser = ["independent", "stratified", "sobol"])]
     sampler: String,
+    /// Always take the spectral path, even when every spectrum is constant (grey mode off), to measure what grey mode saves.
+    #[arg(long)]
+    no_grey_mode: bool,
+    /// Wavelengths per sample entering the film: 4 (hero wavelength sampling) or 1 (the single-wavelength estimator, for comparison).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
+    wavelengths: u8,
     /// Output EXR path [default: out/<scene name>.exr].
     #[arg(long)]
     out: Option<PathBuf>,
@@ -301,6 +307,10 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         },
         observer: Observer::from_name(&a.observer).expect("clap restricts --observer"),
         sampler: Sampler::from_name(&a.sampler).expect("clap restricts --sampler"),
+        spectral: furnace::render::SpectralSampling {
+            grey_mode: !a.no_grey_mode,
+            wavelengths: a.wavelengths as usize,
+        },
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
@@ -348,6 +358,8 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.filter".to_string(), "box".to_string()),
         ("furnace.observer".to_string(), settings.observer.name().to_string()),
         ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
+        ("furnace.wavelengths".to_string(), settings.spectral.wavelengths.to_string()),
+        ("furnace.grey_mode".to_string(), (settings.spectral.grey_mode && scene.is_grey()).to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
     io::write_exr(&exr_path, &film.to_layers(attrs))
@@ -371,6 +383,16 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         settings.spp,
         secs,
         total as f64 / secs / 1e6
+    );
+    // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
+    // image mean, and 1/(relative variance × time) — comparable across estimators.
+    let (ym, yv) = (film.means(1), film.mean_variances(1));
+    let n = ym.len() as f64;
+    let mean = ym.iter().sum::<f64>() / n;
+    let rel_var = yv.iter().sum::<f64>() / n / (mean * mean).max(f64::MIN_POSITIVE);
+    println!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
+        1.0 / (rel_var * secs)
     );
     Ok(if bad > 0 { 1 } else { 0 })
 }

@@ -32,6 +32,31 @@ pub struct RenderSettings {
     pub observer: Observer,
     /// How each pixel's sample numbers are placed.
     pub sampler: Sampler,
+    /// Wavelength handling.
+    pub spectral: SpectralSampling,
+}
+
+/// How wavelengths are handled (both choices are unbiased; they trade time and variance).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SpectralSampling {
+    /// Render scenes whose spectra are all constant at one wavelength with exact XYZ
+    /// (grey mode, the default); false forces the spectral path, for measuring what grey mode
+    /// saves and checking that both give the same image.
+    pub grey_mode: bool,
+    /// Wavelengths whose contributions enter the film per sample: 4 (the hero wavelength and
+    /// its three rotations, Wilkie et al. 2014, "Hero wavelength spectral sampling", EGSR) or 1
+    /// (the hero only: the single-wavelength estimator, for comparison; the path is still
+    /// traced for four lanes, so it saves no time).
+    pub wavelengths: usize,
+}
+
+impl Default for SpectralSampling {
+    fn default() -> Self {
+        SpectralSampling {
+            grey_mode: true,
+            wavelengths: N_WAVELENGTHS,
+        }
+    }
 }
 
 /// Why a render could not start.
@@ -72,7 +97,13 @@ pub fn render(
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
-    let grey = scene.is_grey();
+    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let lanes = settings.spectral.wavelengths;
+    if !(lanes == 1 || lanes == N_WAVELENGTHS) {
+        return Err(RenderError::Settings(format!(
+            "{lanes} wavelengths per sample; allowed 1 or {N_WAVELENGTHS}"
+        )));
+    }
     let observer = &settings.observer;
     let y_norm = 1.0 / observer.y_integral();
     let white = observer.white();
@@ -112,14 +143,14 @@ pub fn render(
                             }
                             // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::observer).
                             let mut xyz = [0.0; 3];
-                            for i in 0..N_WAVELENGTHS {
+                            for i in 0..lanes {
                                 let c = observer.cmf(wl.lambda[i]);
                                 let k = l.0[i] / wl.pdf[i];
                                 for j in 0..3 {
                                     xyz[j] += k * c[j];
                                 }
                             }
-                            let xyz = xyz.map(|v| v * y_norm / N_WAVELENGTHS as f64);
+                            let xyz = xyz.map(|v| v * y_norm / lanes as f64);
                             px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
                         pixels.push(px);

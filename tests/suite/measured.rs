@@ -52,6 +52,7 @@ fn synthesize(dir: &Path) {
             integrator: PathTracer::default(),
             observer: Observer::Responses(Arc::new(Responses::new(curves))),
             sampler: Default::default(),
+            spectral: Default::default(),
         };
         let film = render(&scene, &s, &|_| {}).unwrap();
         for (k, c) in chunk.iter().enumerate() {

@@ -136,6 +136,7 @@ fn the_cornell_colour_difference_is_the_colour_conversion() {
             integrator: PathTracer::default(),
             observer,
             sampler: Default::default(),
+            spectral: Default::default(),
         };
         render(&scene, &s, &|_| {}).unwrap()
     };

@@ -21,6 +21,7 @@ fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSe
         integrator: PathTracer::default(),
         observer: Default::default(),
         sampler: Default::default(),
+        spectral: Default::default(),
     }
 }
 
@@ -158,4 +159,43 @@ fn bundled_scenes_render_without_nan_or_inf() {
         }
     }
     assert!(count >= 3, "expected the bundled scenes, found {count}");
+}
+
+/// Grey mode (one wavelength, exact XYZ) and the forced spectral path give the same image
+/// within noise on the grey furnace sphere; grey mode is not noisier.
+#[test]
+fn grey_mode_equals_the_spectral_path() {
+    let scene = Scene::load(&root("scenes/furnace-sphere.toml")).unwrap();
+    let mut s = settings(16, 16, 256, 5, 0);
+    let grey = render(&scene, &s, &|_| {}).unwrap();
+    s.spectral.grey_mode = false;
+    s.seed = 6;
+    let spectral = render(&scene, &s, &|_| {}).unwrap();
+    let ((a, sa), (b, sb)) = (image_mean(&grey, 1), image_mean(&spectral, 1));
+    let z = (a - b) / (sa * sa + sb * sb).sqrt();
+    assert!(z.abs() < 4.0, "grey {a} ± {sa}, spectral {b} ± {sb}");
+    assert!(sa <= sb * 1.05, "grey se {sa} vs spectral {sb}");
+}
+
+/// One wavelength per sample and four (hero wavelength sampling) estimate the same Cornell
+/// image; four lanes have lower variance.
+#[test]
+fn one_and_four_wavelengths_agree_and_four_is_less_noisy() {
+    let scene = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
+    let mut s = settings(16, 16, 64, 7, 0);
+    let four = render(&scene, &s, &|_| {}).unwrap();
+    s.spectral.wavelengths = 1;
+    s.seed = 8;
+    let one = render(&scene, &s, &|_| {}).unwrap();
+    for c in 0..3 {
+        let ((a, sa), (b, sb)) = (image_mean(&four, c), image_mean(&one, c));
+        let z = (a - b) / (sa * sa + sb * sb).sqrt();
+        assert!(
+            z.abs() < 4.5,
+            "channel {c}: four {a} ± {sa}, one {b} ± {sb}"
+        );
+        assert!(sa < sb, "channel {c}: se four {sa} vs one {sb}");
+    }
+    s.spectral.wavelengths = 3;
+    assert!(render(&scene, &s, &|_| {}).is_err());
 }

@@ -89,6 +89,7 @@ pub fn settings_for(
         },
         observer: Default::default(),
         sampler: spec.params.sampler,
+        spectral: Default::default(),
     }
 }
 
