@@ -86,5 +86,41 @@ fn spectrum_eval(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, cornell_frame, bvh_intersect, spectrum_eval);
+/// BSDF sampling, evaluation and pdf of the Cornell white paint (local frame, four lanes).
+fn bsdf_sample_eval(c: &mut Criterion) {
+    use furnace::scattering::Bxdf;
+    let scene = cornell();
+    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0];
+    let wl = Wavelengths::sample_visible(0.37);
+    let mut s = SampleStream::new(11, 0, 0);
+    let cases: Vec<(Vec3, [f64; 2], f64)> = (0..1024)
+        .map(|_| {
+            let mut wo = warp::uniform_sphere(s.next_2d());
+            wo.z = wo.z.abs().max(1e-3);
+            (wo.normalize(), s.next_2d(), s.next_f64())
+        })
+        .collect();
+    let mut g = c.benchmark_group("bsdf");
+    g.throughput(Throughput::Elements(cases.len() as u64));
+    g.bench_function("lambert_sample_eval_pdf_x1024", |b| {
+        b.iter(|| {
+            let mut acc = 0.0;
+            for (wo, u, uc) in &cases {
+                if let Some(smp) = white.sample(*wo, *u, *uc, &wl) {
+                    acc += white.eval(*wo, smp.wi, &wl).average() + white.pdf(*wo, smp.wi, &wl);
+                }
+            }
+            black_box(acc)
+        })
+    });
+    g.finish();
+}
+
+criterion_group!(
+    benches,
+    cornell_frame,
+    bvh_intersect,
+    spectrum_eval,
+    bsdf_sample_eval
+);
 criterion_main!(benches);

@@ -11,8 +11,11 @@ use crate::math::Vec3;
 pub struct ShearedRay {
     /// The ray.
     pub ray: Ray,
-    k: [usize; 3],
-    shear: [f64; 3],
+    /// Rows of the permute-and-shear map as dot products: x' = a[kx] − sx·a[kz],
+    /// y' = a[ky] − sy·a[kz], z' = sz·a[kz]. The zero entries add exact zeros, so each row
+    /// rounds exactly as the two-term expression does (one product, one sum), and the
+    /// branch-free form avoids per-triangle indexing by the permutation.
+    rows: [Vec3; 3],
 }
 
 impl ShearedRay {
@@ -25,11 +28,14 @@ impl ShearedRay {
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
-        ShearedRay {
-            ray,
-            k: [kx, ky, kz],
-            shear: [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]],
-        }
+        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
+        let mut rows = [Vec3::ZERO; 3];
+        rows[0][kx] = 1.0;
+        rows[0][kz] = -sx;
+        rows[1][ky] = 1.0;
+        rows[1][kz] = -sy;
+        rows[2][kz] = sz;
+        ShearedRay { ray, rows }
     }
 }
 
@@ -41,18 +47,14 @@ pub fn intersect(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f64) -> Option<
 /// [`intersect`] with the per-ray setup done once.
 #[inline]
 pub fn intersect_sheared(r: &ShearedRay, p: [Vec3; 3], t_max: f64) -> Option<(f64, [f64; 3])> {
-    let [kx, ky, kz] = r.k;
-    let [sx, sy, sz] = r.shear;
+    let [rx, ry, rz] = r.rows;
     let a = p[0] - r.ray.o;
     let b = p[1] - r.ray.o;
     let c = p[2] - r.ray.o;
     // Shear and scale so the ray runs along +z.
-    let ax = a[kx] - sx * a[kz];
-    let ay = a[ky] - sy * a[kz];
-    let bx = b[kx] - sx * b[kz];
-    let by = b[ky] - sy * b[kz];
-    let cx = c[kx] - sx * c[kz];
-    let cy = c[ky] - sy * c[kz];
+    let (ax, ay) = (rx.dot(a), ry.dot(a));
+    let (bx, by) = (rx.dot(b), ry.dot(b));
+    let (cx, cy) = (rx.dot(c), ry.dot(c));
     // Scaled barycentric coordinates (edge functions).
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
@@ -64,7 +66,7 @@ pub fn intersect_sheared(r: &ShearedRay, p: [Vec3; 3], t_max: f64) -> Option<(f6
     if det == 0.0 {
         return None;
     }
-    let (az, bz, cz) = (sz * a[kz], sz * b[kz], sz * c[kz]);
+    let (az, bz, cz) = (rz.dot(a), rz.dot(b), rz.dot(c));
     let t_scaled = u * az + v * bz + w * cz;
     // Compare with the sign of det to avoid dividing before the range test.
     if det > 0.0 {
