@@ -132,8 +132,30 @@ impl Spectrum {
                         Outside::Clamp => values[n - 1],
                     };
                 }
-                // first index with wavelength > lambda, in 1..=n
-                let hi = wavelengths.partition_point(|&w| w <= lambda);
+                // First index with wavelength > lambda, in 1..=n. Measured tables are
+                // usually evenly spaced, so start from the index an even spacing predicts and
+                // walk at most a few steps; otherwise binary search. Same result either way.
+                let guess = if n > 1 {
+                    let f = (lambda - wavelengths[0]) / (wavelengths[n - 1] - wavelengths[0]);
+                    ((f * (n - 1) as f64) as usize).min(n - 1)
+                } else {
+                    0
+                };
+                let mut hi = guess + 1;
+                let mut steps = 0;
+                while steps < 4 && hi > 1 && wavelengths[hi - 1] > lambda {
+                    hi -= 1;
+                    steps += 1;
+                }
+                while steps < 4 && hi < n && wavelengths[hi] <= lambda {
+                    hi += 1;
+                    steps += 1;
+                }
+                let bracketed =
+                    wavelengths[hi - 1] <= lambda && (hi == n || wavelengths[hi] > lambda);
+                if !bracketed {
+                    hi = wavelengths.partition_point(|&w| w <= lambda);
+                }
                 if hi >= n {
                     return values[n - 1];
                 }
@@ -210,6 +232,39 @@ pub fn planck(lambda_nm: f64, kelvin: f64) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn table_lookup_equals_binary_search_on_even_and_uneven_tables() {
+        let tables = [
+            (0..76)
+                .map(|i| 400.0 + 4.0 * i as f64)
+                .collect::<Vec<f64>>(),
+            vec![360.0, 361.0, 400.0, 555.5, 556.0, 700.0, 829.0, 830.0],
+            vec![500.0],
+        ];
+        for w in tables {
+            let v: Vec<f64> = w.iter().map(|x| (x * 0.37).sin()).collect();
+            let s = Spectrum::tabulated(w.clone(), v.clone(), Outside::Clamp, 1.0).unwrap();
+            let mut lambda = 355.0;
+            while lambda < 835.0 {
+                let n = w.len();
+                let want = if lambda < w[0] {
+                    v[0]
+                } else if lambda >= w[n - 1] {
+                    v[n - 1]
+                } else {
+                    let hi = w.partition_point(|&x| x <= lambda);
+                    let t = (lambda - w[hi - 1]) / (w[hi] - w[hi - 1]);
+                    v[hi - 1] + t * (v[hi] - v[hi - 1])
+                };
+                assert_eq!(s.eval(lambda), want, "{lambda}");
+                lambda += 0.173;
+            }
+            for &x in &w {
+                assert_eq!(s.eval(x), v[w.iter().position(|y| *y == x).unwrap()]);
+            }
+        }
+    }
 
     #[test]
     fn table_interpolates_and_handles_outside() {
