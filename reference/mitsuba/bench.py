@@ -1,0 +1,162 @@
+#!/usr/bin/env python3
+"""furnace against Mitsuba 3 on the same scene and machine: speed and time to equal error.
+
+Renders the measured Cornell Box (or --scene) with furnace (`furnace render`) and with each
+Mitsuba variant, alternating renderers within each repetition, and reports medians of:
+  * samples per second (camera paths per second of render time; scene loading, and for the
+    LLVM variants the JIT compilation of a warm-up render, are excluded);
+  * the error against a high-spp reference (default: the committed Mitsuba reference, 128x128,
+    4096 spp in 16 batches): relMSE of linear sRGB over all pixels, (x - r)^2/(r^2 + 0.01), minus
+    the reference's own variance term (its variance channels), so it estimates the renderer's
+    error alone;
+  * efficiency 1/(relMSE x time) and the time each renderer needs to reach the same error,
+    proportional to relMSE x time (independent sampling: relMSE ~ 1/spp), as a ratio to furnace.
+Equal settings: same exported scene, box filter, max depth (furnace bounces; Mitsuba gets + 1),
+Russian roulette from depth 5 in both, 4 wavelengths per sample in both (Mitsuba's spectral
+variants trace 4 wavelengths per path), furnace rendered with --observer mitsuba3 so both images
+use Mitsuba's colour pipeline.
+
+    cargo build --release
+    DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 \\
+        python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral
+
+Writes the results as JSON (--json) and prints a table.
+"""
+
+import argparse
+import json
+import os
+import platform
+import re
+import statistics
+import subprocess
+import sys
+import tempfile
+import time
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
+
+
+def parse_args(argv=None):
+    p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    p.add_argument("--scene", default=os.path.join(REPO, "scenes", "cornell-box.toml"))
+    p.add_argument("--reference", default=os.path.join(HERE, "cornell-box.exr"),
+                   help="high-spp reference EXR with R, G, B and variance.R/G/B (sets the size)")
+    p.add_argument("--spp", type=int, default=64)
+    p.add_argument("--max-depth", type=int, default=-1,
+                   help="bounces (furnace's convention), -1 unlimited; must match the reference's (default: -1)")
+    p.add_argument("--reps", type=int, default=3)
+    p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
+    p.add_argument("--variants", default="scalar_spectral")
+    p.add_argument("--furnace", default=os.path.join(REPO, "target", "release", "furnace"))
+    p.add_argument("--json", default=None, help="write the results here")
+    return p.parse_args(argv)
+
+
+def read_rgb(mi, path):
+    """Linear R, G, B and (when present) variance.R/G/B of an EXR, by channel name."""
+    import numpy as np
+    bmp = mi.Bitmap(path)
+    data = np.array(bmp, dtype=np.float64).reshape(bmp.height(), bmp.width(), bmp.channel_count())
+    names = [bmp.struct_()[i].name for i in range(bmp.channel_count())]
+    chans = {n: data[..., i] for i, n in enumerate(names)}
+    rgb = np.stack([chans[c] for c in "RGB"], axis=2)
+    var = None
+    if all(f"variance.{c}" in chans for c in "RGB"):
+        var = np.stack([chans[f"variance.{c}"] for c in "RGB"], axis=2)
+    return rgb, var
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+
+    mi.set_variant("scalar_spectral")
+    ref_rgb, ref_var = read_rgb(mi, args.reference)
+    height, width = ref_rgb.shape[0], ref_rgb.shape[1]
+    # Mean variance of the reference's pixel means (its own noise).
+    ref_noise = float(ref_var.mean()) if ref_var is not None else 0.0
+
+    tmp = tempfile.mkdtemp(prefix="furnace_bench_")
+    xml_dir = os.path.join(tmp, "export")
+    subprocess.run([args.furnace, "export", args.scene, "--format", "mitsuba3", "--out", xml_dir],
+                   check=True, stdout=subprocess.DEVNULL)
+    xml = os.path.join(xml_dir, "scene.xml")
+    samples = width * height * args.spp
+    variants = [v for v in args.variants.split(",") if v]
+    rows = {"furnace": []}
+    for v in variants:
+        rows[f"mitsuba3:{v}"] = []
+    scenes = {}
+    for v in variants:
+        mi.set_variant(v)
+        dr.set_thread_count(args.threads)
+        scenes[v] = mi.load_file(xml, spp=args.spp, width=width, height=height,
+                                 max_depth=-1 if args.max_depth < 0 else args.max_depth + 1)
+        dr.eval(mi.render(scenes[v], spp=args.spp, seed=999))  # warm-up (JIT for llvm variants)
+        dr.sync_thread()
+
+    # relMSE (x - r)^2 / (r^2 + eps), eps = 0.01 (Rousselle et al. 2011): bright emitter pixels
+    # would otherwise dominate MSE with a few heavy-tailed values. The reference's own variance
+    # enters the same way and is subtracted.
+    eps = 1e-2
+    weight = 1.0 / (ref_rgb ** 2 + eps)
+    ref_term = float((ref_var * weight).mean()) if ref_var is not None else 0.0
+
+    def mse(img):
+        d = np.asarray(img, dtype=np.float64)[..., :3] - ref_rgb
+        return float((d * d * weight).mean()) - ref_term
+
+    for rep in range(args.reps):
+        out = os.path.join(tmp, f"furnace-{rep}.exr")
+        depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
+        r = subprocess.run([args.furnace, "render", args.scene, "--width", str(width), "--height", str(height),
+                            "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
+                            "--observer", "mitsuba3", "--quiet", "--out", out] + depth,
+                           check=True, capture_output=True, text=True)
+        secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
+        mi.set_variant("scalar_spectral")
+        rgb, _ = read_rgb(mi, out)
+        rows["furnace"].append((secs, mse(rgb)))
+        print(f"rep {rep}: furnace {secs:.3f} s", file=sys.stderr)
+        for v in variants:
+            mi.set_variant(v)
+            dr.set_thread_count(args.threads)
+            t0 = time.perf_counter()
+            img = mi.render(scenes[v], spp=args.spp, seed=100 + rep)
+            dr.eval(img)
+            dr.sync_thread()  # LLVM variants launch kernels asynchronously
+            secs = time.perf_counter() - t0
+            rows[f"mitsuba3:{v}"].append((secs, mse(np.array(img))))
+
+    result = {"scene": os.path.relpath(args.scene, REPO), "width": width, "height": height, "spp": args.spp,
+              "max_depth_bounces": args.max_depth, "threads": args.threads, "reps": args.reps,
+              "reference": os.path.relpath(args.reference, REPO), "reference_mean_variance": ref_noise,
+              "mitsuba": mi.__version__, "platform": platform.platform(), "renderers": {}}
+    base = None
+    print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, {args.threads} threads, "
+          f"median of {args.reps} alternating runs; error against {result['reference']}")
+    print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'relMSE':>11} {'1/(relMSE t)':>12} {'time to equal error':>20}")
+    for name, runs in rows.items():
+        t = statistics.median(x[0] for x in runs)
+        m = statistics.median(x[1] for x in runs)
+        eff = 1.0 / (m * t) if m > 0 else float("inf")
+        if base is None:
+            base = (t, m)
+        rel = (m * t) / (base[1] * base[0])
+        result["renderers"][name] = {"median_seconds": t, "samples_per_second": samples / t, "median_rel_mse": m,
+                                     "efficiency": eff, "time_to_equal_error_vs_furnace": rel,
+                                     "runs": runs}
+        print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
+    if args.json:
+        with open(args.json, "w") as f:
+            json.dump(result, f, indent=2)
+            f.write("\n")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
