@@ -190,8 +190,19 @@ pub const KINDS: [(&str, &[&str]); 13] = [
     (
         "convergence",
         &[
-            "scene", "of", "sampler", "strategy", "ladder", "seeds", "slope", "width", "height",
-            "region", "seed",
+            "scene",
+            "of",
+            "sampler",
+            "strategy",
+            "ladder",
+            "seeds",
+            "slope",
+            "width",
+            "height",
+            "region",
+            "seed",
+            "max_depth",
+            "roulette",
         ],
     ),
 ];
@@ -525,7 +536,7 @@ fn check(
         ));
     }
     let of_allowed: &[&str] = if *kind_name == "convergence" {
-        &["lambert", "emission"]
+        &["lambert", "emission", "furnace"]
     } else {
         &["furnace", "lambert"]
     };

@@ -14,7 +14,9 @@
 //!
 //! `of = "lambert"` renders direct light only (max_depth 1) and compares with R·H/π;
 //! `of = "emission"` renders emission only (max_depth 0) and compares with the emitted
-//! radiance, whose footprint integrand is a step across every emitter edge.
+//! radiance, whose footprint integrand is a step across every emitter edge; `of = "furnace"`
+//! renders a uniform enclosure (with `max_depth` and `roulette` as given) and compares with
+//! E/(1 − R) or its depth-capped form, for estimator ladders of multi-bounce transport.
 
 use super::lambert::{per_pixel_k, reflected};
 use super::radiance::emitted_along_k;
@@ -59,7 +61,11 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
     let scene = spec.scene.as_ref().ok_or("convergence needs a scene")?;
     let p = &spec.params;
     let of = p.of.as_deref().unwrap_or("lambert");
-    let depth = if of == "emission" { 0 } else { 1 };
+    let depth = match of {
+        "emission" => Some(0),
+        "furnace" => spec.render.max_depth,
+        _ => Some(1),
+    };
     let mut rungs = Vec::new();
     let mut reference: Option<(Vec<f64>, f64)> = None;
     for (r, &spp) in p.ladder.iter().enumerate() {
@@ -67,13 +73,17 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
         let mut samples = 0;
         for k in 0..p.seeds {
             let seed = crate::math::rng::mix64(ctx.seed ^ ((r as u64) << 32) ^ k);
-            let mut s = settings_for(spec, scene, ctx, seed, Some(depth), p.strategy);
+            let mut s = settings_for(spec, scene, ctx, seed, depth, p.strategy);
             s.spp = spp;
             s.sampler = p.sampler;
             let region = region_of(spec, &s)?;
             if reference.is_none() {
                 let px = if of == "emission" {
                     emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)?
+                } else if of == "furnace" {
+                    // A uniform enclosure: every pixel reads the closed form.
+                    let (v, _) = super::furnace::expectation(scene, depth)?;
+                    vec![v; (region[2] - region[0]) * (region[3] - region[1])]
                 } else {
                     per_pixel_k(
                         scene,
