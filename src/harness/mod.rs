@@ -37,8 +37,42 @@ pub trait Renderer: Sync {
 pub fn renderer_agnostic(kind: &str) -> bool {
     matches!(
         kind,
-        "furnace" | "lambert" | "radiance_invariance" | "scale_invariance" | "image_compare"
+        "furnace"
+            | "lambert"
+            | "radiance_invariance"
+            | "scale_invariance"
+            | "image_compare"
+            | "convergence"
     )
+}
+
+/// Why `spec` cannot judge `renderer` (None when it can): furnace's own renderer runs every
+/// check; an external one runs the renderer-agnostic kinds, and a convergence check only when
+/// it asks for independent sampling and MIS (an external renderer's sampler and estimator
+/// are its own, so a stated stratified or BSDF-only rate would not apply to it).
+pub fn not_applicable(spec: &CheckSpec, renderer: &dyn Renderer) -> Option<String> {
+    if renderer.is_reference() {
+        return None;
+    }
+    let name = renderer.name();
+    if !renderer_agnostic(&spec.kind) {
+        return Some(format!(
+            "kind {} tests furnace's own models or needs control over its estimator or film; {name} is judged by the scene-level kinds",
+            spec.kind
+        ));
+    }
+    let p = &spec.params;
+    if spec.kind == "convergence"
+        && (p.sampler != crate::math::rng::Sampler::Independent
+            || p.strategy != crate::integrators::Strategy::Mis)
+    {
+        return Some(format!(
+            "this convergence check states the rate of furnace's {} sampler with {:?}; {name} uses its own sampler and estimator",
+            p.sampler.name(),
+            p.strategy
+        ));
+    }
+    None
 }
 
 /// furnace's own path tracer.
@@ -193,7 +227,7 @@ pub fn run(
     let m = specs
         .iter()
         .filter(|s| is_stochastic(&s.kind))
-        .filter(|s| renderer.is_reference() || renderer_agnostic(&s.kind))
+        .filter(|s| not_applicable(s, renderer).is_none())
         .count()
         .max(1);
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
@@ -201,14 +235,10 @@ pub fn run(
     let mut measured = Vec::new();
     for spec in specs {
         progress(&spec.name);
-        if !renderer.is_reference() && !renderer_agnostic(&spec.kind) {
+        if let Some(why) = not_applicable(spec, renderer) {
             let mut o = Outcome::new(&spec.name, &spec.kind);
             o.verdict = Verdict::Skipped;
-            o.message = format!(
-                "kind {} tests furnace's own models or needs control over its estimator or film; {} is judged by the scene-level kinds",
-                spec.kind,
-                renderer.name()
-            );
+            o.message = why;
             outcomes.push(o);
             measured.push(None);
             continue;

@@ -123,3 +123,21 @@ fn the_recorded_mitsuba_run_rebuilds_the_comparison_report_without_python() {
     assert!(html.contains("mitsuba3:scalar_spectral") && html.contains("furnace 0.1.0"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn external_renderers_skip_checks_that_state_furnace_internals() {
+    let r = load_renderers(&renderers("scenes/furnace-sphere.toml", "\"true\"")).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
+    for s in &specs {
+        let why = harness::not_applicable(s, &ext);
+        let own = s.params.sampler == furnace::math::rng::Sampler::Independent
+            && s.params.strategy == furnace::integrators::Strategy::Mis;
+        assert_eq!(why.is_none(), own, "{}: {why:?}", s.name);
+        assert!(harness::not_applicable(s, &harness::BuiltIn).is_none());
+    }
+    let bsdf = manifest::load(&root("tests/manifests/bsdf.toml")).unwrap();
+    assert!(bsdf
+        .iter()
+        .all(|s| harness::not_applicable(s, &ext).is_some()));
+}
