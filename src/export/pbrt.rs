@@ -11,9 +11,10 @@
 //! - spectra as `λ v` pairs (pbrt's piecewise-linear spectrum is zero outside its samples, as
 //!   furnace's `outside = "zero"`; constants and `clamp` become two-point or extended tables
 //!   over 360–830 nm), blackbodies as `blackbody` (normalised by pbrt, so given a scale);
-//! - pbrt-v4 normalises light spectra to unit luminance (`SpectrumToPhotometric`) before
-//!   applying `scale`: every light gets `scale` = ∫ S ȳ dλ (CIE 1931, 1 nm) so that the
-//!   radiance it emits is the spectrum as written;
+//! - pbrt-v4 normalises light spectra to unit luminance (`SpectrumToPhotometric`, ∫ S ȳ dλ)
+//!   before applying `scale`, and its film does not divide by ∫ȳ; every light gets `scale` =
+//!   furnace's Y of its spectrum (∫ S ȳ dλ / ∫ȳ dλ), so that pbrt's image reads the Y furnace's
+//!   film reads (the emitted radiance is the written spectrum / 106.857);
 //! - `diffuse` material (two-sided in pbrt), emitting shapes with `AreaLightSource "diffuse"`
 //!   (`twosided` as in the scene), `flip_normals` → `ReverseOrientation`; quads and meshes as
 //!   inline `trianglemesh` with furnace's winding (pbrt's normal (p0 − p2) × (p1 − p2) equals
@@ -167,10 +168,10 @@ fn mesh(x: &mut String, p: &[Vec3], t: &[[u32; 3]]) {
     );
 }
 
-/// ∫ S ȳ dλ over 360–830 nm (1 nm), the value pbrt-v4 divides light spectra by.
+/// furnace's Y of a spectrum (∫ S ȳ dλ / ∫ ȳ dλ, 1 nm): the `scale` that makes pbrt-v4's
+/// unit-luminance light times its unnormalised film read furnace's Y.
 fn luminance(s: &Spectrum) -> f64 {
-    let t = cie::tables();
-    t.spectrum_to_xyz(s)[1] * t.y_integral()
+    cie::tables().spectrum_to_xyz(s)[1]
 }
 
 fn spectrum(name: &str, s: &Spectrum) -> String {

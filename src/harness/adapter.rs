@@ -270,13 +270,13 @@ impl Renderer for External {
             ));
         }
         let k = self.batches();
-        if s.spp < k {
+        if s.spp < k || s.spp % k != 0 {
             return Err(format!(
-                "spp {} is below the {k} independent runs the standard error needs",
+                "spp {} must be a multiple of the {k} independent runs per image (renderers.toml `batches`), so that the image has exactly the samples the check asks for",
                 s.spp
             ));
         }
-        let spp = s.spp.div_ceil(k);
+        let spp = s.spp / k;
         let dir = std::env::temp_dir().join(format!(
             "furnace-{}-{}-{}",
             self.label.replace([':', '/'], "_"),

@@ -166,11 +166,13 @@ impl Region {
             ));
         }
         let px = |f: f64, n: usize| ((f * n as f64).round() as usize).min(n);
+        // Starts at most at the last pixel, so a region is never empty.
+        let (sx, sy) = (px(x0, w).min(w - 1), px(y0, h).min(h - 1));
         let r = [
-            px(x0, w),
-            px(y0, h),
-            px(x1, w).max(px(x0, w) + 1).min(w),
-            px(y1, h).max(px(y0, h) + 1).min(h),
+            sx,
+            sy,
+            px(x1, w).max(sx + 1).min(w),
+            px(y1, h).max(sy + 1).min(h),
         ];
         Ok(r)
     }
@@ -313,7 +315,8 @@ pub fn compare(
             });
         }
     }
-    let differ = results.iter().any(|r| r.p <= alpha);
+    // A NaN p (a non-finite mean or standard error) counts as a difference, never as agreement.
+    let differ = results.iter().any(|r| r.p <= alpha || r.p.is_nan());
     // Pixel-level: BH over all pixel×channel tests, when the test image has variances.
     let (flagged, pixel_z) = match &test.variance {
         None => (None, None),
@@ -328,7 +331,9 @@ pub fn compare(
                         parts.push((v[c][i], dof(reference.variance_dof)));
                     }
                     let (t, p, _) = welch_test(test.rgb[c][i] - reference.rgb[c][i], &parts);
-                    ps.push((i, p));
+                    // NaN (a non-finite pixel) is flagged: p = 0, consistently for the count and
+                    // for the sorted set below.
+                    ps.push((i, if p.is_nan() { 0.0 } else { p }));
                     zmax[i] = zmax[i].max(t.abs().min(1e6));
                 }
             }

@@ -118,6 +118,17 @@ impl SampleStream {
         })
     }
 
+    /// The stratum of this sample among `n` for dimension `d`: a hashed permutation of the
+    /// sample index plus a random rotation, both keyed by (pixel, dimension). The permutation
+    /// alone is a bijection for every key but not uniformly random over keys when n is not a
+    /// power of two (cycle walking), which biased products of dimensions; the uniform rotation
+    /// makes every sample's stratum uniform over keys while keeping the bijection.
+    #[inline]
+    fn cell(&self, n: u64, d: u64) -> u64 {
+        let key = mix64(self.pixel_key ^ d.wrapping_mul(GOLDEN));
+        (permute(self.sample, n, key) + mix64(key ^ GOLDEN) % n) % n
+    }
+
     /// Next uniform number in [0, 1).
     #[inline]
     pub fn next_f64(&mut self) -> f64 {
@@ -128,11 +139,7 @@ impl SampleStream {
             Sampler::Sobol => self.sobol(d).unwrap_or_else(|| self.hash_f64(d)),
             Sampler::Stratified => {
                 let n = self.spp;
-                let cell = permute(
-                    self.sample,
-                    n,
-                    mix64(self.pixel_key ^ d.wrapping_mul(GOLDEN)),
-                );
+                let cell = self.cell(n, d);
                 ((cell as f64 + self.hash_f64(d)) / n as f64).min(ONE_MINUS_EPS)
             }
         }
@@ -150,11 +157,7 @@ impl SampleStream {
                 if self.sample >= a * b {
                     return [self.hash_f64(d), self.hash_f64(d + 1)];
                 }
-                let cell = permute(
-                    self.sample,
-                    a * b,
-                    mix64(self.pixel_key ^ d.wrapping_mul(GOLDEN)),
-                );
+                let cell = self.cell(a * b, d);
                 let (cx, cy) = (cell % a, cell / a);
                 [
                     ((cx as f64 + self.hash_f64(d)) / a as f64).min(ONE_MINUS_EPS),
@@ -250,6 +253,39 @@ mod tests {
             }
             assert!(ones.iter().all(|&c| c == 1), "{spp}: {ones:?}");
             assert!(cells.iter().all(|&c| c == 1), "{spp}: {cells:?}");
+        }
+    }
+
+    #[test]
+    fn stratified_dimensions_are_uncorrelated_at_any_sample_count() {
+        // E[u0·u1] = 1/4 for independent uniform dimensions. The cycle-walking permutation
+        // alone gave 0.2527 at spp = 3 and 0.2531 at spp = 5 (about 10 standard errors here).
+        for spp in [3u64, 5, 6, 12] {
+            let pixels = 600_000 / spp;
+            let (mut one, mut two, mut n) = (0.0f64, 0.0f64, 0.0f64);
+            for p in 0..pixels {
+                for s in 0..spp {
+                    let mut st = SampleStream::with_sampler(Sampler::Stratified, 1, p, s, spp);
+                    let (a, b) = (st.next_f64(), st.next_f64());
+                    let [x, y] = st.next_2d();
+                    let [x2, _] = st.next_2d();
+                    one += a * b;
+                    two += x * x2 + 0.0 * y;
+                    n += 1.0;
+                }
+            }
+            // Var(u0·u1) = 7/144 for independent uniforms; strata only make it smaller.
+            let se = (7.0 / 144.0 / n).sqrt();
+            assert!(
+                (one / n - 0.25).abs() < 4.0 * se,
+                "spp {spp} 1D: {}",
+                one / n
+            );
+            assert!(
+                (two / n - 0.25).abs() < 4.0 * se,
+                "spp {spp} 2D: {}",
+                two / n
+            );
         }
     }
 

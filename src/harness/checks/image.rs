@@ -56,6 +56,12 @@ pub fn run_against(
         0.01,
         spec.rel_tolerance,
     )?;
+    if let Some(r) = c.regions.iter().find(|r| r.p.is_nan()) {
+        return Err(format!(
+            "region {:?} channel {} has a non-finite mean or standard error (test {} ± {}, reference {} ± {})",
+            r.region, r.channel, r.test.0, r.test.1, r.reference.0, r.reference.1
+        ));
+    }
     let m = c.regions.len();
     let worst = c
         .regions

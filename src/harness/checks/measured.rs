@@ -310,7 +310,9 @@ pub fn run_against(
     // Tests: each band × region mean, and each band's inverse-variance weighted mean of the
     // relative residuals over its regions (a band error is common to all regions, so this
     // is the more powerful test for it).
-    let mut tests: Vec<(f64, f64, String)> = Vec::new();
+    // (z, p, description, (estimate, standard error, expected) of the test)
+    type Test = (f64, f64, String, (f64, f64, f64));
+    let mut tests: Vec<Test> = Vec::new();
     for c in &cells {
         let t = z_test(gain * c.2, sigma2(gain, c).sqrt(), c.4);
         tests.push((
@@ -324,6 +326,7 @@ pub fn run_against(
                 fmt_sig(c.4),
                 100.0 * (gain * c.2 / c.4 - 1.0)
             ),
+            (gain * c.2, sigma2(gain, c).sqrt(), c.4),
         ));
     }
     for (b, band) in m.bands.iter().enumerate() {
@@ -345,8 +348,19 @@ pub fn run_against(
                     100.0 * swd / sw,
                     100.0 / sw.sqrt()
                 ),
+                // relative: rendered/measured over the band's regions, expected 1
+                (1.0 + swd / sw, (1.0 / sw).sqrt(), 1.0),
             ));
         }
+    }
+    if let Some(t) = tests.iter().find(|t| t.1.is_nan()) {
+        return Err(format!("non-finite value in {}", t.2));
+    }
+    if m.fit_scale && cells.len() < 2 {
+        return Err(
+            "a fitted gain needs at least two band x region means (one is always matched exactly); give more regions or bands, or scale = \"absolute\""
+                .into(),
+        );
     }
     let wi = (0..tests.len())
         .min_by(|&a, &b| tests[a].1.total_cmp(&tests[b].1))
@@ -354,11 +368,11 @@ pub fn run_against(
     let (z, p_min) = (tests[wi].0, tests[wi].1);
     let n = tests.len();
     let p = -((-p_min).ln_1p() * n as f64).exp_m1();
-    let c = &cells[wi.min(cells.len() - 1)];
+    let (estimate, se, expected) = tests[wi].3;
     Ok(Measurement {
-        estimate: Some(gain * c.2),
-        std_error: Some(sigma2(gain, c).sqrt()),
-        expected: Some(c.4),
+        estimate: Some(estimate),
+        std_error: Some(se),
+        expected: Some(expected),
         statistic: Some(Statistic::Z { z }),
         p_value: Some(p.min(1.0)),
         samples,

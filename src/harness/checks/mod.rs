@@ -257,6 +257,11 @@ pub const ROUNDING: f64 = 1e-12;
 /// z = sign(est − exp)·max(0, |est − exp| − tol·|exp| − 1e-12·max(|exp|, |est|))/se.
 /// Returns (z, p).
 pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
+    // A NaN or infinite input must never turn into p = 1: it propagates as NaN, which the
+    // runner reports as ERROR and comparisons as a difference.
+    if !(estimate.is_finite() && se.is_finite() && expected.is_finite()) {
+        return (f64::NAN, f64::NAN);
+    }
     let allowance = rel_tolerance * expected.abs() + ROUNDING * expected.abs().max(estimate.abs());
     let d = (estimate - expected).abs();
     let excess = (d - allowance).max(0.0);
@@ -271,6 +276,23 @@ pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f6
         1.0
     };
     (z.copysign(estimate - expected), p.min(1.0))
+}
+
+#[cfg(test)]
+mod nan_tests {
+    use super::z_with_tolerance;
+
+    #[test]
+    fn non_finite_inputs_never_pass() {
+        for (e, se, x) in [
+            (f64::NAN, 1.0, 1.0),
+            (1.0, f64::NAN, 1.0),
+            (f64::INFINITY, 1.0, 1.0),
+        ] {
+            let (z, p) = z_with_tolerance(e, se, x, 0.0);
+            assert!(z.is_nan() && p.is_nan());
+        }
+    }
 }
 
 /// A measurement from one region test against a closed form.
