@@ -278,23 +278,6 @@ pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f6
     (z.copysign(estimate - expected), p.min(1.0))
 }
 
-#[cfg(test)]
-mod nan_tests {
-    use super::z_with_tolerance;
-
-    #[test]
-    fn non_finite_inputs_never_pass() {
-        for (e, se, x) in [
-            (f64::NAN, 1.0, 1.0),
-            (1.0, f64::NAN, 1.0),
-            (f64::INFINITY, 1.0, 1.0),
-        ] {
-            let (z, p) = z_with_tolerance(e, se, x, 0.0);
-            assert!(z.is_nan() && p.is_nan());
-        }
-    }
-}
-
 /// A measurement from one region test against a closed form.
 pub fn region_measurement(
     r: &RegionStats,
@@ -389,5 +372,22 @@ pub fn fmt_sig(x: f64) -> String {
         format!("{x:.decimals$}")
     } else {
         format!("{x:.3e}")
+    }
+}
+
+#[cfg(test)]
+mod nan_tests {
+    use super::z_with_tolerance;
+
+    #[test]
+    fn non_finite_inputs_never_pass() {
+        for (e, se, x) in [
+            (f64::NAN, 1.0, 1.0),
+            (1.0, f64::NAN, 1.0),
+            (f64::INFINITY, 1.0, 1.0),
+        ] {
+            let (z, p) = z_with_tolerance(e, se, x, 0.0);
+            assert!(z.is_nan() && p.is_nan());
+        }
     }
 }
