@@ -656,8 +656,11 @@ fn converge_command(a: ConvergeArgs) -> Result<i32, Failure> {
             let efficiency = 1.0 / (last.rmse * last.rmse * last.seconds);
             let n_star = (a.target * mean / l.fit.intercept.exp()).powf(1.0 / l.fit.slope);
             let t_star = n_star * last.seconds / last.spp as f64;
-            let ci =
-                furnace::stats::regression::t_two_sided_quantile(0.05, l.fit.dof) * l.fit.se_slope;
+            let ci = if l.fit.dof.is_finite() {
+                furnace::stats::regression::t_two_sided_quantile(0.05, l.fit.dof)
+            } else {
+                1.959_963_984_540_054
+            } * l.fit.se_slope;
             let r = (
                 spec.name.clone(),
                 l.sampler.clone(),

@@ -47,6 +47,54 @@ pub fn fit_line(x: &[f64], y: &[f64]) -> Option<LineFit> {
     })
 }
 
+/// A weighted least-squares line with per-point standard errors `sigma` of y: the slope, its
+/// standard error from the weights alone, and the lack-of-fit statistic χ² = Σ ((y − ŷ)/σ)²
+/// with n − 2 degrees of freedom and its upper-tail p-value (a line that does not describe the
+/// points within their errors has a small p; Draper & Smith 1998, §9). When the σ are
+/// themselves estimated with `sigma_dof` degrees of freedom, χ²/(n − 2) is referred to
+/// F(n − 2, sigma_dof) instead of χ²/(n − 2), which allows for the noise in the weights.
+pub fn fit_line_weighted(
+    x: &[f64],
+    y: &[f64],
+    sigma: &[f64],
+    sigma_dof: Option<f64>,
+) -> Option<(LineFit, f64, f64)> {
+    let n = x.len();
+    if n < 3 || y.len() != n || sigma.len() != n || sigma.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+        return None;
+    }
+    let w: Vec<f64> = sigma.iter().map(|s| 1.0 / (s * s)).collect();
+    let sw: f64 = w.iter().sum();
+    let mx = w.iter().zip(x).map(|(w, x)| w * x).sum::<f64>() / sw;
+    let my = w.iter().zip(y).map(|(w, y)| w * y).sum::<f64>() / sw;
+    let sxx: f64 = w.iter().zip(x).map(|(w, x)| w * (x - mx) * (x - mx)).sum();
+    if sxx <= 0.0 {
+        return None;
+    }
+    let sxy: f64 = (0..n).map(|i| w[i] * (x[i] - mx) * (y[i] - my)).sum();
+    let slope = sxy / sxx;
+    let intercept = my - slope * mx;
+    let chi2: f64 = (0..n)
+        .map(|i| w[i] * (y[i] - intercept - slope * x[i]).powi(2))
+        .sum();
+    let dof = (n - 2) as f64;
+    let p = match sigma_dof {
+        Some(d2) => statrs::distribution::FisherSnedecor::new(dof, d2)
+            .map_or(f64::NAN, |d| d.sf(chi2 / dof)),
+        None => statrs::distribution::ChiSquared::new(dof).map_or(f64::NAN, |d| d.sf(chi2)),
+    };
+    Some((
+        LineFit {
+            slope,
+            intercept,
+            se_slope: (1.0 / sxx).sqrt(),
+            dof,
+        },
+        chi2,
+        p,
+    ))
+}
+
 /// Upper tail of Student's t with `dof` degrees of freedom, P(T > t).
 pub fn t_sf(t: f64, dof: f64) -> f64 {
     StudentsT::new(0.0, 1.0, dof).map_or(f64::NAN, |d| d.sf(t))
@@ -76,5 +124,18 @@ mod tests {
         // t with 4 dof: two-sided 5 % point 2.776.
         assert!((t_two_sided_quantile(0.05, 4.0) - 2.776).abs() < 1e-3);
         assert!((t_sf(2.776, 4.0) - 0.025).abs() < 1e-4);
+    }
+
+    #[test]
+    fn weighted_fit_and_lack_of_fit() {
+        let x = [0.0, 1.0, 2.0, 3.0];
+        let (f, chi2, p) = fit_line_weighted(&x, &[1.0, 3.0, 5.0, 7.0], &[0.1; 4], None).unwrap();
+        assert!((f.slope - 2.0).abs() < 1e-12 && chi2 < 1e-20 && (p - 1.0).abs() < 1e-12);
+        // Equal weights reproduce OLS; se = σ/√Σ(x − x̄)² = 0.1/√5.
+        assert!((f.se_slope - 0.1 / 5f64.sqrt()).abs() < 1e-12);
+        // A bent curve with small errors: lack of fit.
+        let (_, _, p) =
+            fit_line_weighted(&x, &[0.0, 1.0, 4.0, 9.0], &[0.01; 4], Some(7.0)).unwrap();
+        assert!(p < 1e-6, "{p}");
     }
 }

@@ -453,3 +453,40 @@ fn convergence_rejects_a_sampler_regression() {
     let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
+
+/// A renderer 1 % too bright: its error stops falling once noise drops below the bias.
+struct OnePercentBright;
+impl Renderer for OnePercentBright {
+    fn name(&self) -> String {
+        "1 % bright".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let mut film = BuiltIn.render(scene, s)?;
+        for p in &mut film.pixels {
+            let xyz = [0, 1, 2].map(|c| p.channels[c].mean() * 1.01);
+            let mut q = furnace::film::Pixel::default();
+            q.add(xyz, xyz);
+            q.add(xyz, xyz);
+            *p = q;
+        }
+        Ok(film)
+    }
+}
+
+#[test]
+fn convergence_rejects_an_error_floor() {
+    // A 1 % bias makes the stratified ladder flatten (a bent log-log line and a shallow
+    // slope): the lack-of-fit and slope tests reject it.
+    let s = specs(
+        "tests/manifests/convergence.toml",
+        "convergence/stratified-smooth",
+    );
+    let ctx = harness::Context {
+        renderer: &OnePercentBright,
+        seed: 3,
+        threads: 0,
+        alpha: ALPHA,
+    };
+    let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}

@@ -2,9 +2,12 @@
 //! counts N with K independent seeds each; the error of every pixel of the region against
 //! its closed-form footprint average (k×k quadrature, fine enough to sit far below the
 //! errors measured) gives RMSE(N) over pixels and seeds. A least-squares line through
-//! (ln N, ln RMSE) gives the rate: RMSE ∝ N^slope. The check asserts that the slope lies in
-//! the stated range: with β̂ ± se (Student t, rungs − 2 dof) the p-value is that of
-//! |β̂ − mid| exceeding the half-width (the tolerance form of `z_with_tolerance`).
+//! (ln N, ln RMSE), weighted by each rung's uncertainty (the spread of its per-seed MSEs),
+//! gives the rate: RMSE ∝ N^slope. The check asserts that the slope lies in the stated range
+//! (with β̂ ± se, Student t with rungs − 2 dof, the p-value of |β̂ − mid| exceeding the
+//! half-width, the tolerance form of `z_with_tolerance`) and that a power law describes the
+//! ladder at all (the weighted lack-of-fit χ², referred to an F law because the weights come
+//! from K seeds); the two p-values are Šidák-combined.
 //!
 //! Expected rates: independent sampling −0.5; jittered (stratified) sampling of a smooth 2D
 //! pixel integrand −1, across an edge −0.75 (Mitchell 1996, "Consequences of stratified
@@ -24,7 +27,8 @@ use super::{region_of, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
-use crate::stats::regression::{fit_line, t_sf, t_two_sided_quantile, LineFit};
+use crate::stats::normal_sf;
+use crate::stats::regression::{fit_line, fit_line_weighted, t_sf, t_two_sided_quantile, LineFit};
 use std::time::Instant;
 
 /// Quadrature points per pixel side for the reference (k² rays per pixel).
@@ -37,6 +41,9 @@ pub struct Rung {
     pub spp: u64,
     /// Root-mean-square error over the region's pixels and the seeds.
     pub rmse: f64,
+    /// Standard error of ln RMSE from the spread of the per-seed MSEs (delta method:
+    /// se(ln √MSE) = se(MSE)/(2·MSE)).
+    pub ln_rmse_se: f64,
     /// Mean of the closed form over the region (for relative errors).
     pub reference_mean: f64,
     /// Wall time per render, seconds (mean over seeds).
@@ -54,6 +61,8 @@ pub struct Ladder {
     pub rungs: Vec<Rung>,
     /// Fit of ln RMSE against ln N.
     pub fit: LineFit,
+    /// (χ², p) of the lack-of-fit test of the weighted line, when rung uncertainties exist.
+    pub lack_of_fit: Option<(f64, f64)>,
 }
 
 /// Renders the ladder of a convergence check.
@@ -70,6 +79,7 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
     let mut reference: Option<(Vec<f64>, f64)> = None;
     for (r, &spp) in p.ladder.iter().enumerate() {
         let (mut se, mut n, mut secs) = (0.0, 0.0, 0.0);
+        let mut per_seed = Vec::new();
         let mut samples = 0;
         for k in 0..p.seeds {
             let seed = crate::math::rng::mix64(ctx.seed ^ ((r as u64) << 32) ^ k);
@@ -104,18 +114,26 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
             samples = (s.width * s.height) as u64 * spp;
             let y = film.means(1);
             let mut i = 0;
+            let (mut se_k, mut n_k) = (0.0, 0.0);
             for py in region[1]..region[3] {
                 for px in region[0]..region[2] {
                     let e = y[py * s.width + px] - ref_px[i];
-                    se += e * e;
-                    n += 1.0;
+                    se_k += e * e;
+                    n_k += 1.0;
                     i += 1;
                 }
             }
+            se += se_k;
+            n += n_k;
+            per_seed.push(se_k / n_k);
         }
+        let k = per_seed.len() as f64;
+        let mse = se / n;
+        let var_mse = per_seed.iter().map(|m| (m - mse) * (m - mse)).sum::<f64>() / (k - 1.0) / k;
         rungs.push(Rung {
             spp,
-            rmse: (se / n).sqrt(),
+            rmse: mse.sqrt(),
+            ln_rmse_se: var_mse.sqrt() / (2.0 * mse),
             reference_mean: reference.as_ref().map_or(0.0, |r| r.1),
             seconds: secs / p.seeds as f64,
             samples,
@@ -129,11 +147,34 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
     }
     let x: Vec<f64> = rungs.iter().map(|r| (r.spp as f64).ln()).collect();
     let y: Vec<f64> = rungs.iter().map(|r| r.rmse.ln()).collect();
-    let fit = fit_line(&x, &y).ok_or("a ladder needs at least three distinct sample counts")?;
+    let sig: Vec<f64> = rungs.iter().map(|r| r.ln_rmse_se).collect();
+    let ols = fit_line(&x, &y).ok_or("a ladder needs at least three distinct sample counts")?;
+    // Weighted by each rung's own uncertainty when every rung has one (seeds ≥ 2, noise > 0);
+    // the slope's standard error is the larger of the weighted one and the OLS one, so
+    // neither scatter nor noise is understated.
+    // When the weights' standard error dominates, the slope's error is the rungs' measured
+    // noise (normal tails, dof = ∞); when the scatter about the line dominates, Student t with
+    // rungs − 2 dof.
+    let (fit, lack_of_fit) = match fit_line_weighted(&x, &y, &sig, Some(p.seeds as f64 - 1.0)) {
+        Some((w, chi2, p)) => (
+            LineFit {
+                se_slope: w.se_slope.max(ols.se_slope),
+                dof: if w.se_slope >= ols.se_slope {
+                    f64::INFINITY
+                } else {
+                    ols.dof
+                },
+                ..w
+            },
+            Some((chi2, p)),
+        ),
+        None => (ols, None),
+    };
     Ok(Ladder {
         sampler: p.sampler.name().to_string(),
         rungs,
         fit,
+        lack_of_fit,
     })
 }
 
@@ -148,14 +189,34 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let f = l.fit;
     let d = (f.slope - mid).abs();
     // p of H0: |slope − mid| ≤ half, at the boundary (as z_with_tolerance, with t tails).
+    let tail = |t: f64| {
+        if f.dof.is_finite() {
+            t_sf(t, f.dof)
+        } else {
+            normal_sf(t)
+        }
+    };
     let p = if f.se_slope > 0.0 {
-        t_sf((d - half) / f.se_slope, f.dof) + t_sf((d + half) / f.se_slope, f.dof)
+        tail((d - half) / f.se_slope) + tail((d + half) / f.se_slope)
     } else if d > half {
         0.0
     } else {
         1.0
     };
-    let ci = t_two_sided_quantile(0.05, f.dof) * f.se_slope;
+    // Two tests: the slope range, and whether a power law describes the ladder at all
+    // (lack of fit). Šidák-combined; a failing rate or a bent ladder both fail the check.
+    let p = match l.lack_of_fit {
+        Some((_, p_lof)) if p_lof.is_finite() => {
+            let p_min = p.min(p_lof);
+            -((-p_min).ln_1p() * 2.0).exp_m1()
+        }
+        _ => p,
+    };
+    let ci = if f.dof.is_finite() {
+        t_two_sided_quantile(0.05, f.dof)
+    } else {
+        1.959_963_984_540_054
+    } * f.se_slope;
     let rungs: Vec<String> = l
         .rungs
         .iter()
@@ -179,13 +240,15 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         p_value: Some(p.min(1.0)),
         samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * spec.params.seeds,
         message: format!(
-            "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, t with {} dof), constant {:.3e}; allowed slope [{lo}, {hi}]; {} seeds per rung; {}",
+            "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, {} dof; weighted by each rung's seed spread), constant {:.3e}; allowed slope [{lo}, {hi}]; lack of fit {}; {} seeds per rung; {}",
             l.sampler,
             spec.params.strategy,
             f.slope,
             ci,
             f.dof,
             f.intercept.exp(),
+            l.lack_of_fit
+                .map_or("not tested".into(), |(c, p)| format!("chi2 {c:.2} on {} dof, p {p:.3}", f.dof)),
             spec.params.seeds,
             rungs.join("; ")
         ),
