@@ -60,7 +60,11 @@ pub fn fit_line_weighted(
     sigma_dof: Option<f64>,
 ) -> Option<(LineFit, f64, f64)> {
     let n = x.len();
-    if n < 3 || y.len() != n || sigma.len() != n || sigma.iter().any(|s| !s.is_finite() || *s <= 0.0) {
+    if n < 3
+        || y.len() != n
+        || sigma.len() != n
+        || sigma.iter().any(|s| !s.is_finite() || *s <= 0.0)
+    {
         return None;
     }
     let w: Vec<f64> = sigma.iter().map(|s| 1.0 / (s * s)).collect();
