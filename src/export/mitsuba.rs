@@ -27,7 +27,7 @@ use crate::math::Vec3;
 use crate::scattering::Bsdf;
 use crate::scene::Scene;
 use crate::spectrum::curve::planck;
-use crate::spectrum::{Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
@@ -265,20 +265,7 @@ fn spectrum(x: &mut String, indent: usize, name: &str, s: &Spectrum) {
             values,
             outside,
         } => {
-            let mut pairs: Vec<(f64, f64)> = wavelengths
-                .iter()
-                .copied()
-                .zip(values.iter().copied())
-                .collect();
-            if *outside == Outside::Clamp {
-                let (first, last) = (pairs[0], pairs[pairs.len() - 1]);
-                if first.0 > LAMBDA_MIN {
-                    pairs.insert(0, (LAMBDA_MIN, first.1));
-                }
-                if last.0 < LAMBDA_MAX {
-                    pairs.push((LAMBDA_MAX, last.1));
-                }
-            }
+            let pairs = super::table_pairs(wavelengths, values, *outside);
             let _ = writeln!(
                 x,
                 "{pad}<spectrum name=\"{name}\" value=\"{}\"/>",

@@ -25,7 +25,7 @@ use crate::lights::Light;
 use crate::math::Vec3;
 use crate::scattering::Bsdf;
 use crate::scene::Scene;
-use crate::spectrum::{cie, Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use crate::spectrum::{cie, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use std::fmt::Write as _;
 
 /// The scene as pbrt-v4 text; `out` names the image pbrt writes.
@@ -182,20 +182,7 @@ fn spectrum(name: &str, s: &Spectrum) -> String {
             values,
             outside,
         } => {
-            let mut p: Vec<(f64, f64)> = wavelengths
-                .iter()
-                .copied()
-                .zip(values.iter().copied())
-                .collect();
-            if *outside == Outside::Clamp {
-                let (first, last) = (p[0], p[p.len() - 1]);
-                if first.0 > LAMBDA_MIN {
-                    p.insert(0, (LAMBDA_MIN, first.1));
-                }
-                if last.0 < LAMBDA_MAX {
-                    p.push((LAMBDA_MAX, last.1));
-                }
-            }
+            let mut p = super::table_pairs(wavelengths, values, *outside);
             if p.len() == 1 {
                 // A one-sample table is a spike; pbrt needs two samples.
                 p.push((p[0].0 + 1e-3, 0.0));
