@@ -120,20 +120,12 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Stri
     Ok(h)
 }
 
-/// A closed form along camera rays averaged over `region` by 9×9 midpoint quadrature (the box
+/// Quadrature points per pixel side of the checks' closed-form footprint averages.
+pub const FOOTPRINT_K: usize = 9;
+
+/// A closed form along camera rays averaged over `region` by k×k midpoint quadrature (the box
 /// filter's average); `f` gives the value for one ray's first hit (None: the ray escapes).
 pub fn region_average(
-    scene: &Scene,
-    width: usize,
-    height: usize,
-    region: [usize; 4],
-    f: &RayClosedForm<'_>,
-) -> Result<f64, String> {
-    region_average_k(scene, width, height, region, f, 9)
-}
-
-/// [`region_average`] with k×k midpoint quadrature (finer for convergence references).
-pub fn region_average_k(
     scene: &Scene,
     width: usize,
     height: usize,
@@ -185,7 +177,7 @@ pub fn per_pixel(
     region: [usize; 4],
     f: &RayClosedForm<'_>,
 ) -> Result<Vec<f64>, String> {
-    per_pixel_k(scene, width, height, region, f, 9)
+    per_pixel_k(scene, width, height, region, f, FOOTPRINT_K)
 }
 
 /// [`per_pixel`] with k×k midpoint quadrature per pixel.
@@ -200,7 +192,7 @@ pub fn per_pixel_k(
     let mut v = Vec::new();
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
-            v.push(region_average_k(
+            v.push(region_average(
                 scene,
                 width,
                 height,

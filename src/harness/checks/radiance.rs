@@ -3,7 +3,7 @@
 //! The camera is moved along its view axis to each distance from its look-at point; with
 //! emission only (max_depth 0) every pixel must read the emitter's radiance (Y).
 
-use super::lambert::per_pixel_k;
+use super::lambert::{per_pixel_k, FOOTPRINT_K};
 use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
@@ -26,7 +26,7 @@ pub fn emitted_along(
     height: usize,
     region: [usize; 4],
 ) -> Result<Vec<f64>, String> {
-    emitted_along_k(scene, width, height, region, 9)
+    emitted_along_k(scene, width, height, region, FOOTPRINT_K)
 }
 
 /// [`emitted_along`] with k×k midpoint quadrature per pixel.
