@@ -12,7 +12,6 @@ use furnace::integrators::{PathTracer, Strategy};
 use furnace::math::rng::Sampler;
 use furnace::render::{render, RenderSettings};
 use furnace::report::{html, json, junit, text};
-use furnace::scene;
 use furnace::scene::Scene;
 use furnace::spectrum::Observer;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -580,26 +579,7 @@ fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
 fn load_regions(p: &Path) -> Result<Vec<compare::Region>, Failure> {
     let text =
         std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
-    let r: compare::Regions = toml::from_str(&text).map_err(|e| {
-        let at = e
-            .span()
-            .map(|s| {
-                scene::Source {
-                    path: p,
-                    text: &text,
-                }
-                .line_column(s.start)
-            })
-            .unwrap_or((0, 0));
-        anyhow::anyhow!(
-            "{}:{}:{}: {}",
-            p.display(),
-            at.0,
-            at.1,
-            e.message().trim_end()
-        )
-    })?;
-    Ok(r.region)
+    Ok(compare::parse_regions(&text, p)?)
 }
 
 /// A comparison as a report section, with its images.
@@ -832,7 +812,7 @@ fn compare_command(a: CompareArgs) -> Result<i32, Failure> {
             r.test.1,
             r.reference.0,
             r.reference.1,
-            100.0 * (r.test.0 - r.reference.0) / r.reference.0.abs().max(f64::MIN_POSITIVE),
+            r.difference_percent(),
             r.z,
             r.p,
             if r.p <= c.alpha { "  DIFFERENT" } else { "" }

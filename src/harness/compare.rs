@@ -14,6 +14,7 @@
 use super::checks::z_with_tolerance;
 use crate::film::io::{read_exr, Layers};
 use crate::film::Film;
+use crate::scene::{SceneError, Source};
 use crate::stats::{multiple, welch_test};
 use serde::Deserialize;
 
@@ -155,6 +156,14 @@ pub struct Regions {
     pub region: Vec<Region>,
 }
 
+/// Parses a regions file (`[[region]]` tables); a TOML error names the file, line and column.
+pub fn parse_regions(text: &str, path: &std::path::Path) -> Result<Vec<Region>, SceneError> {
+    let r: Regions = toml::from_str(text).map_err(|e| {
+        Source { path, text }.error(e.span().unwrap_or(0..0), "", e.message().trim_end())
+    })?;
+    Ok(r.region)
+}
+
 impl Region {
     /// The pixel rectangle [x0, y0, x1, y1) of this region in a `w`×`h` image (at least one pixel).
     pub fn pixels(&self, w: usize, h: usize) -> Result<[usize; 4], String> {
@@ -193,6 +202,13 @@ pub struct RegionResult {
     pub z: f64,
     /// Two-sided p.
     pub p: f64,
+}
+
+impl RegionResult {
+    /// (test − reference)/|reference| in percent (a zero reference gives a huge, finite value).
+    pub fn difference_percent(&self) -> f64 {
+        100.0 * (self.test.0 - self.reference.0) / self.reference.0.abs().max(f64::MIN_POSITIVE)
+    }
 }
 
 /// Whole-image metrics per channel.

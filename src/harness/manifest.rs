@@ -2,7 +2,7 @@
 //! and so are keys that the check's kind does not use; every error names the manifest file,
 //! line, column and key. Paths (scenes, templates) are relative to the manifest's folder.
 
-use super::compare::{Region, Regions};
+use super::compare::{parse_regions, Region};
 use crate::integrators::Strategy;
 use crate::math::rng::Sampler;
 use crate::scene::{Scene, SceneError, Source};
@@ -606,7 +606,17 @@ fn check(
         abs_tol: positive(src, &d.abs_tol, &format!("{at}.abs_tol"))?,
         rel_tol: positive(src, &d.rel_tol, &format!("{at}.rel_tol"))?,
         bins,
-        reference: reference(src, base, &at, d, c.span(), kind_name)?,
+        reference: existing_file(
+            src,
+            base,
+            &at,
+            "reference",
+            &d.reference,
+            c.span(),
+            (*kind_name == "image_compare").then_some(
+                "missing; an image comparison needs a reference EXR (path relative to the manifest)",
+            ),
+        )?,
         regions: regions(src, base, &at, d)?,
         observer: observer(src, &at, d)?,
         measurement: existing_file(
@@ -616,7 +626,8 @@ fn check(
             "measurement",
             &d.measurement,
             c.span(),
-            *kind_name == "measured",
+            (*kind_name == "measured")
+                .then_some("missing; give the measurement file (path relative to the manifest)"),
         )?,
         sampler: sampler(src, &at, d)?,
         ladder: ladder(src, &at, d, c.span(), *kind_name == "convergence")?,
@@ -754,39 +765,6 @@ fn check(
     Ok(out)
 }
 
-/// The reference image of an image comparison: required for that kind, and must exist.
-fn reference(
-    src: &Source,
-    base: &Path,
-    at: &str,
-    d: &CheckDesc,
-    span: Range<usize>,
-    kind: &str,
-) -> Result<Option<PathBuf>, ManifestError> {
-    match &d.reference {
-        None if kind == "image_compare" => Err(err(
-            src,
-            span,
-            format!("{at}.reference"),
-            "missing; an image comparison needs a reference EXR (path relative to the manifest)"
-                .into(),
-        )),
-        None => Ok(None),
-        Some(r) => {
-            let p = base.join(r.get_ref());
-            if !p.is_file() {
-                return Err(err(
-                    src,
-                    r.span(),
-                    format!("{at}.reference"),
-                    format!("{} does not exist or is not a file", p.display()),
-                ));
-            }
-            Ok(Some(p))
-        }
-    }
-}
-
 /// The sample pattern named by `sampler` (default independent).
 fn sampler(src: &Source, at: &str, d: &CheckDesc) -> Result<Sampler, ManifestError> {
     let Some(v) = &d.sampler else {
@@ -873,7 +851,8 @@ fn slope(
     }
 }
 
-/// A file a kind needs (`required`), resolved against the manifest's folder; must exist.
+/// A file named by `key`, resolved against the manifest's folder; it must exist. When the kind
+/// requires it, `missing` is the message for its absence.
 fn existing_file(
     src: &Source,
     base: &Path,
@@ -881,16 +860,13 @@ fn existing_file(
     key: &str,
     v: &Option<Spanned<String>>,
     span: Range<usize>,
-    required: bool,
+    missing: Option<&str>,
 ) -> Result<Option<PathBuf>, ManifestError> {
     match v {
-        None if required => Err(err(
-            src,
-            span,
-            format!("{at}.{key}"),
-            format!("missing; give the {key} file (path relative to the manifest)"),
-        )),
-        None => Ok(None),
+        None => match missing {
+            Some(m) => Err(err(src, span, format!("{at}.{key}"), m.to_string())),
+            None => Ok(None),
+        },
         Some(r) => {
             let p = base.join(r.get_ref());
             if !p.is_file() {
@@ -926,22 +902,16 @@ fn regions(
             format!("cannot read {}: {e}", p.display()),
         )
     })?;
+    let regions = parse_regions(&text, &p)?;
     let rsrc = Source {
         path: &p,
         text: &text,
     };
-    let regions: Regions = toml::from_str(&text).map_err(|e| {
-        rsrc.error(
-            e.span().unwrap_or(0..0),
-            "",
-            e.message().trim_end().to_string(),
-        )
-    })?;
-    for reg in &regions.region {
+    for reg in &regions {
         reg.pixels(1, 1)
             .map_err(|m| rsrc.error(0..0, "region", m))?;
     }
-    Ok(regions.region)
+    Ok(regions)
 }
 
 /// The observer named by `observer` (default cie1931).

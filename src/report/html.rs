@@ -417,7 +417,7 @@ fn comparison_html(h: &mut String, s: &ComparisonSection) {
             r.test.1,
             r.reference.0,
             r.reference.1,
-            100.0 * (r.test.0 - r.reference.0) / r.reference.0.abs().max(f64::MIN_POSITIVE),
+            r.difference_percent(),
             r.z,
             r.p
         );

@@ -8,7 +8,7 @@
 
 use crate::root;
 use furnace::harness::checks::image;
-use furnace::harness::compare::{Region, Regions};
+use furnace::harness::compare::{Region, Regions, RgbImage};
 use furnace::harness::manifest::{self, CheckSpec};
 use furnace::harness::{BuiltIn, Context, Renderer};
 use furnace::integrators::PathTracer;
@@ -18,7 +18,7 @@ use furnace::spectrum::Observer;
 
 /// Whole-image mean of channel `c` and its standard error from the variance channels.
 fn image_mean(path: &str, c: usize) -> (f64, f64) {
-    let img = image::load_reference(&root(path)).unwrap();
+    let img = RgbImage::load(&root(path)).unwrap();
     let n = img.rgb[c].len() as f64;
     let v = img
         .variance
@@ -88,13 +88,13 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
     s.scene = Some(Scene::load(&root("scenes/furnace-sphere.toml")).unwrap());
     s.params.regions.clear();
     s.render.spp = Some(64);
-    let reference = image::load_reference(&root("reference/mitsuba/furnace-sphere.exr")).unwrap();
+    let reference = RgbImage::load(&root("reference/mitsuba/furnace-sphere.exr")).unwrap();
     let m = image::run_against(&s, &ctx(&BuiltIn), &reference).unwrap();
     assert!(m.p_value.unwrap() < 1e-4, "{}", m.message);
 
     // Negative control: the Cornell reference with the red wall 2 % brighter in R, G and B.
     let s = spec("mitsuba/cornell-box");
-    let reference = image::load_reference(&root("reference/mitsuba/cornell-box.exr")).unwrap();
+    let reference = RgbImage::load(&root("reference/mitsuba/cornell-box.exr")).unwrap();
     let wall = s
         .params
         .regions

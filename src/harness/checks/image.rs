@@ -11,11 +11,6 @@ use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
 
-/// Reads an EXR reference as linear RGB with optional variance channels.
-pub fn load_reference(path: &std::path::Path) -> Result<RgbImage, String> {
-    RgbImage::load(path)
-}
-
 /// Runs an image comparison with the reference read from the manifest's path.
 pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let path = spec
@@ -23,7 +18,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         .reference
         .as_ref()
         .ok_or("image_compare needs a reference")?;
-    run_against(spec, ctx, &load_reference(path)?)
+    run_against(spec, ctx, &RgbImage::load(path)?)
 }
 
 /// Runs an image comparison against `reference` (tests pass a deliberately wrong one).

@@ -26,7 +26,7 @@
 
 use super::{fmt_sig, settings_for};
 use crate::film::io;
-use crate::harness::compare::{Region, Regions};
+use crate::harness::compare::{parse_regions, Region};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
@@ -114,14 +114,7 @@ pub fn load(path: &Path) -> Result<MeasuredImages, String> {
             let p = base.join(r);
             let t = std::fs::read_to_string(&p)
                 .map_err(|e| at("regions", format!("cannot read {}: {e}", p.display())))?;
-            toml::from_str::<Regions>(&t)
-                .map_err(|e| {
-                    at(
-                        "regions",
-                        format!("{}: {}", p.display(), e.message().trim_end()),
-                    )
-                })?
-                .region
+            parse_regions(&t, &p).map_err(|e| at("regions", e.to_string()))?
         }
     };
     let fit_scale = match d.scale.as_deref() {
