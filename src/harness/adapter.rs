@@ -294,16 +294,16 @@ impl Renderer for External {
             .unwrap_or(["R".into(), "G".into(), "B".into()]);
         // Y of a flat spectrum: furnace's normalisation over the renderer's.
         let y_scale = Observer::Cie1931.white()[1] / native.white()[1];
+        let threads = if s.threads == 0 {
+            std::thread::available_parallelism().map_or(1, |n| n.get())
+        } else {
+            s.threads
+        };
         let mut film = Film::new(s.width, s.height);
         for b in 0..k {
             let out = dir.join(format!("batch-{b}.exr"));
             // Seeds below 2^31 (Mitsuba's sampler seed is a 32-bit integer).
             let seed = crate::math::rng::mix64(s.seed ^ b) % (1 << 31);
-            let threads = if s.threads == 0 {
-                std::thread::available_parallelism().map_or(1, |n| n.get())
-            } else {
-                s.threads
-            };
             let value = |key: &str| -> String {
                 match key {
                     "scene" => xml.display().to_string(),

@@ -150,12 +150,11 @@ impl Observer {
 
     /// Linear sRGB → XYZ: the inverse of [`Observer::xyz_to_rgb`] (identity for responses).
     pub fn rgb_to_xyz(&self, rgb: [f64; 3]) -> [f64; 3] {
-        let m = match self {
-            Observer::Cie1931 => &XYZ_TO_SRGB,
-            Observer::Mitsuba3 => &MITSUBA_XYZ_TO_SRGB,
+        let inv = match self {
+            Observer::Cie1931 => &SRGB_TO_XYZ,
+            Observer::Mitsuba3 => &MITSUBA_SRGB_TO_XYZ,
             Observer::Responses(_) => return rgb,
         };
-        let inv = invert3(m);
         std::array::from_fn(|r| inv[r][0] * rgb[0] + inv[r][1] * rgb[1] + inv[r][2] * rgb[2])
     }
 
@@ -172,15 +171,31 @@ impl Observer {
 }
 
 /// Inverse of a 3×3 matrix by cofactors (the sRGB matrices are well conditioned).
-fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
-    let c = |r: usize, k: usize| {
+/// Evaluated at compile time for the two matrices ([`SRGB_TO_XYZ`], [`MITSUBA_SRGB_TO_XYZ`]).
+const fn invert3(m: &[[f64; 3]; 3]) -> [[f64; 3]; 3] {
+    const fn cof(m: &[[f64; 3]; 3], r: usize, k: usize) -> f64 {
         let (r1, r2) = ((r + 1) % 3, (r + 2) % 3);
         let (k1, k2) = ((k + 1) % 3, (k + 2) % 3);
         m[r1][k1] * m[r2][k2] - m[r1][k2] * m[r2][k1]
-    };
-    let det = m[0][0] * c(0, 0) + m[0][1] * c(0, 1) + m[0][2] * c(0, 2);
-    std::array::from_fn(|r| std::array::from_fn(|k| c(k, r) / det))
+    }
+    let det = m[0][0] * cof(m, 0, 0) + m[0][1] * cof(m, 0, 1) + m[0][2] * cof(m, 0, 2);
+    let mut inv = [[0.0; 3]; 3];
+    let mut r = 0;
+    while r < 3 {
+        let mut k = 0;
+        while k < 3 {
+            inv[r][k] = cof(m, k, r) / det;
+            k += 1;
+        }
+        r += 1;
+    }
+    inv
 }
+
+/// Linear sRGB → XYZ for furnace's pipeline.
+const SRGB_TO_XYZ: [[f64; 3]; 3] = invert3(&XYZ_TO_SRGB);
+/// Linear sRGB → XYZ for Mitsuba 3's pipeline.
+const MITSUBA_SRGB_TO_XYZ: [[f64; 3]; 3] = invert3(&MITSUBA_XYZ_TO_SRGB);
 
 #[cfg(test)]
 mod tests {
