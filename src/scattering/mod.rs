@@ -34,6 +34,15 @@ pub trait Bxdf {
     fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample>;
     /// Pdf of sampling `wi` given `wo`, per unit solid angle; zero for delta lobes.
     fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64;
+    /// Refractive index of the medium on the side of `w` (relative to the side the normal
+    /// points to, which is 1), per wavelength. `eval` carries radiance, so across a
+    /// refractive interface it is not symmetric: f(wo, wi)/η(wo)² = f(wi, wo)/η(wi)²
+    /// (Veach 1997, PhD thesis, §5.2, the generalised reciprocity of non-symmetric BSDFs).
+    /// The adjoint (importance-carrying) BSDF used by light tracing is
+    /// f*(wo, wi) = f(wi, wo) = f(wo, wi)·η(wi)²/η(wo)².
+    fn eta(&self, _w: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
+        SampledSpectrum::ONE
+    }
 }
 
 /// The BSDFs a scene can use.
@@ -60,6 +69,12 @@ impl Bxdf for Bsdf {
     fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
         match self {
             Bsdf::Diffuse(b) => b.pdf(wo, wi, wl),
+        }
+    }
+    #[inline]
+    fn eta(&self, w: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        match self {
+            Bsdf::Diffuse(b) => b.eta(w, wl),
         }
     }
 }
