@@ -70,7 +70,9 @@ fn bvh_intersect(c: &mut Criterion) {
 /// Sampling four hero wavelengths and evaluating a 76-entry measured reflectance at them.
 fn spectrum_eval(c: &mut Criterion) {
     let scene = cornell();
-    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0];
+    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0] else {
+        panic!("the Cornell floor is diffuse")
+    };
     let mut g = c.benchmark_group("spectrum");
     g.throughput(Throughput::Elements(1024));
     g.bench_function("sample_wavelengths_and_eval_table_x1024", |b| {
@@ -90,7 +92,9 @@ fn spectrum_eval(c: &mut Criterion) {
 fn bsdf_sample_eval(c: &mut Criterion) {
     use furnace::scattering::Bxdf;
     let scene = cornell();
-    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0];
+    let furnace::scattering::Bsdf::Diffuse(white) = &scene.bsdfs[0] else {
+        panic!("the Cornell floor is diffuse")
+    };
     let wl = Wavelengths::sample_visible(0.37);
     let mut s = SampleStream::new(11, 0, 0);
     let cases: Vec<(Vec3, [f64; 2], f64)> = (0..1024)

@@ -275,7 +275,7 @@ fn export_command(a: ExportArgs) -> Result<i32, Failure> {
         std::fs::create_dir_all(&a.out)
             .with_context(|| format!("cannot create {}", a.out.display()))?;
         let p = a.out.join("scene.pbrt");
-        write_file(&p, &furnace::export::pbrt::export(&scene, "image.exr"))?;
+        write_file(&p, &furnace::export::pbrt::export(&scene, "image.exr")?)?;
         p
     } else {
         furnace::export::mitsuba::write(&scene, &a.out)

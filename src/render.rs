@@ -132,10 +132,14 @@ pub fn render(
                                 settings.spp,
                             );
                             let u_lambda = rng.next_f64();
-                            let wl = Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
+                            let mut wl =
+                                Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                            let l = settings.integrator.radiance(scene, ray, &wl, &mut rng);
+                            let l = settings.integrator.radiance(scene, ray, &mut wl, &mut rng);
+                            // After dispersion only the hero carries an estimate: it alone is
+                            // an unbiased single-wavelength estimate (weight 1, not 1/4).
+                            let lanes = if wl.secondary_terminated { 1 } else { lanes };
                             if grey {
                                 let xyz = white.map(|c| c * l.0[0]);
                                 px.add(xyz, observer.xyz_to_rgb(xyz));

@@ -24,7 +24,7 @@ use super::ExportError;
 use crate::geometry::Shape;
 use crate::lights::Light;
 use crate::math::Vec3;
-use crate::scattering::Bsdf;
+use crate::scattering::{Bsdf, ConductorFresnel, Ior};
 use crate::scene::Scene;
 use crate::spectrum::curve::planck;
 use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
@@ -86,13 +86,7 @@ pub fn export(scene: &Scene) -> Result<MitsubaScene, ExportError> {
                 boolean(&mut x, "flip_normals", m.flip_normals);
             }
         }
-        match &scene.bsdfs[i] {
-            Bsdf::Diffuse(l) => {
-                x.push_str("    <bsdf type=\"twosided\">\n      <bsdf type=\"diffuse\">\n");
-                spectrum(&mut x, 8, "reflectance", &l.reflectance);
-                x.push_str("      </bsdf>\n    </bsdf>\n");
-            }
-        }
+        bsdf(&mut x, i, &scene.bsdfs[i])?;
         if let Some(li) = scene.shape_light[i] {
             if let Light::Area {
                 radiance,
@@ -211,6 +205,80 @@ fn point(name: &str, p: Vec3) -> String {
         "<point name=\"{name}\" x=\"{}\" y=\"{}\" z=\"{}\"/>",
         p.x, p.y, p.z
     )
+}
+
+/// The `<bsdf>` of shape `i`: furnace's diffuse and conductor models are two-sided, Mitsuba's
+/// one-sided, so they are wrapped in `twosided`; GGX roughness is exported as Mitsuba's
+/// `alpha` with `distribution = ggx` (Mitsuba's microfacet models use the same separable
+/// Smith masking and visible-normal sampling).
+fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
+    let unsupported = |why: &str| ExportError::Unsupported {
+        format: FORMAT,
+        what: format!("shape[{i}] material"),
+        why: why.into(),
+    };
+    let rough = |x: &mut String, ax: f64, ay: f64, pad: &str| -> Result<(), ExportError> {
+        if ax != ay {
+            return Err(unsupported("anisotropic roughness: Mitsuba's tangent frame differs from furnace's, so alpha_u/alpha_v would not line up; use equal alpha_x and alpha_y"));
+        }
+        let _ = writeln!(x, "{pad}<string name=\"distribution\" value=\"ggx\"/>");
+        let _ = writeln!(x, "{pad}<float name=\"alpha\" value=\"{ax}\"/>");
+        Ok(())
+    };
+    match b {
+        Bsdf::Diffuse(l) => {
+            x.push_str("    <bsdf type=\"twosided\">\n      <bsdf type=\"diffuse\">\n");
+            spectrum(x, 8, "reflectance", &l.reflectance);
+            x.push_str("      </bsdf>\n    </bsdf>\n");
+        }
+        Bsdf::Conductor(c) => {
+            let kind = if c.is_smooth() {
+                "conductor"
+            } else {
+                "roughconductor"
+            };
+            let _ = writeln!(
+                x,
+                "    <bsdf type=\"twosided\">\n      <bsdf type=\"{kind}\">"
+            );
+            match &c.fresnel {
+                ConductorFresnel::Perfect => {
+                    x.push_str("        <string name=\"material\" value=\"none\"/>\n");
+                }
+                ConductorFresnel::Complex { eta, k } => {
+                    spectrum(x, 8, "eta", eta);
+                    spectrum(x, 8, "k", k);
+                }
+            }
+            if !c.is_smooth() {
+                rough(x, c.alpha_x, c.alpha_y, "        ")?;
+            }
+            x.push_str("      </bsdf>\n    </bsdf>\n");
+        }
+        Bsdf::Dielectric(d) => {
+            let Ior::Constant(n) = d.ior else {
+                return Err(unsupported("a dispersive index: Mitsuba 3's dielectrics take a constant int_ior; use a constant ior"));
+            };
+            let kind = if d.is_smooth() {
+                "dielectric"
+            } else {
+                "roughdielectric"
+            };
+            let _ = writeln!(x, "    <bsdf type=\"{kind}\">");
+            let _ = writeln!(x, "      <float name=\"int_ior\" value=\"{n}\"/>");
+            x.push_str("      <float name=\"ext_ior\" value=\"1\"/>\n");
+            if !d.is_smooth() {
+                rough(x, d.alpha_x, d.alpha_y, "      ")?;
+            }
+            x.push_str("    </bsdf>\n");
+        }
+        Bsdf::Ward(_) => {
+            return Err(unsupported(
+                "the bounded-albedo Ward model has no Mitsuba 3 plugin",
+            ))
+        }
+    }
+    Ok(())
 }
 
 fn boolean(x: &mut String, name: &str, v: bool) {

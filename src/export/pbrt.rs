@@ -20,16 +20,20 @@
 //!   inline `trianglemesh` with furnace's winding (pbrt's normal (p0 − p2) × (p1 − p2) equals
 //!   furnace's (p1 − p0) × (p2 − p0)); spheres with `Translate`.
 
+use super::ExportError;
 use crate::geometry::Shape;
 use crate::lights::Light;
 use crate::math::Vec3;
-use crate::scattering::Bsdf;
+use crate::scattering::{Bsdf, ConductorFresnel, Ior};
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use std::fmt::Write as _;
 
-/// The scene as pbrt-v4 text; `out` names the image pbrt writes.
-pub fn export(scene: &Scene, out: &str) -> String {
+const FORMAT: &str = "pbrt-v4";
+
+/// The scene as pbrt-v4 text; `out` names the image pbrt writes; models pbrt-v4 lacks are
+/// refused by name.
+pub fn export(scene: &Scene, out: &str) -> Result<String, ExportError> {
     let mut x = String::new();
     let r = &scene.render;
     let cam = &scene.camera;
@@ -98,15 +102,7 @@ pub fn export(scene: &Scene, out: &str) -> String {
     }
     for (i, shape) in scene.aggregate.shapes().iter().enumerate() {
         let _ = writeln!(x, "AttributeBegin  # shape[{i}]");
-        match &scene.bsdfs[i] {
-            Bsdf::Diffuse(l) => {
-                let _ = writeln!(
-                    x,
-                    "  Material \"diffuse\" {}",
-                    spectrum("reflectance", &l.reflectance)
-                );
-            }
-        }
+        let _ = writeln!(x, "  {}", material(i, &scene.bsdfs[i])?);
         if let Some(li) = scene.shape_light[i] {
             if let Light::Area {
                 radiance,
@@ -147,7 +143,7 @@ pub fn export(scene: &Scene, out: &str) -> String {
         }
         x.push_str("AttributeEnd\n");
     }
-    x
+    Ok(x)
 }
 
 fn v3(p: Vec3) -> String {
@@ -172,6 +168,52 @@ fn mesh(x: &mut String, p: &[Vec3], t: &[[u32; 3]]) {
 /// unit-luminance light times its unnormalised film read furnace's Y.
 fn luminance(s: &Spectrum) -> f64 {
     cie::tables().spectrum_to_xyz(s)[1]
+}
+
+/// The `Material` line of shape `i`. Roughness is passed as GGX α with `remaproughness`
+/// false (pbrt-v4's default remaps a perceptual roughness).
+fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
+    let rough = |ax: f64, ay: f64| {
+        format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" [ false ]")
+    };
+    Ok(match b {
+        Bsdf::Diffuse(l) => format!(
+            "Material \"diffuse\" {}",
+            spectrum("reflectance", &l.reflectance)
+        ),
+        Bsdf::Conductor(c) => {
+            let f = match &c.fresnel {
+                ConductorFresnel::Perfect => "\"rgb reflectance\" [ 1 1 1 ]".to_string(),
+                ConductorFresnel::Complex { eta, k } => {
+                    format!("{} {}", spectrum("eta", eta), spectrum("k", k))
+                }
+            };
+            format!("Material \"conductor\" {f} {}", rough(c.alpha_x, c.alpha_y))
+        }
+        Bsdf::Dielectric(d) => {
+            let eta = match &d.ior {
+                Ior::Constant(n) => format!("\"float eta\" [ {n} ]"),
+                Ior::Sellmeier { .. } => {
+                    let pairs: Vec<String> = (LAMBDA_MIN as u32..=LAMBDA_MAX as u32)
+                        .step_by(5)
+                        .map(|l| format!("{l} {}", d.ior.eval(l as f64)))
+                        .collect();
+                    format!("\"spectrum eta\" [ {} ]", pairs.join(" "))
+                }
+            };
+            format!(
+                "Material \"dielectric\" {eta} {}",
+                rough(d.alpha_x, d.alpha_y)
+            )
+        }
+        Bsdf::Ward(_) => {
+            return Err(ExportError::Unsupported {
+                format: FORMAT,
+                what: format!("shape[{i}] material"),
+                why: "pbrt-v4 has no bounded-albedo Ward model".into(),
+            })
+        }
+    })
 }
 
 fn spectrum(name: &str, s: &Spectrum) -> String {

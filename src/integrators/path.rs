@@ -78,7 +78,7 @@ impl PathTracer {
         &self,
         scene: &Scene,
         camera_ray: Ray,
-        wl: &Wavelengths,
+        wl: &mut Wavelengths,
         rng: &mut SampleStream,
     ) -> SampledSpectrum {
         let shapes = scene.aggregate.shapes();
@@ -127,6 +127,11 @@ impl PathTracer {
                 break;
             }
             let bsdf = &scene.bsdfs[hit.shape as usize];
+            if bsdf.separates_wavelengths() && !wl.secondary_terminated {
+                wl.terminate_secondary();
+                beta = SampledSpectrum([beta.0[0], 0.0, 0.0, 0.0]);
+            }
+            let wl = &*wl;
             let frame = Frame::from_normal(sp.n);
             let wo = frame.to_local(wo_world);
 

@@ -6,9 +6,18 @@
 //! solid angle; a sample's `weight` is f·|cos θi|/pdf. Delta lobes are flagged and never
 //! evaluated by `eval` or `pdf` (both return 0 for them).
 
+pub mod conductor;
+pub mod dielectric;
+pub mod fresnel;
 pub mod lambert;
+pub mod microfacet;
+pub mod ward;
 
+pub use conductor::{Conductor, ConductorFresnel};
+pub use dielectric::Dielectric;
+pub use fresnel::Ior;
 pub use lambert::Lambertian;
+pub use ward::Ward;
 
 use crate::math::Vec3;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
@@ -43,6 +52,12 @@ pub trait Bxdf {
     fn eta(&self, _w: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
         SampledSpectrum::ONE
     }
+    /// The smallest roughness of any lobe (GGX/Ward α): 0 for a delta lobe, +∞ for lobes
+    /// without a width (Lambert). Checks that integrate `eval` on a fixed grid skip lobes
+    /// narrower than the grid resolves, and say so.
+    fn roughness(&self) -> f64 {
+        f64::INFINITY
+    }
 }
 
 /// The BSDFs a scene can use.
@@ -50,31 +65,65 @@ pub trait Bxdf {
 pub enum Bsdf {
     /// Lambertian reflector.
     Diffuse(Lambertian),
+    /// Smooth or GGX-rough metal.
+    Conductor(Conductor),
+    /// Smooth or GGX-rough dielectric interface.
+    Dielectric(Dielectric),
+    /// Ward with bounded albedo.
+    Ward(Ward),
+}
+
+/// Dispatches a method call to the variant.
+macro_rules! each {
+    ($self:expr, $b:ident => $e:expr) => {
+        match $self {
+            Bsdf::Diffuse($b) => $e,
+            Bsdf::Conductor($b) => $e,
+            Bsdf::Dielectric($b) => $e,
+            Bsdf::Ward($b) => $e,
+        }
+    };
+}
+
+impl Bsdf {
+    /// True when the BSDF sends different wavelengths in different directions (a dispersive
+    /// dielectric): a path through it keeps only its hero wavelength.
+    pub fn separates_wavelengths(&self) -> bool {
+        matches!(self, Bsdf::Dielectric(d) if d.ior.is_dispersive())
+    }
+
+    /// True when nothing about the BSDF depends on wavelength (grey mode may be used).
+    pub fn is_constant(&self) -> bool {
+        match self {
+            Bsdf::Diffuse(l) => l.reflectance.is_constant(),
+            Bsdf::Conductor(c) => match &c.fresnel {
+                ConductorFresnel::Perfect => true,
+                ConductorFresnel::Complex { eta, k } => eta.is_constant() && k.is_constant(),
+            },
+            Bsdf::Dielectric(d) => !d.ior.is_dispersive(),
+            Bsdf::Ward(w) => w.diffuse.is_constant() && w.specular.is_constant(),
+        }
+    }
 }
 
 impl Bxdf for Bsdf {
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
-        match self {
-            Bsdf::Diffuse(b) => b.eval(wo, wi, wl),
-        }
+        each!(self, b => b.eval(wo, wi, wl))
     }
     #[inline]
     fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
-        match self {
-            Bsdf::Diffuse(b) => b.sample(wo, u, uc, wl),
-        }
+        each!(self, b => b.sample(wo, u, uc, wl))
     }
     #[inline]
     fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
-        match self {
-            Bsdf::Diffuse(b) => b.pdf(wo, wi, wl),
-        }
+        each!(self, b => b.pdf(wo, wi, wl))
     }
     #[inline]
     fn eta(&self, w: Vec3, wl: &Wavelengths) -> SampledSpectrum {
-        match self {
-            Bsdf::Diffuse(b) => b.eta(w, wl),
-        }
+        each!(self, b => b.eta(w, wl))
+    }
+    fn roughness(&self) -> f64 {
+        each!(self, b => b.roughness())
     }
 }

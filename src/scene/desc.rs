@@ -70,8 +70,26 @@ pub struct MaterialDesc {
     /// Material type.
     #[serde(rename = "type")]
     pub kind: Option<Spanned<String>>,
-    /// Reflectance spectrum.
+    /// Reflectance spectrum (diffuse).
     pub reflectance: Option<Spanned<Value>>,
+    /// Real part of a conductor's complex index (spectrum).
+    pub eta: Option<Spanned<Value>>,
+    /// Extinction coefficient of a conductor (spectrum).
+    pub k: Option<Spanned<Value>>,
+    /// A perfect mirror conductor (F = 1), instead of `eta` and `k`.
+    pub perfect: Option<Spanned<bool>>,
+    /// Dielectric index: a number, a glass name, or `{ sellmeier_b, sellmeier_c }`.
+    pub ior: Option<Spanned<Value>>,
+    /// Isotropic roughness (GGX α for conductors and dielectrics, slope α for Ward).
+    pub alpha: Option<Spanned<f64>>,
+    /// Roughness along the local x axis (anisotropic).
+    pub alpha_x: Option<Spanned<f64>>,
+    /// Roughness along the local y axis (anisotropic).
+    pub alpha_y: Option<Spanned<f64>>,
+    /// Ward diffuse reflectance.
+    pub diffuse: Option<Spanned<Value>>,
+    /// Ward specular reflectance.
+    pub specular: Option<Spanned<Value>>,
 }
 
 /// `[[shape]]`: the union of every shape type's keys.

@@ -14,14 +14,15 @@ use crate::camera::{fov_from_film, Camera};
 use crate::geometry::{mesh::TriangleMesh, meshio, quad::Quad, sphere::Sphere, Aggregate, Shape};
 use crate::lights::Light;
 use crate::math::Vec3;
-use crate::scattering::{Bsdf, Lambertian};
-use crate::spectrum::Spectrum;
+use crate::scattering::{Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward};
+use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use desc::{CameraDesc, LightDesc, MaterialDesc, RenderDesc, SceneDesc, ShapeDesc};
 use spectra::{Role, SpectrumParser};
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
+use toml::Value;
 
 /// Default image width and height when `[render]` does not set them, pixels.
 pub const DEFAULT_SIZE: usize = 256;
@@ -100,9 +101,7 @@ impl Scene {
     /// True when every spectrum in the scene is constant, so radiance does not depend on
     /// wavelength and the renderer may skip wavelength sampling (grey mode).
     pub fn is_grey(&self) -> bool {
-        let bsdfs = self.bsdfs.iter().all(|b| match b {
-            Bsdf::Diffuse(l) => l.reflectance.is_constant(),
-        });
+        let bsdfs = self.bsdfs.iter().all(Bsdf::is_constant);
         let lights = self.lights.iter().all(|l| match l {
             Light::Area { radiance, .. } | Light::Environment { radiance } => {
                 radiance.is_constant()
@@ -448,32 +447,210 @@ impl Builder<'_> {
         m: &Spanned<MaterialDesc>,
         parser: &SpectrumParser,
     ) -> Result<Bsdf, SceneError> {
+        const TYPES: &str = "\"diffuse\", \"conductor\", \"dielectric\", \"ward\"";
         let key = format!("materials.{name}");
         let d = m.get_ref();
         let kind = self.required(
             &d.kind,
             m.span(),
             &format!("{key}.type"),
-            "allowed types: \"diffuse\"",
+            &format!("allowed types: {TYPES}"),
         )?;
-        match kind.get_ref().as_str() {
-            "diffuse" => {
-                let r = self.required(
-                    &d.reflectance,
-                    m.span(),
-                    &format!("{key}.reflectance"),
-                    "a diffuse material needs a reflectance spectrum in [0, 1]",
-                )?;
-                let reflectance =
-                    parser.parse(r, &format!("{key}.reflectance"), Role::Reflectance)?;
-                Ok(Bsdf::Diffuse(Lambertian { reflectance }))
+        let span = |v: &Option<Spanned<Value>>| v.as_ref().map(|v| v.span());
+        let fspan = |v: &Option<Spanned<f64>>| v.as_ref().map(|v| v.span());
+        let present = [
+            ("reflectance", span(&d.reflectance)),
+            ("eta", span(&d.eta)),
+            ("k", span(&d.k)),
+            ("perfect", d.perfect.as_ref().map(|v| v.span())),
+            ("ior", span(&d.ior)),
+            ("alpha", fspan(&d.alpha)),
+            ("alpha_x", fspan(&d.alpha_x)),
+            ("alpha_y", fspan(&d.alpha_y)),
+            ("diffuse", span(&d.diffuse)),
+            ("specular", span(&d.specular)),
+        ];
+        let kind_str = kind.get_ref().as_str();
+        let allowed: &[&str] = match kind_str {
+            "diffuse" => &["reflectance"],
+            "conductor" => &["eta", "k", "perfect", "alpha", "alpha_x", "alpha_y"],
+            "dielectric" => &["ior", "alpha", "alpha_x", "alpha_y"],
+            "ward" => &["diffuse", "specular", "alpha", "alpha_x", "alpha_y"],
+            other => {
+                return Err(self.err(
+                    kind.span(),
+                    format!("{key}.type"),
+                    format!("unknown material type {other:?}; allowed: {TYPES}"),
+                ))
             }
-            other => Err(self.err(
-                kind.span(),
-                format!("{key}.type"),
-                format!("unknown material type {other:?}; allowed: \"diffuse\""),
-            )),
+        };
+        self.check_keys(&key, kind_str, allowed, &["type"], &present)?;
+        let spectrum = |v: &Option<Spanned<Value>>, k: &str, role: Role, what: &str| {
+            let s = self.required(v, m.span(), &format!("{key}.{k}"), what)?;
+            parser.parse(s, &format!("{key}.{k}"), role)
+        };
+        match kind_str {
+            "diffuse" => Ok(Bsdf::Diffuse(Lambertian {
+                reflectance: spectrum(
+                    &d.reflectance,
+                    "reflectance",
+                    Role::Reflectance,
+                    "a diffuse material needs a reflectance spectrum in [0, 1]",
+                )?,
+            })),
+            "conductor" => {
+                let (alpha_x, alpha_y) = self.roughness(&key, d, m.span(), true)?;
+                let fresnel = if d.perfect.as_ref().is_some_and(|p| *p.get_ref()) {
+                    if let Some(v) = d.eta.as_ref().or(d.k.as_ref()) {
+                        return Err(self.err(
+                            v.span(),
+                            format!("{key}.perfect"),
+                            "a perfect mirror has F = 1; remove eta and k, or remove perfect",
+                        ));
+                    }
+                    ConductorFresnel::Perfect
+                } else {
+                    let what = "a conductor needs its complex index as spectra `eta` (n > 0) and `k` (>= 0), or `perfect = true`";
+                    let eta = spectrum(&d.eta, "eta", Role::Index, what)?;
+                    let k = spectrum(&d.k, "k", Role::Index, what)?;
+                    let ((l, lo), _) = eta.extremes();
+                    if lo <= 0.0 {
+                        return Err(self.err(d.eta.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.eta"), format!("n = {lo} at {l} nm; the real part of a conductor's index must be > 0")));
+                    }
+                    ConductorFresnel::Complex { eta, k }
+                };
+                Ok(Bsdf::Conductor(Conductor {
+                    fresnel,
+                    alpha_x,
+                    alpha_y,
+                }))
+            }
+            "dielectric" => {
+                let (alpha_x, alpha_y) = self.roughness(&key, d, m.span(), true)?;
+                let v = self.required(&d.ior, m.span(), &format!("{key}.ior"), "a dielectric needs `ior`: a number > 0, a glass name (\"bk7\", \"fused-silica\") or { sellmeier_b = [3 numbers], sellmeier_c = [3 numbers, um^2] }")?;
+                let ior = self.ior(&format!("{key}.ior"), v)?;
+                Ok(Bsdf::Dielectric(Dielectric {
+                    ior,
+                    alpha_x,
+                    alpha_y,
+                }))
+            }
+            _ => {
+                let (alpha_x, alpha_y) = self.roughness(&key, d, m.span(), false)?;
+                let what = "a ward material needs `diffuse` and `specular` reflectance spectra with diffuse + specular <= 1";
+                let diffuse = spectrum(&d.diffuse, "diffuse", Role::Reflectance, what)?;
+                let specular = spectrum(&d.specular, "specular", Role::Reflectance, what)?;
+                let worst = (LAMBDA_MIN as u32..=LAMBDA_MAX as u32)
+                    .map(|l| (l, diffuse.eval(l as f64) + specular.eval(l as f64)))
+                    .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+                if worst.1 > 1.0 + 1e-12 {
+                    return Err(self.err(d.specular.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.specular"), format!("diffuse + specular = {} at {} nm; their sum must be <= 1 at every wavelength (energy conservation)", worst.1, worst.0)));
+                }
+                Ok(Bsdf::Ward(Ward {
+                    diffuse,
+                    specular,
+                    alpha_x,
+                    alpha_y,
+                }))
+            }
         }
+    }
+
+    /// `alpha` or `alpha_x` + `alpha_y`; absent = smooth (0) where `smooth_ok`. Allowed
+    /// roughness: [1e-4, 1] (Mitsuba clamps below 1e-4; above 1 the lobes are near-uniform).
+    fn roughness(
+        &self,
+        key: &str,
+        d: &MaterialDesc,
+        span: Range<usize>,
+        smooth_ok: bool,
+    ) -> Result<(f64, f64), SceneError> {
+        let check = |v: &Spanned<f64>, k: &str| -> Result<f64, SceneError> {
+            let a = *v.get_ref();
+            if (1e-4..=1.0).contains(&a) || (smooth_ok && a == 0.0) {
+                Ok(a)
+            } else {
+                Err(self.err(
+                    v.span(),
+                    format!("{key}.{k}"),
+                    format!(
+                        "{a} is outside the allowed roughness range [1e-4, 1]{}",
+                        if smooth_ok {
+                            " (or 0 for a smooth surface)"
+                        } else {
+                            ""
+                        }
+                    ),
+                ))
+            }
+        };
+        match (&d.alpha, &d.alpha_x, &d.alpha_y) {
+            (Some(a), None, None) => {
+                let a = check(a, "alpha")?;
+                Ok((a, a))
+            }
+            (None, Some(x), Some(y)) => {
+                let (ax, ay) = (check(x, "alpha_x")?, check(y, "alpha_y")?);
+                if (ax == 0.0) != (ay == 0.0) {
+                    return Err(self.err(x.span(), format!("{key}.alpha_x"), "alpha_x and alpha_y must both be 0 (smooth) or both >= 1e-4"));
+                }
+                Ok((ax, ay))
+            }
+            (None, None, None) if smooth_ok => Ok((0.0, 0.0)),
+            (Some(a), _, _) => Err(self.err(a.span(), format!("{key}.alpha"), "give either `alpha` or both `alpha_x` and `alpha_y`, not both forms")),
+            (None, Some(v), None) | (None, None, Some(v)) => Err(self.err(v.span(), key.to_string(), "anisotropic roughness needs both `alpha_x` and `alpha_y`")),
+            (None, None, None) => Err(self.err(span, format!("{key}.alpha"), "missing; a ward material needs a roughness `alpha` (or `alpha_x` and `alpha_y`) in [1e-4, 1]")),
+        }
+    }
+
+    /// A dielectric's index from a number, a glass name or Sellmeier coefficients.
+    fn ior(&self, key: &str, v: &Spanned<Value>) -> Result<Ior, SceneError> {
+        let err = |msg: String| self.err(v.span(), key.to_string(), msg);
+        let three = |t: &toml::Table, k: &str| -> Result<[f64; 3], SceneError> {
+            let arr = t
+                .get(k)
+                .and_then(|x| x.as_array())
+                .ok_or_else(|| err(format!("missing `{k}`: a list of 3 numbers")))?;
+            let nums: Vec<f64> = arr
+                .iter()
+                .filter_map(|x| x.as_float().or(x.as_integer().map(|i| i as f64)))
+                .collect();
+            if nums.len() != 3 || nums.iter().any(|x| !x.is_finite()) {
+                return Err(err(format!("`{k}` must be 3 finite numbers")));
+            }
+            Ok([nums[0], nums[1], nums[2]])
+        };
+        let ior = match v.get_ref() {
+            Value::Float(_) | Value::Integer(_) => {
+                let n = v.get_ref().as_float().or(v.get_ref().as_integer().map(|i| i as f64)).unwrap_or(f64::NAN);
+                if !(n.is_finite() && n > 0.0) {
+                    return Err(err(format!("{n}: an index must be a finite number > 0")));
+                }
+                Ior::Constant(n)
+            }
+            Value::String(s) => match s.as_str() {
+                "bk7" => Ior::BK7,
+                "fused-silica" => Ior::FUSED_SILICA,
+                other => return Err(err(format!("unknown glass {other:?}; known: \"bk7\", \"fused-silica\"; or give a number or {{ sellmeier_b, sellmeier_c }}"))),
+            },
+            Value::Table(t) => {
+                if let Some(bad) = t.keys().find(|k| *k != "sellmeier_b" && *k != "sellmeier_c") {
+                    return Err(err(format!("unknown key `{bad}`; allowed: sellmeier_b, sellmeier_c")));
+                }
+                Ior::Sellmeier { b: three(t, "sellmeier_b")?, c: three(t, "sellmeier_c")? }
+            }
+            other => return Err(err(format!("{other}: expected a number, a glass name or {{ sellmeier_b, sellmeier_c }}"))),
+        };
+        // Positive and finite over the whole range (a Sellmeier pole inside 360–830 nm is an error).
+        for l in LAMBDA_MIN as u32..=LAMBDA_MAX as u32 {
+            let n = ior.eval(l as f64);
+            if !(n.is_finite() && n > 0.0) {
+                return Err(err(format!(
+                    "the index is {n} at {l} nm; it must be finite and > 0 over 360-830 nm"
+                )));
+            }
+        }
+        Ok(ior)
     }
 
     /// Rejects keys present in a flat table that its type does not use.

@@ -16,6 +16,8 @@ pub enum Role {
     Reflectance,
     /// Radiance or intensity, ≥ 0.
     Emission,
+    /// A refractive index component (n or k), ≥ 0.
+    Index,
 }
 
 const TABLE_KEYS: [&str; 7] = [
@@ -81,6 +83,7 @@ impl<'a> SpectrumParser<'a> {
                 let (l, x) = if lo < 0.0 { (l_lo, lo) } else { (l_hi, hi) };
                 Err(self.src.error(span, key, format!("reflectance is {x} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))
             }
+            Role::Index if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; a refractive index (n or k) must be >= 0 at every wavelength"))),
             Role::Emission if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; emitted radiance and intensity must be >= 0 at every wavelength"))),
             _ => Ok(s),
         }

@@ -89,6 +89,9 @@ pub struct Wavelengths {
     pub lambda: [f64; N_WAVELENGTHS],
     /// Marginal pdf of each wavelength, per nm.
     pub pdf: [f64; N_WAVELENGTHS],
+    /// Set when the path met a surface that sends wavelengths apart (dispersion): only the
+    /// hero (index 0) still carries an estimate, and the film weights it alone.
+    pub secondary_terminated: bool,
 }
 
 // Visible-range importance pdf p(λ) ∝ sech²(A (λ - B)) on [360, 830] nm (Radziszewski, Boryczko
@@ -123,7 +126,11 @@ impl Wavelengths {
             lambda[i] = l;
             pdf[i] = Self::visible_pdf(l);
         }
-        Wavelengths { lambda, pdf }
+        Wavelengths {
+            lambda,
+            pdf,
+            secondary_terminated: false,
+        }
     }
 
     /// The visible-range pdf per nm at `lambda` (0 outside [360, 830] nm).
@@ -136,9 +143,19 @@ impl Wavelengths {
         VIS_NORM * (1.0 - t * t)
     }
 
+    /// Drops every wavelength but the hero (Wilkie et al. 2014, §4.3: once directions
+    /// depend on wavelength, the secondary wavelengths' paths no longer exist).
+    pub fn terminate_secondary(&mut self) {
+        self.secondary_terminated = true;
+    }
+
     /// Four fixed wavelengths with a given pdf; for tests and single-wavelength studies.
     pub fn fixed(lambda: [f64; N_WAVELENGTHS], pdf: [f64; N_WAVELENGTHS]) -> Self {
-        Wavelengths { lambda, pdf }
+        Wavelengths {
+            lambda,
+            pdf,
+            secondary_terminated: false,
+        }
     }
 }
 

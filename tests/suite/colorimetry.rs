@@ -46,6 +46,7 @@ fn cornell() -> (Scene, Vec<Spectrum>) {
     // shape order in the scene file: floor, ceiling, back, green (right) wall, red (left) wall, light, blocks
     let refl = scene.bsdfs.iter().map(|b| match b {
         Bsdf::Diffuse(l) => l.reflectance.clone(),
+        _ => panic!("the Cornell Box is all diffuse"),
     });
     let v = refl.collect();
     (scene, v)
