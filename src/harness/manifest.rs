@@ -97,7 +97,7 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 13] = [
+pub const KINDS: [(&str, &[&str]); 15] = [
     (
         "furnace",
         &[
@@ -131,6 +131,8 @@ pub const KINDS: [(&str, &[&str]); 13] = [
         &["samples", "theta_max_deg", "abs_tol", "rel_tol", "seed"],
     ),
     ("energy", &["samples", "theta_max_deg", "abs_tol", "seed"]),
+    ("albedo", &["samples", "theta_max_deg", "rel_tol", "seed"]),
+    ("smooth_limit", &["samples", "rel_tol", "seed"]),
     ("hg", &["g", "samples", "abs_tol", "bins", "seed"]),
     ("chi2", &["samples", "bins", "seed"]),
     (

@@ -8,7 +8,9 @@ use crate::geometry::{
 use crate::lights::Light;
 use crate::math::{warp, Vec3};
 use crate::media::{HenyeyGreenstein, Phase};
-use crate::scattering::{Bsdf, Bxdf, Lambertian};
+use crate::scattering::{
+    Bsdf, Bxdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward,
+};
 use crate::spectrum::{Outside, Spectrum, Wavelengths};
 
 /// Wavelengths (nm) at which BSDF-level checks evaluate spectral models.
@@ -16,34 +18,158 @@ pub fn check_wavelengths() -> Wavelengths {
     Wavelengths::fixed([380.0, 480.0, 580.0, 780.0], [1.0; 4])
 }
 
-/// Every BSDF configuration, by name.
+/// Lobes narrower than this (GGX/Ward α) are not integrated on the fixed quadrature grids of
+/// the energy and sample-weight checks (the grid cannot resolve them; Monte Carlo still runs).
+pub const QUADRATURE_MIN_ROUGHNESS: f64 = 0.2;
+
+/// Lobes narrower than this are not chi-square tested on the default sphere binning; the
+/// `smooth_limit` check covers them against the smooth model instead.
+pub const CHI2_MIN_ROUGHNESS: f64 = 0.05;
+
+fn conductor(n: f64, k: f64, ax: f64, ay: f64) -> Bsdf {
+    Bsdf::Conductor(Conductor {
+        fresnel: ConductorFresnel::Complex {
+            eta: Spectrum::Constant(n),
+            k: Spectrum::Constant(k),
+        },
+        alpha_x: ax,
+        alpha_y: ay,
+    })
+}
+
+fn perfect(alpha: f64) -> Bsdf {
+    Bsdf::Conductor(Conductor {
+        fresnel: ConductorFresnel::Perfect,
+        alpha_x: alpha,
+        alpha_y: alpha,
+    })
+}
+
+fn dielectric(ior: Ior, alpha: f64) -> Bsdf {
+    Bsdf::Dielectric(Dielectric {
+        ior,
+        alpha_x: alpha,
+        alpha_y: alpha,
+    })
+}
+
+/// Every BSDF configuration, by name: each model at ordinary settings, the lossless and
+/// white limits used by the albedo check, and the extremes (roughness 1e-4, index 1.0001).
 pub fn bsdfs() -> Vec<(String, Bsdf)> {
     let ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![0.05, 0.95], Outside::Clamp, 1.0)
         .expect("valid ramp");
+    let n_ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![1.2, 0.2], Outside::Clamp, 1.0)
+        .expect("valid ramp");
+    let k_ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![2.0, 4.0], Outside::Clamp, 1.0)
+        .expect("valid ramp");
+    let diffuse = |r: Spectrum| Bsdf::Diffuse(Lambertian { reflectance: r });
+    let ward = |d: f64, s: f64, ax: f64, ay: f64| {
+        Bsdf::Ward(Ward {
+            diffuse: Spectrum::Constant(d),
+            specular: Spectrum::Constant(s),
+            alpha_x: ax,
+            alpha_y: ay,
+        })
+    };
     vec![
+        ("diffuse/0.5".into(), diffuse(Spectrum::Constant(0.5))),
+        ("diffuse/1".into(), diffuse(Spectrum::Constant(1.0))),
+        ("diffuse/0".into(), diffuse(Spectrum::Constant(0.0))),
+        ("diffuse/spectral-ramp".into(), diffuse(ramp)),
         (
-            "diffuse/0.5".into(),
-            Bsdf::Diffuse(Lambertian {
-                reflectance: Spectrum::Constant(0.5),
+            "conductor/smooth n=0.2 k=3".into(),
+            conductor(0.2, 3.0, 0.0, 0.0),
+        ),
+        ("conductor/smooth perfect".into(), perfect(0.0)),
+        (
+            "conductor/ggx α=0.3 spectral n,k".into(),
+            Bsdf::Conductor(Conductor {
+                fresnel: ConductorFresnel::Complex {
+                    eta: n_ramp,
+                    k: k_ramp,
+                },
+                alpha_x: 0.3,
+                alpha_y: 0.3,
             }),
         ),
         (
-            "diffuse/1".into(),
-            Bsdf::Diffuse(Lambertian {
-                reflectance: Spectrum::Constant(1.0),
-            }),
+            "conductor/ggx αx=0.1 αy=0.5".into(),
+            conductor(1.5, 2.0, 0.1, 0.5),
+        ),
+        ("conductor/ggx α=0.05 perfect".into(), perfect(0.05)),
+        ("conductor/ggx α=0.3 perfect".into(), perfect(0.3)),
+        ("conductor/ggx α=1 perfect".into(), perfect(1.0)),
+        (
+            "conductor/ggx α=1e-4".into(),
+            conductor(0.2, 3.0, 1e-4, 1e-4),
         ),
         (
-            "diffuse/0".into(),
-            Bsdf::Diffuse(Lambertian {
-                reflectance: Spectrum::Constant(0.0),
-            }),
+            "dielectric/smooth η=1.5".into(),
+            dielectric(Ior::Constant(1.5), 0.0),
+        ),
+        ("dielectric/smooth bk7".into(), dielectric(Ior::BK7, 0.0)),
+        (
+            "dielectric/smooth η=1.0001".into(),
+            dielectric(Ior::Constant(1.0001), 0.0),
         ),
         (
-            "diffuse/spectral-ramp".into(),
-            Bsdf::Diffuse(Lambertian { reflectance: ramp }),
+            "dielectric/ggx α=0.1 η=1.5".into(),
+            dielectric(Ior::Constant(1.5), 0.1),
+        ),
+        (
+            "dielectric/ggx α=0.5 η=1.5".into(),
+            dielectric(Ior::Constant(1.5), 0.5),
+        ),
+        ("dielectric/ggx α=0.3 bk7".into(), dielectric(Ior::BK7, 0.3)),
+        (
+            "dielectric/ggx α=0.3 η=1.0001".into(),
+            dielectric(Ior::Constant(1.0001), 0.3),
+        ),
+        (
+            "dielectric/ggx α=1e-4 η=1.5".into(),
+            dielectric(Ior::Constant(1.5), 1e-4),
+        ),
+        ("ward/ρd=0.3 ρs=0.6 α=0.2".into(), ward(0.3, 0.6, 0.2, 0.2)),
+        (
+            "ward/ρd=0 ρs=1 αx=0.1 αy=0.4".into(),
+            ward(0.0, 1.0, 0.1, 0.4),
         ),
     ]
+}
+
+/// What a BSDF's directional albedo (with the η² factor of [`crate::scattering::Bxdf::eta`],
+/// i.e. the fraction of power scattered) must be, for the models where it is known.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AlbedoExpectation {
+    /// Exactly 1 at the hero wavelength and every angle (smooth dielectric, perfect mirror).
+    Lossless,
+    /// A white microfacet model (F = 1 or a lossless interface): 1 minus the single-scattering
+    /// loss, which must lie in [min_loss, max_loss] at every tested angle (measured bounds;
+    /// README, "Energy loss of the rough models").
+    SingleScatteringLoss {
+        /// Smallest loss allowed.
+        min_loss: f64,
+        /// Largest loss allowed.
+        max_loss: f64,
+    },
+}
+
+/// The albedo expectations of the registered models that have one.
+pub fn albedo_expectation(name: &str) -> Option<AlbedoExpectation> {
+    use AlbedoExpectation::*;
+    let loss = |min_loss, max_loss| Some(SingleScatteringLoss { min_loss, max_loss });
+    match name {
+        "conductor/smooth perfect"
+        | "dielectric/smooth η=1.5"
+        | "dielectric/smooth bk7"
+        | "dielectric/smooth η=1.0001" => Some(Lossless),
+        "conductor/ggx α=0.05 perfect" => loss(0.0, 0.12),
+        "conductor/ggx α=0.3 perfect" => loss(0.10, 0.20),
+        "conductor/ggx α=1 perfect" => loss(0.37, 0.71),
+        "dielectric/ggx α=0.1 η=1.5" => loss(0.0, 0.09),
+        "dielectric/ggx α=0.5 η=1.5" => loss(0.02, 0.40),
+        _ => None,
+    }
 }
 
 /// Borrows named BSDFs as trait objects, the form the model-level checks take (so that
@@ -158,6 +284,9 @@ pub type MakeSampler = Box<dyn Fn() -> Box<dyn DirectionSampler>>;
 pub fn samplers() -> Vec<(String, MakeSampler)> {
     let mut v: Vec<(String, MakeSampler)> = Vec::new();
     for (name, bsdf) in bsdfs() {
+        if bsdf.roughness() < CHI2_MIN_ROUGHNESS {
+            continue;
+        }
         for theta in [0.0f64, 45.0, 80.0, 89.0] {
             let wo = Vec3::new(theta.to_radians().sin(), 0.0, theta.to_radians().cos());
             let b = bsdf.clone();

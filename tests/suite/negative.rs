@@ -490,3 +490,223 @@ fn convergence_rejects_an_error_floor() {
     let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
+
+/// A rough conductor wrapper with one of the classic microfacet bugs.
+struct BrokenConductor {
+    inner: furnace::scattering::Bsdf,
+    /// Drop the masking term G1(wi) from the sample weight (and eval), i.e. G = G1(wo) only.
+    no_masking: bool,
+    /// Drop the Fresnel factor (F = 1) from the sample weight.
+    no_fresnel: bool,
+}
+
+impl BrokenConductor {
+    fn of(registry_name: &str, no_masking: bool, no_fresnel: bool) -> Self {
+        let inner = furnace::harness::registry::bsdfs()
+            .into_iter()
+            .find(|(n, _)| n == registry_name)
+            .unwrap()
+            .1;
+        BrokenConductor {
+            inner,
+            no_masking,
+            no_fresnel,
+        }
+    }
+    fn g1_wi(&self, wo: Vec3, wi: Vec3) -> f64 {
+        let furnace::scattering::Bsdf::Conductor(c) = &self.inner else {
+            unreachable!()
+        };
+        let g = furnace::scattering::microfacet::Ggx {
+            alpha_x: c.alpha_x,
+            alpha_y: c.alpha_y,
+        };
+        let (o, i) = (
+            Vec3::new(wo.x, wo.y, wo.z.abs()),
+            Vec3::new(wi.x, wi.y, wi.z.abs()),
+        );
+        g.g1(i, (o + i).normalize())
+    }
+}
+
+impl Bxdf for BrokenConductor {
+    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        let f = self.inner.eval(wo, wi, wl);
+        if self.no_masking && !f.is_black() {
+            f * (1.0 / self.g1_wi(wo, wi))
+        } else {
+            f
+        }
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        let mut s = self.inner.sample(wo, u, uc, wl)?;
+        if self.no_masking {
+            s.weight *= 1.0 / self.g1_wi(wo, s.wi);
+        }
+        if self.no_fresnel {
+            s.weight = SampledSpectrum::splat(self.g1_wi(wo, s.wi));
+        }
+        Some(s)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
+        self.inner.pdf(wo, wi, wl)
+    }
+    fn roughness(&self) -> f64 {
+        self.inner.roughness()
+    }
+}
+
+#[test]
+fn albedo_rejects_a_microfacet_model_missing_its_masking_term() {
+    use furnace::harness::checks::albedo;
+    use furnace::harness::registry::{albedo_expectation, AlbedoExpectation};
+    let name = "conductor/ggx α=0.3 perfect";
+    let expect = albedo_expectation(name).unwrap();
+    assert!(matches!(
+        expect,
+        AlbedoExpectation::SingleScatteringLoss { .. }
+    ));
+    let good = albedo::measure(
+        &BrokenConductor::of(name, false, false),
+        expect,
+        89.99,
+        20_000,
+        1e-12,
+        1,
+    );
+    assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
+    let bad = albedo::measure(
+        &BrokenConductor::of(name, true, false),
+        expect,
+        89.99,
+        20_000,
+        1e-12,
+        1,
+    );
+    assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
+}
+
+/// A smooth dielectric that forgets the (η_o/η_i)² radiance scaling on transmission.
+struct GlassWithoutEtaScaling(furnace::scattering::Dielectric);
+
+impl Bxdf for GlassWithoutEtaScaling {
+    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        self.0.eval(wo, wi, wl)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        let mut s = self.0.sample(wo, u, uc, wl)?;
+        if s.wi.z * wo.z < 0.0 {
+            s.weight = SampledSpectrum::ONE;
+        }
+        Some(s)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
+        self.0.pdf(wo, wi, wl)
+    }
+    fn eta(&self, w: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        self.0.eta(w, wl)
+    }
+    fn roughness(&self) -> f64 {
+        0.0
+    }
+}
+
+#[test]
+fn albedo_rejects_glass_without_radiance_scaling() {
+    use furnace::harness::checks::albedo;
+    use furnace::harness::registry::AlbedoExpectation;
+    use furnace::scattering::{Dielectric, Ior};
+    let glass = Dielectric {
+        ior: Ior::Constant(1.5),
+        alpha_x: 0.0,
+        alpha_y: 0.0,
+    };
+    let m = albedo::measure(
+        &GlassWithoutEtaScaling(glass),
+        AlbedoExpectation::Lossless,
+        89.99,
+        2_000,
+        1e-12,
+        1,
+    );
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+/// A rough dielectric whose transmission carries η_i² instead of η_o² (Walter et al. 2007,
+/// eq. 21 with the indices swapped): not reciprocal in the generalised sense.
+struct SwappedEtaBtdf(furnace::scattering::Dielectric);
+
+impl Bxdf for SwappedEtaBtdf {
+    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        let (eo, ei) = (self.0.eta(wo, wl), self.0.eta(wi, wl));
+        let f = self.0.eval(wo, wi, wl);
+        SampledSpectrum(std::array::from_fn(|k| {
+            f.0[k] * (ei.0[k] / eo.0[k]).powi(2)
+        }))
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        self.0.sample(wo, u, uc, wl)
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
+        self.0.pdf(wo, wi, wl)
+    }
+    fn eta(&self, w: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        self.0.eta(w, wl)
+    }
+}
+
+#[test]
+fn reciprocity_rejects_a_btdf_with_swapped_indices() {
+    use furnace::scattering::{Dielectric, Ior};
+    let d = Dielectric {
+        ior: Ior::Constant(1.5),
+        alpha_x: 0.3,
+        alpha_y: 0.3,
+    };
+    let good = reciprocity::measure(
+        &[("rough glass".into(), &d as &dyn Bxdf)],
+        2000,
+        89.99,
+        1e-12,
+        1e-9,
+        1,
+    );
+    assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
+    let bad = SwappedEtaBtdf(d);
+    let m = reciprocity::measure(
+        &[("swapped η".into(), &bad as &dyn Bxdf)],
+        2000,
+        89.99,
+        1e-12,
+        1e-9,
+        1,
+    );
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
+    use furnace::harness::checks::smooth_limit;
+    let (rough, smooth) = smooth_limit::PAIRS[0];
+    let smooth_model = furnace::harness::registry::bsdfs()
+        .into_iter()
+        .find(|(n, _)| n == smooth)
+        .unwrap()
+        .1;
+    let good = smooth_limit::measure(
+        &BrokenConductor::of(rough, false, false),
+        &smooth_model,
+        20_000,
+        1e-3,
+        1,
+    );
+    assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
+    let bad = smooth_limit::measure(
+        &BrokenConductor::of(rough, false, true),
+        &smooth_model,
+        20_000,
+        1e-3,
+        1,
+    );
+    assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
+}

@@ -10,7 +10,7 @@ use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
 use crate::lights::Light;
-use crate::scattering::Bsdf;
+use crate::scattering::{Bsdf, ConductorFresnel};
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -23,6 +23,16 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     }
 }
 
+/// True for BSDFs whose directional albedo is exactly 1 everywhere: a smooth dielectric with
+/// a constant index (R + T = 1 in power; Born & Wolf §1.5.3) and a perfect smooth mirror.
+fn lossless(b: &Bsdf) -> bool {
+    match b {
+        Bsdf::Dielectric(d) => d.is_smooth() && !d.ior.is_dispersive(),
+        Bsdf::Conductor(c) => c.is_smooth() && c.fresnel == ConductorFresnel::Perfect,
+        _ => false,
+    }
+}
+
 /// The closed-form radiance (Y) a furnace scene must show, with a description.
 pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String), String> {
     let albedos: Vec<f64> = scene
@@ -30,8 +40,13 @@ pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String
         .iter()
         .map(|b| match b {
             Bsdf::Diffuse(l) => constant(&l.reflectance, "a reflectance"),
+            b if lossless(b) => Ok(1.0),
+            _ => Err("a furnace scene needs Lambertian surfaces or lossless ones (a smooth dielectric with a constant index, a perfect smooth mirror); other models reflect a direction-dependent fraction".to_string()),
         })
         .collect::<Result<_, _>>()?;
+    if max_depth.is_some() && scene.bsdfs.iter().any(|b| !matches!(b, Bsdf::Diffuse(_))) {
+        return Err("lossless specular objects need unlimited depth: light may bounce inside them any number of times before it leaves".into());
+    }
     let r = albedos
         .first()
         .copied()
@@ -100,7 +115,7 @@ pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String
 }
 
 /// Checks that the region sees what the closed form assumes: in the white-furnace form every
-/// camera ray of the region hits the (single) object; in the enclosure form every ray hits a
+/// camera ray of the region hits the (single) object, unless every surface is lossless; in the enclosure form every ray hits a
 /// surface whose emission faces the camera (no escaping rays, no back of a one-sided emitter).
 pub fn validate_view(
     scene: &Scene,
@@ -112,8 +127,17 @@ pub fn validate_view(
         .lights
         .iter()
         .any(|l| matches!(l, Light::Environment { .. }));
+    // With every surface lossless (albedo 1) any arrangement reads L everywhere, escaping
+    // rays included: each path ends in the environment with its full weight.
+    let all_white = scene.bsdfs.iter().all(|b| match b {
+        Bsdf::Diffuse(l) => l.reflectance == Spectrum::Constant(1.0),
+        b => lossless(b),
+    });
+    if white && all_white {
+        return Ok(());
+    }
     if white && scene.aggregate.shapes().len() != 1 {
-        return Err("the white-furnace form needs exactly one (convex) object: others would be lit by its reflection".into());
+        return Err("the white-furnace form needs exactly one (convex) object unless every surface is lossless: others would be lit by its reflection".into());
     }
     super::lambert::per_pixel(scene, width, height, region, &|hit, d| {
         let hit = hit.ok_or("a camera ray of the region escapes: the region must see only the object (white furnace) or the enclosure")?;

@@ -156,7 +156,9 @@ pub fn reflected(
     d: Vec3,
 ) -> Result<f64, String> {
     let hit = hit.ok_or("a camera ray of the region hits nothing")?;
-    let Bsdf::Diffuse(l) = &scene.bsdfs[hit.shape as usize];
+    let Bsdf::Diffuse(l) = &scene.bsdfs[hit.shape as usize] else {
+        return Err("the lambert region must see a Lambertian (diffuse) surface".into());
+    };
     let r = constant(&l.reflectance)?;
     if scene.shape_light[hit.shape as usize].is_some() {
         return Err("the lambert region must see a non-emitting surface".into());

@@ -1,6 +1,7 @@
 //! The check kinds, one file each, and the helpers scene-level kinds share: rendering a
 //! region of an image and turning it into a mean, a standard error and a stability verdict.
 
+pub mod albedo;
 pub mod chi2;
 pub mod convergence;
 pub mod energy;
@@ -13,6 +14,7 @@ pub mod measured;
 pub mod radiance;
 pub mod reciprocity;
 pub mod scale;
+pub mod smooth_limit;
 pub mod weights;
 
 use super::manifest::{CheckSpec, RenderOverrides};
@@ -30,6 +32,8 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "lambert" => lambert::run(spec, ctx),
         "reciprocity" => reciprocity::run(spec, ctx),
         "energy" => energy::run(spec, ctx),
+        "albedo" => albedo::run(spec, ctx),
+        "smooth_limit" => smooth_limit::run(spec, ctx),
         "hg" => hg::run(spec, ctx),
         "chi2" => chi2::run(spec, ctx),
         "radiance_invariance" => radiance::run(spec, ctx),

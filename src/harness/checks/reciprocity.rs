@@ -1,5 +1,7 @@
 //! Reciprocity: f(wo, wi) = f(wi, wo) for every BSDF (Helmholtz reciprocity; Veach 1997,
 //! §6.2, eq. 6.3), over random direction pairs on the whole sphere including grazing angles.
+//! Refractive models carry radiance, so the compared quantities are f(wo, wi)/η(wo)² and
+//! f(wi, wo)/η(wi)² (Veach 1997, §5.2; [`Bxdf::eta`]), which is plain symmetry when η = 1.
 //! Deterministic: passes when max |f(a,b) − f(b,a)| ≤ abs_tol + rel_tol·max|f|.
 
 use super::fmt_sig;
@@ -8,6 +10,7 @@ use crate::harness::outcome::Statistic;
 use crate::harness::{registry, Context, Measurement};
 use crate::math::{rng::SampleStream, Vec3, PI};
 use crate::scattering::Bxdf;
+use crate::spectrum::SampledSpectrum;
 
 /// A random direction with |cos θ| ≥ cos(θmax), either hemisphere; every 8th one exactly at θmax.
 pub fn direction(rng: &mut SampleStream, theta_max_deg: f64, i: u64) -> Vec3 {
@@ -40,8 +43,11 @@ pub fn measure(
         for i in 0..pairs {
             let a = direction(&mut rng, theta_max_deg, i);
             let c = direction(&mut rng, theta_max_deg, i + 3);
+            let (ea, ec) = (b.eta(a, &wl), b.eta(c, &wl));
             let f1 = b.eval(a, c, &wl);
             let f2 = b.eval(c, a, &wl);
+            let f1 = SampledSpectrum(std::array::from_fn(|k| f1.0[k] / (ea.0[k] * ea.0[k])));
+            let f2 = SampledSpectrum(std::array::from_fn(|k| f2.0[k] / (ec.0[k] * ec.0[k])));
             for k in 0..4 {
                 let err = (f1.0[k] - f2.0[k]).abs();
                 let scale = f1.0[k].abs().max(f2.0[k].abs());
@@ -53,7 +59,7 @@ pub fn measure(
                         err,
                         scale,
                         format!(
-                            "{name}: f(wo,wi) = {} vs f(wi,wo) = {} at wo {:?}, wi {:?}",
+                            "{name}: f(wo,wi)/η(wo)² = {} vs f(wi,wo)/η(wi)² = {} at wo {:?}, wi {:?}",
                             fmt_sig(f1.0[k]),
                             fmt_sig(f2.0[k]),
                             a.to_array(),

@@ -1,0 +1,153 @@
+//! Albedo of the models whose albedo is known: the power albedo (energy::albedo_mc, the η²
+//! factor included) of every registered model with an [`AlbedoExpectation`], at θo from 0° to
+//! 89.99°. Lossless models (smooth dielectric, perfect mirror) must scatter exactly all power
+//! at the hero wavelength (deterministic, rel_tol); white microfacet models must lose a
+//! fraction within their stated single-scattering band (z tests against the band's edges,
+//! Šidák-combined). Non-finite weights fail the check.
+
+use super::energy::{albedo_mc, outgoing};
+use super::{combine, fmt_sig};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::outcome::Statistic;
+use crate::harness::registry::{self, AlbedoExpectation};
+use crate::harness::{Context, Measurement};
+use crate::math::rng::{mix64, SampleStream};
+use crate::scattering::Bxdf;
+use crate::stats::normal_sf;
+
+/// Measures one model against its expectation with `samples` samples per angle.
+pub fn measure(
+    b: &dyn Bxdf,
+    expect: AlbedoExpectation,
+    theta_max_deg: f64,
+    samples: u64,
+    rel_tol: f64,
+    seed: u64,
+) -> Measurement {
+    let mut rng = SampleStream::new(seed, 6, 0);
+    let mut parts = Vec::new();
+    for wo in outgoing(theta_max_deg) {
+        let theta = wo.z.acos().to_degrees();
+        let (mean, se, bad) = albedo_mc(b, wo, samples, &mut rng);
+        let (a, s) = (mean[0], se[0]);
+        let m = match expect {
+            AlbedoExpectation::Lossless => {
+                let err = (a - 1.0).abs();
+                Measurement {
+                    estimate: Some(a),
+                    std_error: Some(s),
+                    expected: Some(1.0),
+                    statistic: Some(Statistic::Tolerance {
+                        max_error: err,
+                        abs_tol: rel_tol,
+                        rel_tol: 0.0,
+                    }),
+                    deterministic_pass: Some(bad == 0 && err <= rel_tol),
+                    samples,
+                    ..Default::default()
+                }
+            }
+            AlbedoExpectation::SingleScatteringLoss { min_loss, max_loss } => {
+                let (lo, hi) = (1.0 - max_loss, 1.0 - min_loss);
+                // Two one-sided z tests (H0: a ≥ lo and H0: a ≤ hi); p = 2·Φ(min z), capped at 1.
+                let (p, z) = if bad > 0 || (s.is_nan() || s < 0.0) {
+                    (0.0, f64::NAN)
+                } else if s == 0.0 {
+                    (if (lo..=hi).contains(&a) { 1.0 } else { 0.0 }, 0.0)
+                } else {
+                    let (z_lo, z_hi) = ((a - lo) / s, (hi - a) / s);
+                    let z = z_lo.min(z_hi);
+                    ((2.0 * normal_sf(-z)).min(1.0), z)
+                };
+                Measurement {
+                    estimate: Some(a),
+                    std_error: Some(s),
+                    expected: Some(0.5 * (lo + hi)),
+                    statistic: Some(Statistic::Z { z }),
+                    p_value: Some(p),
+                    samples,
+                    message: format!("band [{}, {}]", fmt_sig(lo), fmt_sig(hi)),
+                    ..Default::default()
+                }
+            }
+        };
+        parts.push((
+            format!(
+                "θo {theta:.2}°{}",
+                if bad > 0 {
+                    format!(" ({bad} non-finite weights)")
+                } else {
+                    String::new()
+                }
+            ),
+            m,
+        ));
+    }
+    combine(parts)
+}
+
+/// Runs the albedo check over every registered BSDF that states an expectation.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let p = &spec.params;
+    let samples = p.samples.unwrap_or(20_000);
+    let theta = p.theta_max_deg.unwrap_or(89.99);
+    let rel_tol = p.rel_tol.unwrap_or(1e-12);
+    let mut parts = Vec::new();
+    for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
+        if let Some(e) = registry::albedo_expectation(name) {
+            parts.push((
+                name.clone(),
+                measure(b, e, theta, samples, rel_tol, mix64(ctx.seed ^ i as u64)),
+            ));
+        }
+    }
+    let mut m = combine(parts);
+    m.message = format!(
+        "power albedo at the hero wavelength vs the model's stated value; {}",
+        m.message
+    );
+    Ok(m)
+}
+
+/// The albedo table of the README ("Energy loss of the rough models"): power albedo at the
+/// hero wavelength of the white rough models, by θo, from `samples` samples each.
+pub fn loss_table(samples: u64) -> String {
+    let angles: [f64; 6] = [0.0, 30.0, 60.0, 80.0, 89.0, 89.99];
+    let mut out = String::from("| model |");
+    for a in angles {
+        out.push_str(&format!(" θo = {a}° |"));
+    }
+    out.push_str("\n| --- |");
+    out.push_str(&" ---: |".repeat(angles.len()));
+    out.push('\n');
+    for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
+        let Some(AlbedoExpectation::SingleScatteringLoss { .. }) =
+            registry::albedo_expectation(name)
+        else {
+            continue;
+        };
+        out.push_str(&format!("| {name} |"));
+        let mut rng = SampleStream::new(mix64(i as u64), 7, 0);
+        for a in angles {
+            let t: f64 = a.to_radians();
+            let wo = crate::math::Vec3::new(t.sin(), 0.0, t.cos());
+            let (mean, se, _) = albedo_mc(b, wo, samples, &mut rng);
+            out.push_str(&format!(" {:.4} ± {:.4} |", mean[0], se[0]));
+        }
+        out.push('\n');
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Prints the README's loss table:
+    /// `cargo test --release --lib albedo::tests::print_loss_table -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn print_loss_table() {
+        println!("{}", loss_table(1_000_000));
+    }
+}
