@@ -208,9 +208,45 @@ fn every_bundled_scene_exports_and_reads_back() {
                 }
             }
             let bsdf = node.children.iter().find(|c| c.name == "bsdf").unwrap();
-            assert_eq!(bsdf.attrs["type"], "twosided", "{what}");
-            let furnace::scattering::Bsdf::Diffuse(l) = &scene.bsdfs[i];
-            check_spectrum(&bsdf.children[0], "reflectance", &l.reflectance, &what);
+            use furnace::scattering::{Bsdf, ConductorFresnel, Ior};
+            match &scene.bsdfs[i] {
+                Bsdf::Diffuse(l) => {
+                    assert_eq!(bsdf.attrs["type"], "twosided", "{what}");
+                    check_spectrum(&bsdf.children[0], "reflectance", &l.reflectance, &what);
+                }
+                Bsdf::Conductor(c) => {
+                    assert_eq!(bsdf.attrs["type"], "twosided", "{what}");
+                    let inner = &bsdf.children[0];
+                    let kind = if c.is_smooth() {
+                        "conductor"
+                    } else {
+                        "roughconductor"
+                    };
+                    assert_eq!(inner.attrs["type"], kind, "{what}");
+                    if let ConductorFresnel::Complex { eta, k } = &c.fresnel {
+                        check_spectrum(inner, "eta", eta, &what);
+                        check_spectrum(inner, "k", k, &what);
+                    }
+                    if !c.is_smooth() {
+                        let a = &inner.child_named("float", "alpha").unwrap().attrs["value"];
+                        assert_eq!(a.parse::<f64>().unwrap(), c.alpha_x, "{what}");
+                    }
+                }
+                Bsdf::Dielectric(d) => {
+                    let kind = if d.is_smooth() {
+                        "dielectric"
+                    } else {
+                        "roughdielectric"
+                    };
+                    assert_eq!(bsdf.attrs["type"], kind, "{what}");
+                    let Ior::Constant(n) = d.ior else {
+                        panic!("{what}: dispersive")
+                    };
+                    let v = &bsdf.child_named("float", "int_ior").unwrap().attrs["value"];
+                    assert_eq!(v.parse::<f64>().unwrap(), n, "{what}");
+                }
+                Bsdf::Ward(_) => panic!("{what}: Ward is not exportable"),
+            }
             let emitter = node.children.iter().find(|c| c.name == "emitter");
             match scene.shape_light[i] {
                 None => assert!(emitter.is_none(), "{what}"),
@@ -265,6 +301,10 @@ fn committed_reference_exports_are_current() {
             "reference/mitsuba/furnace-sphere.export",
         ),
         (
+            "scenes/cornell-glossy.toml",
+            "reference/mitsuba/cornell-glossy.export",
+        ),
+        (
             "tests/manifests/scenes/furnace-box-0.5.toml",
             "reference/mitsuba/furnace-box.export",
         ),
@@ -290,7 +330,7 @@ fn committed_reference_exports_are_current() {
 #[test]
 fn pbrt_export_snapshot_and_every_scene() {
     for (path, scene) in bundled() {
-        let text = furnace::export::pbrt::export(&scene, "out.exr");
+        let text = furnace::export::pbrt::export(&scene, "out.exr").unwrap();
         // Every shape in its own attribute block, every emitter with its luminance scale.
         assert_eq!(
             text.matches("AttributeBegin").count(),
@@ -313,12 +353,12 @@ fn pbrt_export_snapshot_and_every_scene() {
     let s = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
     insta::assert_snapshot!(
         "pbrt_cornell_box",
-        furnace::export::pbrt::export(&s, "cbox.exr")
+        furnace::export::pbrt::export(&s, "cbox.exr").unwrap()
     );
     let s = Scene::load(&root("scenes/furnace-sphere.toml")).unwrap();
     insta::assert_snapshot!(
         "pbrt_furnace_sphere",
-        furnace::export::pbrt::export(&s, "sphere.exr")
+        furnace::export::pbrt::export(&s, "sphere.exr").unwrap()
     );
 }
 
