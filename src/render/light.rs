@@ -312,6 +312,41 @@ mod tests {
         assert!(a != c);
     }
 
+    #[test]
+    fn region_variance_matches_replication_and_the_pixel_sum_does_not() {
+        // One light path reaches several pixels (and a path that lands in one pixel does not land
+        // in the others), so pixels are correlated and Var(region mean) ≠ Σ Var(pixel)/n². The
+        // per-path region sums give it exactly; checked against the spread of independent
+        // replicate renders. In the Cornell box the pixel sum overstates the whole-image
+        // variance about 2× (the negative, multinomial-like covariance dominates).
+        let scene = scene_file("scenes/cornell-box.toml");
+        let reps = 200;
+        let (mut exact, mut naive, mut sum, mut sum2) = (0.0, 0.0, 0.0, 0.0);
+        for seed in 0..reps {
+            let mut s = settings(16, 16, 0, None);
+            s.seed = 1000 + seed;
+            let img = light_image(&scene, &s, 2000);
+            let r = img.regions[0][1];
+            exact += r.variance() / r.count() as f64 / reps as f64;
+            naive += img.film.mean_variances(1).iter().sum::<f64>() / reps as f64;
+            let total: f64 = img.film.means(1).iter().sum();
+            assert!((r.mean() - total).abs() <= 1e-9 * total);
+            sum += total;
+            sum2 += total * total;
+        }
+        let n = reps as f64;
+        let empirical = (sum2 - sum * sum / n) / (n - 1.0);
+        // 200 replicates: the empirical variance has a relative standard error of ~10 %.
+        assert!(
+            (empirical / exact - 1.0).abs() < 0.3,
+            "replicates {empirical:.4e}, per-path region sums {exact:.4e}"
+        );
+        assert!(
+            (empirical / naive - 1.0).abs() > 0.3,
+            "replicates {empirical:.4e}, summed pixel variances {naive:.4e}"
+        );
+    }
+
     const TWO_LIGHTS: &str = r#"
 [render]
 width = 12
