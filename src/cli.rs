@@ -10,7 +10,7 @@ use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
 use furnace::integrators::{PathTracer, Strategy};
 use furnace::math::rng::Sampler;
-use furnace::render::{render, RenderSettings};
+use furnace::render::{render, render_light_paths, RenderSettings};
 use furnace::report::{html, json, junit, text};
 use furnace::scene::Scene;
 use furnace::spectrum::Observer;
@@ -196,7 +196,13 @@ struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// How emitters are found: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
+    /// Estimator: path (camera paths, the default) or light (light tracing: paths start on the emitters and connect to the camera; refuses environment lights, and cannot show specular surfaces seen by the camera).
+    #[arg(long, default_value = "path", value_parser = ["path", "light"])]
+    integrator: String,
+    /// Light paths traced by --integrator light [default: spp x width x height].
+    #[arg(long)]
+    light_paths: Option<u64>,
+    /// How emitters are found by the path tracer: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
     #[arg(long, default_value = "mis", value_parser = ["mis", "bsdf", "light"])]
     strategy: String,
     /// Colour pipeline of the film: cie1931 (furnace's: CIE 1931 at 1 nm, Y/106.857, IEC matrix) or mitsuba3 (Mitsuba 3's: the same table at 5 nm, Y/106.750, its matrix), to compare RGB with a Mitsuba render without a colour-conversion difference.
@@ -329,7 +335,19 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         .png
         .clone()
         .unwrap_or_else(|| exr_path.with_extension("png"));
-    let total = settings.width as u64 * settings.height as u64 * settings.spp;
+    let light = a.integrator == "light";
+    if a.light_paths.is_some() && !light {
+        return Err(anyhow::anyhow!(
+            "--light-paths is only used by --integrator light (the path tracer takes --spp)"
+        )
+        .into());
+    }
+    let camera_paths = settings.width as u64 * settings.height as u64 * settings.spp;
+    let total = if light {
+        a.light_paths.unwrap_or(camera_paths)
+    } else {
+        camera_paths
+    };
     let bar = if a.quiet {
         ProgressBar::hidden()
     } else {
@@ -342,14 +360,25 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         .context("progress bar template")?,
     );
     let start = Instant::now();
-    let film = render(&scene, &settings, &|n| bar.set_position(n)).context("cannot render")?;
+    let film = if light {
+        render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
+    } else {
+        render(&scene, &settings, &|n| bar.set_position(n))
+    }
+    .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let bad = film.non_finite_pixels();
-    let attrs = vec![
+    let mut attrs = vec![
         ("furnace.version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("furnace.scene".to_string(), a.scene.display().to_string()),
-        ("furnace.spp".to_string(), settings.spp.to_string()),
+        ("furnace.integrator".to_string(), a.integrator.clone()),
+        if light {
+            // every pixel's variance comes from `total` i.i.d. path samples: total − 1 dof
+            ("furnace.variance_dof".to_string(), (total - 1).to_string())
+        } else {
+            ("furnace.spp".to_string(), settings.spp.to_string())
+        },
         ("furnace.seed".to_string(), settings.seed.to_string()),
         ("furnace.max_depth".to_string(), settings.integrator.max_depth.map_or("unlimited".into(), |d| d.to_string())),
         ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
@@ -361,6 +390,12 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.grey_mode".to_string(), (settings.spectral.grey_mode && scene.is_grey()).to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
+    if light {
+        // light-traced pixels are correlated (one path reaches several pixels): the variance of
+        // a region mean is not the sum of the pixel variances
+        attrs.push(("furnace.light_paths".to_string(), total.to_string()));
+        attrs.push(("furnace.pixels_correlated".to_string(), "true".to_string()));
+    }
     io::write_exr(&exr_path, &film.to_layers(attrs))
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
     io::write_png_srgb(
@@ -375,14 +410,25 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
     if bad > 0 {
         eprintln!("warning: {bad} pixels hold NaN or Inf");
     }
-    println!(
-        "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
-        settings.width,
-        settings.height,
-        settings.spp,
-        secs,
-        total as f64 / secs / 1e6
-    );
+    if light {
+        println!(
+            "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
+            settings.width,
+            settings.height,
+            total,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    } else {
+        println!(
+            "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
+            settings.width,
+            settings.height,
+            settings.spp,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    }
     // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
     // image mean, and 1/(relative variance × time) — comparable across estimators.
     let (ym, yv) = (film.means(1), film.mean_variances(1));

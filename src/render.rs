@@ -2,11 +2,15 @@
 //! numbers depend only on (seed, pixel, sample index), and each pixel accumulates its
 //! samples in order, so the image is bit-identical for any thread count.
 
+pub mod light;
+
+pub use light::{render_light_paths, LightImage};
+
 use crate::film::Film;
 use crate::integrators::PathTracer;
 use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
-use crate::spectrum::{Observer, Wavelengths, N_WAVELENGTHS};
+use crate::spectrum::{Observer, SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicU64, Ordering};
 
@@ -75,6 +79,94 @@ pub enum RenderError {
     },
 }
 
+/// How one sample's spectral radiance becomes CIE XYZ on the film: in grey mode
+/// L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly (`Observer::white`), else the hero-wavelength estimate over the
+/// first `lanes` wavelengths X = (1/lanes) Σ L(λi) x̄(λi)/p(λi), normalised by ∫ȳ
+/// (Wilkie et al. 2014, "Hero wavelength spectral sampling", §4; see spectrum::observer).
+#[derive(Debug, Clone)]
+pub struct FilmResponse<'a> {
+    observer: &'a Observer,
+    white: [f64; 3],
+    y_norm: f64,
+    grey: bool,
+    lanes: usize,
+}
+
+impl<'a> FilmResponse<'a> {
+    /// The response of `observer` in grey mode (`grey`) or over `lanes` wavelengths.
+    pub fn new(observer: &'a Observer, grey: bool, lanes: usize) -> Self {
+        FilmResponse {
+            observer,
+            white: observer.white(),
+            y_norm: 1.0 / observer.y_integral(),
+            grey,
+            lanes,
+        }
+    }
+
+    /// XYZ of radiance `l` (W·sr⁻¹·m⁻²·nm⁻¹ at `wl`), Y ≈ 1 for a flat spectrum of 1.
+    #[inline]
+    pub fn xyz(&self, l: &SampledSpectrum, wl: &Wavelengths) -> [f64; 3] {
+        if self.grey {
+            return self.white.map(|c| c * l.0[0]);
+        }
+        // After dispersion only the hero carries an estimate: it alone is an unbiased
+        // single-wavelength estimate (weight 1, not 1/lanes).
+        let lanes = if wl.secondary_terminated {
+            1
+        } else {
+            self.lanes
+        };
+        let mut xyz = [0.0; 3];
+        for i in 0..lanes {
+            let c = self.observer.cmf(wl.lambda[i]);
+            let k = l.0[i] / wl.pdf[i];
+            for j in 0..3 {
+                xyz[j] += k * c[j];
+            }
+        }
+        xyz.map(|v| v * self.y_norm / lanes as f64)
+    }
+}
+
+/// Runs `work` on `threads` rayon workers (0: the global pool, all cores).
+fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
+    if threads == 0 {
+        return Ok(work());
+    }
+    Ok(rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .map_err(|e| RenderError::Threads {
+            threads,
+            message: e.to_string(),
+        })?
+        .install(work))
+}
+
+/// Checks what [`render`] and [`render_light_paths`] both need: a non-empty image, paths that
+/// end, and 1 or 4 wavelengths.
+fn check_common(settings: &RenderSettings) -> Result<(), RenderError> {
+    let (w, h) = (settings.width, settings.height);
+    if w == 0 || h == 0 {
+        return Err(RenderError::Settings(format!(
+            "width and height must be >= 1 (got {w}x{h})"
+        )));
+    }
+    if settings.integrator.rr_depth.is_none() && settings.integrator.max_depth.is_none() {
+        return Err(RenderError::Settings(
+            "Russian roulette is off and max_depth is unlimited: paths in a closed scene would never end; set a max depth".into(),
+        ));
+    }
+    let lanes = settings.spectral.wavelengths;
+    if !(lanes == 1 || lanes == N_WAVELENGTHS) {
+        return Err(RenderError::Settings(format!(
+            "{lanes} wavelengths per sample; allowed 1 or {N_WAVELENGTHS}"
+        )));
+    }
+    Ok(())
+}
+
 /// Renders `scene`; `progress` is called with the number of samples finished so far
 /// (from worker threads, once per tile).
 pub fn render(
@@ -89,24 +181,14 @@ pub fn render(
             settings.spp
         )));
     }
-    if settings.integrator.rr_depth.is_none() && settings.integrator.max_depth.is_none() {
-        return Err(RenderError::Settings(
-            "Russian roulette is off and max_depth is unlimited: paths in a closed scene would never end; set a max depth".into(),
-        ));
-    }
+    check_common(settings)?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
     let grey = settings.spectral.grey_mode && scene.is_grey();
     let lanes = settings.spectral.wavelengths;
-    if !(lanes == 1 || lanes == N_WAVELENGTHS) {
-        return Err(RenderError::Settings(format!(
-            "{lanes} wavelengths per sample; allowed 1 or {N_WAVELENGTHS}"
-        )));
-    }
     let observer = &settings.observer;
-    let y_norm = 1.0 / observer.y_integral();
-    let white = observer.white();
+    let response = FilmResponse::new(observer, grey, lanes);
     let tiles_x = w.div_ceil(TILE);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
@@ -137,24 +219,7 @@ pub fn render(
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
                             let l = settings.integrator.radiance(scene, ray, &mut wl, &mut rng);
-                            // After dispersion only the hero carries an estimate: it alone is
-                            // an unbiased single-wavelength estimate (weight 1, not 1/4).
-                            let lanes = if wl.secondary_terminated { 1 } else { lanes };
-                            if grey {
-                                let xyz = white.map(|c| c * l.0[0]);
-                                px.add(xyz, observer.xyz_to_rgb(xyz));
-                                continue;
-                            }
-                            // X = (1/N) Σ L(λi) x̄(λi) / p(λi), normalised by ∫ȳ (see spectrum::observer).
-                            let mut xyz = [0.0; 3];
-                            for i in 0..lanes {
-                                let c = observer.cmf(wl.lambda[i]);
-                                let k = l.0[i] / wl.pdf[i];
-                                for j in 0..3 {
-                                    xyz[j] += k * c[j];
-                                }
-                            }
-                            let xyz = xyz.map(|v| v * y_norm / lanes as f64);
+                            let xyz = response.xyz(&l, &wl);
                             px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
                         pixels.push(px);
@@ -167,18 +232,7 @@ pub fn render(
             })
             .collect::<Vec<_>>()
     };
-    let results = if settings.threads == 0 {
-        work()
-    } else {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(settings.threads)
-            .build()
-            .map_err(|e| RenderError::Threads {
-                threads: settings.threads,
-                message: e.to_string(),
-            })?
-            .install(work)
-    };
+    let results = in_pool(settings.threads, work)?;
     let mut film = Film::new(w, h);
     for (tx, ty, pixels) in results {
         let (x0, y0) = (tx * TILE, ty * TILE);

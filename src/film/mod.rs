@@ -5,7 +5,9 @@
 //! sample estimates and the running sum of squared deviations (Welford's update, the stable
 //! form of "sum and sum of squares"), plus the sample count. The pixel filter is a box: every
 //! sample's film position is uniform in its own pixel and counts only there, so pixels are
-//! independent estimates and the per-pixel variance is exact for that estimator.
+//! independent estimates and the per-pixel variance is exact for that estimator. (A light-traced
+//! film, render::light, holds the same per-pixel statistics over i.i.d. light paths, but its
+//! pixels are correlated: one path reaches several pixels.)
 //!
 //! EXR channels (32-bit float): `R`, `G`, `B` linear sRGB (D65 white, XYZ_TO_SRGB of
 //! `spectrum::color`); `X`, `Y`, `Z` CIE 1931 normalised so that a constant spectral

@@ -211,6 +211,36 @@ impl RegionResult {
     }
 }
 
+/// The z test of one region × channel: test and reference (mean, standard error) pairs,
+/// z = (test − reference)/√(se_t² + se_r²) after the stated relative model tolerance
+/// (checks::z_with_tolerance).
+pub fn region_test(
+    region: &str,
+    channel: &'static str,
+    test: (f64, f64),
+    reference: (f64, f64),
+    rel_tolerance: f64,
+) -> RegionResult {
+    let se = (test.1 * test.1 + reference.1 * reference.1).sqrt();
+    let (z, p) = z_with_tolerance(test.0, se, reference.0, rel_tolerance);
+    RegionResult {
+        region: region.to_string(),
+        channel,
+        test,
+        reference,
+        z,
+        p,
+    }
+}
+
+/// The regions every comparison starts with: the whole image.
+pub fn whole_image() -> Region {
+    Region {
+        name: "whole image".into(),
+        rect: [0.0, 0.0, 1.0, 1.0],
+    }
+}
+
 /// Whole-image metrics per channel.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Metrics {
@@ -249,7 +279,10 @@ pub struct Comparison {
 /// ε of relMSE.
 pub const REL_MSE_EPS: f64 = 1e-2;
 
-fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
+/// Mean of channel `c` over the pixel rectangle `r` [x0, y0, x1, y1) and its standard error
+/// √(Σ var)/n, which treats the pixels as independent estimates (true for camera-path renders;
+/// not for light-traced images, whose region statistics come from the light tracer itself).
+pub fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
     let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
     for y in r[1]..r[3] {
         for x in r[0]..r[2] {
@@ -306,10 +339,7 @@ pub fn compare(
             smape: if sm.1 > 0.0 { sm.0 / sm.1 } else { 0.0 },
         }
     });
-    let mut all = vec![Region {
-        name: "whole image".into(),
-        rect: [0.0, 0.0, 1.0, 1.0],
-    }];
+    let mut all = vec![whole_image()];
     all.extend(regions.iter().cloned());
     let m = all.len() * 3;
     let alpha = multiple::sidak_alpha(family_alpha, m);
@@ -317,18 +347,13 @@ pub fn compare(
     for reg in &all {
         let rect = reg.pixels(w, h)?;
         for (c, channel) in CHANNELS.iter().enumerate() {
-            let (mt, st) = region_mean(test, c, rect);
-            let (mr, sr) = region_mean(reference, c, rect);
-            let se = (st * st + sr * sr).sqrt();
-            let (z, p) = z_with_tolerance(mt, se, mr, rel_tolerance);
-            results.push(RegionResult {
-                region: reg.name.clone(),
+            results.push(region_test(
+                &reg.name,
                 channel,
-                test: (mt, st),
-                reference: (mr, sr),
-                z,
-                p,
-            });
+                region_mean(test, c, rect),
+                region_mean(reference, c, rect),
+                rel_tolerance,
+            ));
         }
     }
     // A NaN p (a non-finite mean or standard error) counts as a difference, never as agreement.

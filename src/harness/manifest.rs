@@ -87,6 +87,10 @@ pub struct CheckDesc {
     pub slope: Option<Spanned<[f64; 2]>>,
     /// How emitters are found: mis, bsdf or light.
     pub strategy: Option<Spanned<String>>,
+    /// Blocks per side of the region grid (reciprocity_image).
+    pub grid: Option<Spanned<i64>>,
+    /// Light paths traced (reciprocity_image).
+    pub light_paths: Option<Spanned<i64>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -97,7 +101,7 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 15] = [
+pub const KINDS: [(&str, &[&str]); 16] = [
     (
         "furnace",
         &[
@@ -188,6 +192,23 @@ pub const KINDS: [(&str, &[&str]); 15] = [
     (
         "measured",
         &["scene", "measurement", "spp", "max_depth", "seed"],
+    ),
+    (
+        "reciprocity_image",
+        &[
+            "scene",
+            "spp",
+            "light_paths",
+            "width",
+            "height",
+            "max_depth",
+            "roulette",
+            "grid",
+            "regions",
+            "observer",
+            "seed",
+            "rel_tolerance",
+        ],
     ),
     (
         "convergence",
@@ -288,6 +309,11 @@ pub struct Params {
     pub slope: Option<[f64; 2]>,
     /// Emitter-finding strategy (convergence).
     pub strategy: Strategy,
+    /// Blocks per side of the region grid (reciprocity_image; None: the kind's default, or
+    /// the regions file when one is given).
+    pub grid: Option<usize>,
+    /// Light paths traced (reciprocity_image; None: spp × width × height).
+    pub light_paths: Option<u64>,
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -421,7 +447,7 @@ fn check(
             ),
         ));
     };
-    let present: [(&str, Option<Range<usize>>); 30] = [
+    let present: [(&str, Option<Range<usize>>); 32] = [
         ("scene", d.scene.as_ref().map(|v| v.span())),
         ("vary", d.vary.as_ref().map(|v| v.span())),
         ("spp", d.spp.as_ref().map(|v| v.span())),
@@ -451,6 +477,8 @@ fn check(
         ("seeds", d.seeds.as_ref().map(|v| v.span())),
         ("slope", d.slope.as_ref().map(|v| v.span())),
         ("strategy", d.strategy.as_ref().map(|v| v.span())),
+        ("grid", d.grid.as_ref().map(|v| v.span())),
+        ("light_paths", d.light_paths.as_ref().map(|v| v.span())),
         ("name", None),
     ];
     for (key, span) in &present {
@@ -635,6 +663,8 @@ fn check(
         ladder: ladder(src, &at, d, c.span(), *kind_name == "convergence")?,
         seeds: uint(src, &d.seeds, &format!("{at}.seeds"), 2, 1024)?.unwrap_or(8),
         slope: slope(src, &at, d, c.span(), *kind_name == "convergence")?,
+        grid: uint(src, &d.grid, &format!("{at}.grid"), 1, 64)?,
+        light_paths: uint(src, &d.light_paths, &format!("{at}.light_paths"), 2, 1 << 40)?,
         strategy: match d.strategy.as_ref().map(|v| (v, v.get_ref().as_str())) {
             None | Some((_, "mis")) => Strategy::Mis,
             Some((_, "bsdf")) => Strategy::BsdfOnly,
@@ -649,6 +679,14 @@ fn check(
             }
         },
     };
+    if let (Some(g), Some(_)) = (&d.grid, &d.regions) {
+        return Err(err(
+            src,
+            g.span(),
+            format!("{at}.grid"),
+            "give either `grid` (k x k blocks) or `regions` (a regions file), not both".into(),
+        ));
+    }
     if let Some(o) = &d.offsets {
         if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
             return Err(err(

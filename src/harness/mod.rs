@@ -13,6 +13,7 @@ pub mod outcome;
 pub mod registry;
 
 use crate::film::Film;
+use crate::render::light::{trace_light_image, LightImage};
 use crate::render::{render, RenderSettings};
 use crate::scene::Scene;
 use crate::stats::{multiple, power};
@@ -30,6 +31,22 @@ pub trait Renderer: Sync {
     /// the estimator or the film's spectral responses test its code and run only for it.
     fn is_reference(&self) -> bool {
         true
+    }
+    /// Renders `scene` by light tracing `n_paths` paths (settings as for [`Renderer::render`];
+    /// `spp` unused), with exact statistics of the per-path sums over `regions` ([x0, y0, x1,
+    /// y1) pixel rectangles). Only furnace's own renderer has a light tracer: the default is an
+    /// error naming the renderer.
+    fn render_light_paths(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _n_paths: u64,
+        _regions: &[[usize; 4]],
+    ) -> Result<LightImage, String> {
+        Err(format!(
+            "{} has no light tracer furnace can drive",
+            self.name()
+        ))
     }
 }
 
@@ -55,6 +72,11 @@ pub fn not_applicable(spec: &CheckSpec, renderer: &dyn Renderer) -> Option<Strin
         return None;
     }
     let name = renderer.name();
+    if spec.kind == "reciprocity_image" {
+        return Some(format!(
+            "kind reciprocity_image compares furnace's path tracer with furnace's light tracer; {name} cannot run furnace's light tracer"
+        ));
+    }
     if !renderer_agnostic(&spec.kind) {
         return Some(format!(
             "kind {} tests furnace's own models or needs control over its estimator or film; {name} is judged by the scene-level kinds",
@@ -85,6 +107,22 @@ impl Renderer for BuiltIn {
     }
     fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, String> {
         render(scene, settings, &|_| {}).map_err(|e| e.to_string())
+    }
+    fn render_light_paths(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        n_paths: u64,
+        regions: &[[usize; 4]],
+    ) -> Result<LightImage, String> {
+        let camera = scene.camera.build(settings.width, settings.height)?;
+        let sensor = crate::integrators::light::PinholeSensor {
+            camera,
+            width: settings.width,
+            height: settings.height,
+        };
+        trace_light_image(scene, settings, n_paths, regions, &sensor, &|_| {})
+            .map_err(|e| e.to_string())
     }
 }
 

@@ -2,6 +2,7 @@
 //! Radiance in W·sr⁻¹·m⁻²·nm⁻¹, point intensity in W·sr⁻¹·nm⁻¹.
 
 use crate::geometry::{Shape, SurfacePoint};
+use crate::math::frame::Frame;
 use crate::math::{warp, Vec3};
 use crate::spectrum::{SampledSpectrum, Spectrum, Wavelengths};
 
@@ -44,6 +45,27 @@ pub struct LightSample {
     pub point: Option<SurfacePoint>,
     /// True for a point light (no MIS with BSDF sampling).
     pub delta: bool,
+}
+
+/// A sampled emitted ray: where light leaves an emitter and in which direction (for light
+/// tracing). The ray's density is `pdf_pos`·`pdf_dir`.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmissionSample {
+    /// The emitting point (for a point light: its position, with `n` = `direction`).
+    pub point: SurfacePoint,
+    /// Unit direction of the emitted ray (world).
+    pub direction: Vec3,
+    /// Radiance leaving `point` along `direction` (area lights, W·sr⁻¹·m⁻²·nm⁻¹), or the
+    /// intensity (point lights, W·sr⁻¹·nm⁻¹).
+    pub emitted: SampledSpectrum,
+    /// Pdf of `point` per unit area (scene units⁻²); 1 for the delta position of a point light.
+    pub pdf_pos: f64,
+    /// Pdf of `direction` per unit solid angle (sr⁻¹).
+    pub pdf_dir: f64,
+    /// |cos| between `direction` and the emitting surface's normal (1 for a point light).
+    pub cos_theta: f64,
+    /// True for a point light (its position is a delta: no camera can see it directly).
+    pub delta_position: bool,
 }
 
 /// Radiance leaving an area emitter's surface point with normal `n` in direction `w`.
@@ -129,6 +151,83 @@ impl Light {
                 point: None,
                 delta: false,
             }),
+        }
+    }
+
+    /// Name of the light's type as written in scene files (`area`, `point`, `environment`).
+    pub fn type_name(&self) -> &'static str {
+        match self {
+            Light::Area { .. } => "area",
+            Light::Point { .. } => "point",
+            Light::Environment { .. } => "environment",
+        }
+    }
+
+    /// Samples an emitted ray for light tracing from `u_select` (a mesh triangle), `u_pos`
+    /// (the point), `u_side` (the side of a two-sided emitter) and `u_dir` (the direction).
+    /// Area lights: a point uniform on the shape (pdf 1/area) and a cosine-weighted direction
+    /// about the emitting side's normal (pdf cos θ/π, halved for a two-sided emitter, which
+    /// picks each side with probability 1/2). Point lights: a uniform direction (pdf 1/(4π)).
+    /// Environment lights emit from infinity and are not sampled: None.
+    pub fn sample_emission(
+        &self,
+        u_select: f64,
+        u_pos: [f64; 2],
+        u_side: f64,
+        u_dir: [f64; 2],
+        shapes: &[Shape],
+        wl: &Wavelengths,
+    ) -> Option<EmissionSample> {
+        match self {
+            Light::Area {
+                shape,
+                radiance,
+                two_sided,
+            } => {
+                let s = &shapes[*shape as usize];
+                let sp = s.sample(u_select, u_pos);
+                let (side, side_pdf) = match (*two_sided, u_side < 0.5) {
+                    (false, _) => (sp.n, 1.0),
+                    (true, true) => (sp.n, 0.5),
+                    (true, false) => (-sp.n, 0.5),
+                };
+                let local = warp::cosine_hemisphere(u_dir);
+                // cosine-weighted emission direction: pdf cos θ/π (Malley's method)
+                let pdf_dir = warp::cosine_hemisphere_pdf(local) * side_pdf;
+                if pdf_dir == 0.0 {
+                    return None;
+                }
+                let direction = Frame::from_normal(side).to_world(local);
+                Some(EmissionSample {
+                    point: sp,
+                    direction,
+                    emitted: area_radiance(radiance, *two_sided, sp.n, direction, wl),
+                    pdf_pos: 1.0 / s.area(),
+                    pdf_dir,
+                    cos_theta: local.z,
+                    delta_position: false,
+                })
+            }
+            Light::Point {
+                position,
+                intensity,
+            } => {
+                let direction = warp::uniform_sphere(u_dir);
+                Some(EmissionSample {
+                    point: SurfacePoint {
+                        p: *position,
+                        p_error: Vec3::ZERO,
+                        n: direction,
+                    },
+                    direction,
+                    emitted: intensity.sample(wl),
+                    pdf_pos: 1.0,
+                    pdf_dir: warp::UNIFORM_SPHERE_PDF,
+                    cos_theta: 1.0,
+                    delta_position: true,
+                })
+            }
+            Light::Environment { .. } => None,
         }
     }
 

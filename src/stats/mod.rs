@@ -28,6 +28,40 @@ impl MeanVar {
         self.m2 += d * (x - self.mean);
     }
 
+    /// The statistics of `n` observations given their sum and sum of squares (f64 sums of
+    /// the raw values); m2 = Σx² − (Σx)²/n, clamped at 0 against rounding. Use it for
+    /// sparse streams (mostly zeros), where pushing every zero would cost more than the data.
+    pub fn from_sums(n: u64, sum: f64, sum_sq: f64) -> Self {
+        if n == 0 {
+            return MeanVar::default();
+        }
+        let mean = sum / n as f64;
+        MeanVar {
+            n,
+            mean,
+            m2: (sum_sq - sum * mean).max(0.0),
+        }
+    }
+
+    /// Adds the observations summarised by `other` (Chan, Golub & LeVeque 1979, "Updating
+    /// formulae and a pairwise algorithm for computing sample variances", eq. 2.1b: the
+    /// pairwise combination of two (n, mean, m2) summaries).
+    pub fn merge(&mut self, other: &MeanVar) {
+        if other.n == 0 {
+            return;
+        }
+        if self.n == 0 {
+            *self = *other;
+            return;
+        }
+        let n = self.n + other.n;
+        let d = other.mean - self.mean;
+        let (na, nb) = (self.n as f64, other.n as f64);
+        self.mean += d * nb / n as f64;
+        self.m2 += other.m2 + d * d * na * nb / n as f64;
+        self.n = n;
+    }
+
     /// Number of observations.
     pub fn count(&self) -> u64 {
         self.n
@@ -137,6 +171,26 @@ mod tests {
         let var = xs.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / 4.0;
         assert!((mv.mean() - mean).abs() < 1e-14);
         assert!((mv.variance() - var).abs() < 1e-12);
+    }
+
+    #[test]
+    fn mean_var_from_sums_and_merge_match_push() {
+        let xs = [0.0, 3.0, 0.0, 0.0, 7.5, 1.0, 0.0, 2.0];
+        let mut all = MeanVar::default();
+        xs.iter().for_each(|&x| all.push(x));
+        let part = |s: &[f64]| {
+            MeanVar::from_sums(
+                s.len() as u64,
+                s.iter().sum(),
+                s.iter().map(|x| x * x).sum(),
+            )
+        };
+        let mut m = part(&xs[..3]);
+        m.merge(&part(&xs[3..]));
+        m.merge(&MeanVar::default());
+        assert_eq!(m.count(), all.count());
+        assert!((m.mean() - all.mean()).abs() < 1e-14);
+        assert!((m.variance() - all.variance()).abs() < 1e-12);
     }
 
     #[test]

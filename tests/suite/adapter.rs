@@ -140,4 +140,10 @@ fn external_renderers_skip_checks_that_state_furnace_internals() {
     assert!(bsdf
         .iter()
         .all(|s| harness::not_applicable(s, &ext).is_some()));
+    // furnace's light tracer cannot be run on an external renderer
+    for s in manifest::load(&root("tests/manifests/light.toml")).unwrap() {
+        let why = harness::not_applicable(&s, &ext).unwrap();
+        assert!(why.contains("light tracer"), "{why}");
+        assert!(harness::not_applicable(&s, &harness::BuiltIn).is_none());
+    }
 }

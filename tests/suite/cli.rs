@@ -230,3 +230,76 @@ fn report_builds_one_page_from_results_and_comparisons() {
     assert!(err.contains("furnace.check-results/1"), "{err}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+#[test]
+fn render_with_the_light_tracer() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-light-{}", std::process::id()));
+    let exr = dir.join("sphere.exr");
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/furnace-sphere.toml",
+            "--integrator",
+            "light",
+            "--light-paths",
+            "20000",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{out:?}");
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.contains("20000 light paths"), "{text}");
+    let img = furnace::harness::compare::RgbImage::load(&exr).unwrap();
+    assert_eq!(img.variance_dof, Some(19999.0));
+    // --light-paths belongs to the light tracer
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/furnace-sphere.toml",
+            "--light-paths",
+            "10",
+            "--quiet",
+            "--out",
+        ])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    // an environment light is refused, by name
+    let scene = dir.join("env.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\nposition = [0.0, 0.0, 0.0]\nlook_at = [0.0, 0.0, 1.0]\nup = [0.0, 1.0, 0.0]\nfov = 40.0\n[materials.m]\ntype = \"diffuse\"\nreflectance = 0.5\n[[shape]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 3.0]\nradius = 1.0\nmaterial = \"m\"\n[[light]]\ntype = \"environment\"\nradiance = 1.0\n",
+    )
+    .unwrap();
+    let out = furnace()
+        .args([
+            "render",
+            "--integrator",
+            "light",
+            "--width",
+            "4",
+            "--height",
+            "4",
+            "--quiet",
+        ])
+        .arg(&scene)
+        .arg("--out")
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        err.contains("light 0") && err.contains("environment"),
+        "{err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

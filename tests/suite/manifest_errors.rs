@@ -40,6 +40,8 @@ fn manifest_error_messages() {
         ("image_compare_missing_reference", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nreference = \"nope.exr\"\n")),
         ("unknown_observer", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nreference = \"../../reference/mitsuba/furnace-sphere.exr\"\nobserver = \"cie2006\"\n")),
         ("measured_without_measurement", error_of("[[check]]\nname = \"x\"\nkind = \"measured\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
+        ("light_grid_and_regions", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity_image\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\ngrid = 3\nregions = \"../../scenes/cornell-box.regions.toml\"\n")),
+        ("light_paths_one", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity_image\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nlight_paths = 1\n")),
         ("duplicate_names", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\n[[check]]\nname = \"x\"\nkind = \"energy\"\n")),
     ];
     for (name, message) in cases {

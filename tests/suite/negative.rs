@@ -710,3 +710,104 @@ fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
     );
     assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
 }
+
+// ---------------------------------------------------------------- light tracer
+
+/// A light tracer with a wrong camera importance (a deliberately wrong sensor wrapped around
+/// the scene's pinhole); the path tracer is the built-in one.
+#[derive(Clone, Copy, PartialEq)]
+enum ImportanceBug {
+    /// No bug: the wrapper passes the pinhole's importance through (guards the control).
+    Unbroken,
+    /// W_e = 1/A_pix: the cos⁴θ of the pinhole importance forgotten.
+    NoCos4,
+    /// The sensor cosine cos θ_e left out of the connection (W_e/d² instead of W_e cos θ_e/d²).
+    NoSensorCosine,
+}
+
+struct WrongSensor {
+    inner: furnace::integrators::light::PinholeSensor,
+    bug: ImportanceBug,
+}
+
+impl furnace::integrators::light::Sensor for WrongSensor {
+    fn resolution(&self) -> (usize, usize) {
+        self.inner.resolution()
+    }
+    fn connect(&self, p: Vec3) -> Option<furnace::integrators::light::SensorConnection> {
+        let mut c = self.inner.connect(p)?;
+        let cos = c.direction.dot(
+            (self.inner.camera.ray(
+                0.5 * self.inner.width as f64,
+                0.5 * self.inner.height as f64,
+                self.inner.width,
+                self.inner.height,
+            ))
+            .d,
+        );
+        c.importance_cos *= match self.bug {
+            ImportanceBug::Unbroken => 1.0,
+            ImportanceBug::NoCos4 => cos.powi(4),
+            ImportanceBug::NoSensorCosine => 1.0 / cos,
+        };
+        Some(c)
+    }
+}
+
+struct WrongLightTracer(ImportanceBug);
+
+impl Renderer for WrongLightTracer {
+    fn name(&self) -> String {
+        "light tracer with a wrong importance".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        BuiltIn.render(scene, s)
+    }
+    fn render_light_paths(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        n_paths: u64,
+        regions: &[[usize; 4]],
+    ) -> Result<furnace::render::LightImage, String> {
+        let sensor = WrongSensor {
+            inner: furnace::integrators::light::PinholeSensor {
+                camera: scene.camera.build(s.width, s.height)?,
+                width: s.width,
+                height: s.height,
+            },
+            bug: self.0,
+        };
+        furnace::render::light::trace_light_image(scene, s, n_paths, regions, &sensor, &|_| {})
+            .map_err(|e| e.to_string())
+    }
+}
+
+#[test]
+fn reciprocity_image_rejects_a_light_tracer_without_the_cos4_importance() {
+    assert_rejected(
+        "tests/manifests/light.toml",
+        "light/cornell-box",
+        &WrongLightTracer(ImportanceBug::NoCos4),
+    );
+}
+
+#[test]
+fn reciprocity_image_rejects_a_light_tracer_without_the_sensor_cosine() {
+    assert_rejected(
+        "tests/manifests/light.toml",
+        "light/cornell-box",
+        &WrongLightTracer(ImportanceBug::NoSensorCosine),
+    );
+}
+
+#[test]
+fn reciprocity_image_passes_the_unbroken_sensor_through_the_same_wrapper() {
+    // Guard against a vacuous control: the wrapper without a bug passes the same check.
+    assert_all(
+        "tests/manifests/light.toml",
+        "light/cornell-box",
+        &WrongLightTracer(ImportanceBug::Unbroken),
+        Verdict::Pass,
+    );
+}

@@ -57,6 +57,14 @@ fn error_messages() {
         ("negative_spp", error_of(&format!("[render]\nspp = -4\n{LIGHT}"))),
         ("unknown_filter", error_of(&format!("[render]\nfilter = \"mitchell\"\n{LIGHT}"))),
         ("two_environment_lights", error_of(&format!("{LIGHT}{LIGHT}"))),
+        ("ward_albedo_above_one", error_of(&format!("[materials.x]\ntype = \"ward\"\ndiffuse = 0.5\nspecular = 0.6\nalpha = 0.2\n{LIGHT}"))),
+        ("roughness_out_of_range", error_of(&format!("[materials.x]\ntype = \"conductor\"\nperfect = true\nalpha = 2.0\n{LIGHT}"))),
+        ("negative_conductor_k", error_of(&format!("[materials.x]\ntype = \"conductor\"\neta = 0.2\nk = -1.0\n{LIGHT}"))),
+        ("conductor_without_index", error_of(&format!("[materials.x]\ntype = \"conductor\"\nalpha = 0.1\n{LIGHT}"))),
+        ("dielectric_key_on_conductor", error_of(&format!("[materials.x]\ntype = \"conductor\"\nperfect = true\nior = 1.5\n{LIGHT}"))),
+        ("nan_ior", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = nan\n{LIGHT}"))),
+        ("unknown_glass", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = \"flint\"\n{LIGHT}"))),
+        ("sellmeier_pole_in_range", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = {{ sellmeier_b = [1.0, 0.0, 0.0], sellmeier_c = [0.25, 0.0, 0.0] }}\n{LIGHT}"))),
     ];
     for (name, message) in cases {
         assert!(

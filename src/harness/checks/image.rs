@@ -5,7 +5,7 @@
 //! combination of the smallest region p-value: 1 − (1 − p_min)^m (Šidák 1967).
 
 use super::{fmt_sig, settings_for};
-use crate::harness::compare::{compare, RgbImage};
+use crate::harness::compare::{compare, RegionResult, RgbImage};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::outcome::Statistic;
 use crate::harness::{Context, Measurement};
@@ -51,15 +51,34 @@ pub fn run_against(
         0.01,
         spec.rel_tolerance,
     )?;
-    if let Some(r) = c.regions.iter().find(|r| r.p.is_nan()) {
+    let what = format!(
+        "observer {}, reference {}",
+        s.observer.name(),
+        if c.reference_has_variance {
+            "with variance channels"
+        } else {
+            "without variance channels, treated as exact"
+        }
+    );
+    regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)
+}
+
+/// The measurement of a set of region × channel z tests: p is the Šidák combination of the
+/// smallest p over the m tests, 1 − (1 − p_min)^m (Šidák 1967); the worst region's numbers are
+/// shown, with the three smallest p. `what` describes the comparison for the message.
+pub fn regions_measurement(
+    regions: &[RegionResult],
+    samples: u64,
+    what: &str,
+) -> Result<Measurement, String> {
+    if let Some(r) = regions.iter().find(|r| r.p.is_nan()) {
         return Err(format!(
             "region {:?} channel {} has a non-finite mean or standard error (test {} ± {}, reference {} ± {})",
             r.region, r.channel, r.test.0, r.test.1, r.reference.0, r.reference.1
         ));
     }
-    let m = c.regions.len();
-    let worst = c
-        .regions
+    let m = regions.len();
+    let worst = regions
         .iter()
         .min_by(|a, b| a.p.total_cmp(&b.p))
         .ok_or("no region to compare")?;
@@ -67,14 +86,14 @@ pub fn run_against(
     // Šidák: P(min of m independent uniform p ≤ p_min) = 1 − (1 − p_min)^m.
     let p = -((-p_min).ln_1p() * m as f64).exp_m1();
     let se = (worst.test.1.powi(2) + worst.reference.1.powi(2)).sqrt();
-    let rel = |r: &crate::harness::compare::RegionResult| {
+    let rel = |r: &RegionResult| {
         if r.reference.0 != 0.0 {
             format!("{:+.3}%", 100.0 * (r.test.0 / r.reference.0 - 1.0))
         } else {
             "n/a".into()
         }
     };
-    let mut listed: Vec<&crate::harness::compare::RegionResult> = c.regions.iter().collect();
+    let mut listed: Vec<&RegionResult> = regions.iter().collect();
     listed.sort_by(|a, b| a.p.total_cmp(&b.p));
     let top: Vec<String> = listed
         .iter()
@@ -87,11 +106,9 @@ pub fn run_against(
         expected: Some(worst.reference.0),
         statistic: Some(Statistic::Z { z: worst.z }),
         p_value: Some(p.min(1.0)),
-        samples: (s.width * s.height) as u64 * s.spp,
+        samples,
         message: format!(
-            "{m} region x channel z tests (observer {}, reference {}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
-            s.observer.name(),
-            if c.reference_has_variance { "with variance channels" } else { "without variance channels, treated as exact" },
+            "{m} region x channel z tests ({what}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
             worst.region,
             worst.channel,
             fmt_sig(worst.test.0),

@@ -13,6 +13,7 @@ pub mod lambert;
 pub mod measured;
 pub mod radiance;
 pub mod reciprocity;
+pub mod reciprocity_image;
 pub mod scale;
 pub mod smooth_limit;
 pub mod weights;
@@ -43,6 +44,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "image_compare" => image::run(spec, ctx),
         "measured" => measured::run(spec, ctx),
         "convergence" => convergence::run(spec, ctx),
+        "reciprocity_image" => reciprocity_image::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }

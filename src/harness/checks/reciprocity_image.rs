@@ -1,0 +1,144 @@
+//! Reciprocity of whole images: the path tracer (camera → light) and the light tracer
+//! (light → camera) estimate the same pixel measurements, so with the same max_depth their
+//! images agree in expectation (Veach 1997, PhD thesis, §3.7 and ch. 4: the measurement
+//! equation in its radiance and importance forms). Two independent estimators written from
+//! opposite ends share only the scene, the BSDF `eval` and the camera model; a missing
+//! cosine, a wrong importance normalisation or a non-adjoint scattering weight in either shows
+//! as a difference.
+//!
+//! Both images are rendered with independent seeds; each region (the whole image plus a k×k
+//! grid of blocks, or a regions file) × channel (R, G, B) mean is compared by the z test of
+//! harness::compare with the stated relative tolerance, and the check's p is the Šidák
+//! combination of the smallest p (as image_compare). The path tracer's region standard error
+//! comes from its independent pixels; the light tracer's from the exact per-path region sums
+//! (its pixels are correlated, see render::light).
+//!
+//! Not covered: specular surfaces seen by the camera and environment lights (the light tracer
+//! refuses the latter with an error naming the light).
+
+use super::{fmt_sig, settings_for};
+use crate::harness::checks::image::regions_measurement;
+use crate::harness::compare::{region_mean, region_test, whole_image, Region, RgbImage, CHANNELS};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::{Context, Measurement};
+use crate::integrators::Strategy;
+use crate::math::rng::mix64;
+
+/// Blocks per side of the default region grid.
+pub const DEFAULT_GRID: usize = 4;
+
+/// The k×k grid of blocks over the image, named `block (column, row)`.
+pub fn grid_regions(k: usize) -> Vec<Region> {
+    let f = |i: usize| i as f64 / k as f64;
+    (0..k)
+        .flat_map(|j| {
+            (0..k).map(move |i| Region {
+                name: format!("block ({i}, {j})"),
+                rect: [f(i), f(j), f(i + 1), f(j + 1)],
+            })
+        })
+        .collect()
+}
+
+/// Runs the comparison of the path tracer's and the light tracer's images of the scene.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let scene = spec
+        .scene
+        .as_ref()
+        .ok_or("reciprocity_image needs a scene")?;
+    let max_depth = spec.render.max_depth.or(scene.render.max_depth);
+    let mut s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
+    s.observer = spec.params.observer.clone();
+    let (w, h) = (s.width, s.height);
+    let mut regions = vec![whole_image()];
+    if spec.params.regions.is_empty() {
+        regions.extend(grid_regions(spec.params.grid.unwrap_or(DEFAULT_GRID)));
+    } else {
+        regions.extend(spec.params.regions.iter().cloned());
+    }
+    let rects = regions
+        .iter()
+        .map(|r| r.pixels(w, h))
+        .collect::<Result<Vec<_>, _>>()?;
+    let n_paths = spec.params.light_paths.unwrap_or((w * h) as u64 * s.spp);
+
+    let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
+    // An independent seed for the light tracer (its streams are also keyed apart).
+    let mut ls = s.clone();
+    ls.seed = mix64(ctx.seed ^ 0x5245_4349_5052_4f43);
+    let light = ctx
+        .renderer
+        .render_light_paths(scene, &ls, n_paths, &rects)?;
+    if light.regions.len() != rects.len() {
+        return Err(format!(
+            "the light tracer returned {} region statistics for {} regions",
+            light.regions.len(),
+            rects.len()
+        ));
+    }
+
+    let mut results = Vec::with_capacity(rects.len() * 3);
+    for ((reg, rect), stats) in regions.iter().zip(&rects).zip(&light.regions) {
+        let n = ((rect[2] - rect[0]) * (rect[3] - rect[1])) as f64;
+        for (c, channel) in CHANNELS.iter().enumerate() {
+            // light-tracer region mean: (per-path region sum)/pixels, exact i.i.d. variance
+            let sum = &stats[3 + c];
+            let test = (sum.mean() / n, sum.std_error() / n);
+            let reference = region_mean(&path, c, *rect);
+            results.push(region_test(
+                &reg.name,
+                channel,
+                test,
+                reference,
+                spec.rel_tolerance,
+            ));
+        }
+    }
+    let mut m = regions_measurement(
+        &results,
+        (w * h) as u64 * s.spp + n_paths,
+        &format!(
+            "light tracer ({n_paths} paths) = test, path tracer ({} spp) = reference, {w}x{h}, max_depth {}, observer {}",
+            s.spp,
+            max_depth.map_or("unlimited".into(), |d| d.to_string()),
+            s.observer.name()
+        ),
+    )?;
+    let whole: Vec<String> = results
+        .iter()
+        .filter(|r| r.region == regions[0].name)
+        .map(|r| {
+            format!(
+                "{} {} ± {} vs {} ± {}",
+                r.channel,
+                fmt_sig(r.test.0),
+                fmt_sig(r.test.1),
+                fmt_sig(r.reference.0),
+                fmt_sig(r.reference.1)
+            )
+        })
+        .collect();
+    m.message = format!("{}; whole image: {}", m.message, whole.join(", "));
+    Ok(m)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_tiles_the_image() {
+        let g = grid_regions(4);
+        assert_eq!(g.len(), 16);
+        let mut covered = vec![0u32; 32 * 32];
+        for r in &g {
+            let [x0, y0, x1, y1] = r.pixels(32, 32).unwrap();
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    covered[y * 32 + x] += 1;
+                }
+            }
+        }
+        assert!(covered.iter().all(|c| *c == 1));
+    }
+}

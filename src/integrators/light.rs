@@ -1,0 +1,280 @@
+//! Light tracing (particle tracing towards the camera): paths start on emitters, scatter with
+//! the adjoint BSDF, and every vertex is connected to the camera by a shadow ray
+//! (Arvo & Kirk 1990, "Particle transport and image synthesis", SIGGRAPH; Veach 1997, PhD
+//! thesis, §10.2, the bidirectional estimator with s ≥ 1 light vertices and t = 1 camera
+//! vertex).
+//!
+//! The estimator. A light path x₀ x₁ … is sampled with x₀ uniform on a uniformly chosen
+//! light (pdf p_sel·p_A) and ω₀ from the light's emission sampling (pdf p_ω). The particle
+//! leaving x₀ carries the power weight P = L_e(x₀, ω₀)|cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7's
+//! α₁ for s = 1); scattering at x_k multiplies the throughput β by the adjoint BSDF's sample
+//! weight. Pixel j's measurement I_j = ∫ W_e⁽ʲ⁾(ω) L(ω) cos θ_e dω (camera module doc) is, after
+//! the change of variables dω = |cos θ_x| dA(x)/d² (Veach eq. 8.3), estimated from vertex x_k by
+//!
+//!   c_k = P·β_k · f(x_k; ω_cam, ω_prev) · |cos θ_x| · W_e(ω) cos θ_e / d²     (k ≥ 1),
+//!   c₀  = L_e(x₀ → eye)/(p_sel p_A) · |cos θ_x₀| · W_e(ω) cos θ_e / d²,
+//!
+//! with V(x_k, eye) tested by a shadow ray. Note the sensor cosine cos θ_e: with the pinhole
+//! importance W_e = 1/(A_pix cos⁴θ), W_e·cos θ_e = 1/(A_pix cos³θ) (the film-plane Jacobian).
+//!
+//! Bounces, as in [`crate::integrators::PathTracer`]: the connection from x_k counts k bounces
+//! (a directly visible emitter is depth 0), so with `max_depth = D` exactly the paths with at
+//! most D bounces are included and both estimators have the same expectation. Russian
+//! roulette is the path tracer's: after the k-th bounce with k ≥ rr_depth the path survives
+//! with q = min(1, max β) (β the product of scattering weights, without the emitted power P).
+//!
+//! Not covered (documented limitations): surfaces seen by the camera through delta (specular)
+//! lobes — `eval` is zero for them, so a light path cannot be connected there; point lights
+//! seen directly (a delta in position: the path tracer cannot see them either, so c₀ is
+//! omitted for them); environment lights (no finite emitting point) are refused by the
+//! renderer. There are no shading normals in furnace, so no shading-normal adjoint correction
+//! (Veach §5.3) is needed.
+
+use crate::camera::Camera;
+use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::lights::{area_radiance, Light};
+use crate::math::frame::Frame;
+use crate::math::rng::SampleStream;
+use crate::math::Vec3;
+use crate::scattering::Bxdf;
+use crate::scene::Scene;
+use crate::spectrum::{SampledSpectrum, Wavelengths};
+
+/// Where a world point lands on a sensor and how much importance reaches it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SensorConnection {
+    /// Pixel index, row-major from the top-left.
+    pub pixel: usize,
+    /// Eye position (world, scene units).
+    pub eye: Vec3,
+    /// Unit direction from the eye towards the point (world).
+    pub direction: Vec3,
+    /// Eye-to-point distance, scene units.
+    pub distance: f64,
+    /// W_e(ω)·cos θ_e: importance times the sensor cosine, sr⁻¹ (for the pinhole
+    /// 1/(A_pix cos³θ)).
+    pub importance_cos: f64,
+}
+
+/// A sensor that light paths connect to. The production implementation is
+/// [`PinholeSensor`]; tests wrap it to build deliberately wrong sensors (negative controls).
+pub trait Sensor: Sync {
+    /// The image size, pixels (width, height).
+    fn resolution(&self) -> (usize, usize);
+    /// The connection from world point `p` to the sensor; None when `p` is not seen (behind
+    /// the eye or outside the image).
+    fn connect(&self, p: Vec3) -> Option<SensorConnection>;
+}
+
+/// The scene's pinhole camera as a sensor for a `width`×`height` image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PinholeSensor {
+    /// The camera (built for this image's aspect).
+    pub camera: Camera,
+    /// Image width, pixels.
+    pub width: usize,
+    /// Image height, pixels.
+    pub height: usize,
+}
+
+impl Sensor for PinholeSensor {
+    fn resolution(&self) -> (usize, usize) {
+        (self.width, self.height)
+    }
+
+    #[inline]
+    fn connect(&self, p: Vec3) -> Option<SensorConnection> {
+        let pr = self.camera.project(p, self.width, self.height)?;
+        let (x, y) = (pr.x as usize, pr.y as usize);
+        Some(SensorConnection {
+            pixel: y * self.width + x,
+            eye: self.camera.position,
+            direction: pr.direction,
+            distance: pr.distance,
+            // W_e·cos θ_e with W_e = 1/(A_pix cos⁴θ) (camera module doc)
+            importance_cos: self
+                .camera
+                .importance(pr.cos_theta, self.width, self.height)
+                * pr.cos_theta,
+        })
+    }
+}
+
+/// One contribution of a light path to a pixel: the pixel's measurement estimate from this
+/// connection, W·sr⁻¹·m⁻²·nm⁻¹ at the path's wavelengths.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Splat {
+    /// Pixel index, row-major.
+    pub pixel: usize,
+    /// The contribution c_k at the path's wavelengths.
+    pub value: SampledSpectrum,
+}
+
+/// Light-tracer settings (the same meaning as the path tracer's).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightTracer {
+    /// Maximum number of bounces; None = unlimited.
+    pub max_depth: Option<u32>,
+    /// Bounces before Russian roulette starts; None disables roulette.
+    pub rr_depth: Option<u32>,
+}
+
+impl From<&crate::integrators::PathTracer> for LightTracer {
+    fn from(p: &crate::integrators::PathTracer) -> Self {
+        LightTracer {
+            max_depth: p.max_depth,
+            rr_depth: p.rr_depth,
+        }
+    }
+}
+
+/// The first light in `lights` the light tracer cannot start paths on, with the reason.
+pub fn unsupported_light(lights: &[Light]) -> Option<String> {
+    lights.iter().enumerate().find_map(|(i, l)| {
+        matches!(l, Light::Environment { .. }).then(|| {
+            format!(
+                "light {i} (type \"{}\") is not supported by the light tracer: it emits from infinity, so no light path can start on it; render this scene with the path tracer",
+                l.type_name()
+            )
+        })
+    })
+}
+
+/// The shadow-ray target at the eye (no error box: the eye is not on a surface).
+#[inline]
+fn eye_point(c: &SensorConnection) -> SurfacePoint {
+    SurfacePoint {
+        p: c.eye,
+        p_error: Vec3::ZERO,
+        n: c.direction,
+    }
+}
+
+impl LightTracer {
+    /// Traces one light path at wavelengths `wl` and appends its contributions to `splats`
+    /// (unordered; several may land in one pixel). Lights without a finite emitting point
+    /// (environment) contribute nothing: callers refuse such scenes first
+    /// ([`unsupported_light`]).
+    pub fn trace(
+        &self,
+        scene: &Scene,
+        sensor: &impl Sensor,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+        splats: &mut Vec<Splat>,
+    ) {
+        let shapes = scene.aggregate.shapes();
+        let n_lights = scene.lights.len() as f64;
+        let select_pdf = 1.0 / n_lights;
+        let u_light = rng.next_f64();
+        let u_select = rng.next_f64();
+        let u_pos = rng.next_2d();
+        let u_side = rng.next_f64();
+        let u_dir = rng.next_2d();
+        let li = ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
+        let light = &scene.lights[li];
+        let Some(es) = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, wl) else {
+            return;
+        };
+        if es.emitted.is_black() {
+            return;
+        }
+
+        // Depth 0: the emitter point seen directly, c₀ = L_e/(p_sel p_A)·|cos θ_x₀|·W_e cos θ_e/d².
+        if let (
+            false,
+            Light::Area {
+                radiance,
+                two_sided,
+                ..
+            },
+        ) = (es.delta_position, light)
+        {
+            if let Some(c) = sensor.connect(es.point.p) {
+                let to_eye = -c.direction;
+                let le = area_radiance(radiance, *two_sided, es.point.n, to_eye, wl);
+                if !le.is_black() {
+                    let (shadow, t_max) = ray::spawn_to(&es.point, &eye_point(&c));
+                    if !scene.aggregate.occluded(&shadow, t_max) {
+                        let g = es.point.n.dot(to_eye).abs() * c.importance_cos
+                            / (c.distance * c.distance);
+                        splats.push(Splat {
+                            pixel: c.pixel,
+                            value: le * (g / (select_pdf * es.pdf_pos)),
+                        });
+                    }
+                }
+            }
+        }
+        if self.max_depth == Some(0) {
+            return;
+        }
+
+        // The particle's power weight P = L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7, s = 1).
+        let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
+        let mut beta = SampledSpectrum::ONE;
+        let mut ray = if es.delta_position {
+            Ray {
+                o: es.point.p,
+                d: es.direction,
+            }
+        } else {
+            ray::spawn(&es.point, es.direction)
+        };
+        // Index of the vertex the ray is about to reach = bounces its camera connection counts.
+        let mut k: u32 = 1;
+        while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
+            let sp = hit.point;
+            let bsdf = &scene.bsdfs[hit.shape as usize];
+            let frame = Frame::from_normal(sp.n);
+            let to_prev = frame.to_local(-ray.d);
+
+            // Connection to the camera: c_k = P β f(ω_cam, ω_prev) |cos θ_x| W_e cos θ_e / d².
+            if let Some(c) = sensor.connect(sp.p) {
+                let to_eye = frame.to_local(-c.direction);
+                let f = bsdf.eval(to_eye, to_prev, wl);
+                if !f.is_black() {
+                    let (shadow, t_max) = ray::spawn_to(&sp, &eye_point(&c));
+                    if !scene.aggregate.occluded(&shadow, t_max) {
+                        let g = to_eye.z.abs() * c.importance_cos / (c.distance * c.distance);
+                        splats.push(Splat {
+                            pixel: c.pixel,
+                            value: power * beta * f * g,
+                        });
+                    }
+                }
+            }
+            if self.max_depth.is_some_and(|d| k >= d) {
+                break;
+            }
+
+            // Continue with the adjoint BSDF: sample(wo = towards the previous vertex) gives
+            // f(prev, next)|cos next|/pdf; the adjoint f*(prev, next) = f(prev, next)·η(next)²/η(prev)²
+            // (Veach 1997, §5.2, generalised reciprocity; see `Bxdf::eta`).
+            let u_lobe = rng.next_f64();
+            let u_next = rng.next_2d();
+            let Some(bs) = bsdf.sample(to_prev, u_next, u_lobe, wl) else {
+                break;
+            };
+            let (eta_next, eta_prev) = (bsdf.eta(bs.wi, wl), bsdf.eta(to_prev, wl));
+            let eta_ratio = SampledSpectrum(std::array::from_fn(|i| eta_next.0[i] / eta_prev.0[i]));
+            beta *= bs.weight * eta_ratio * eta_ratio;
+            if beta.is_black() || !beta.is_finite() {
+                break;
+            }
+            ray = ray::spawn(&sp, frame.to_world(bs.wi));
+
+            // Russian roulette after the k-th bounce, as in PathTracer: q = min(1, max β),
+            // never capped below 1 (Arvo & Kirk 1990).
+            let u_rr = rng.next_f64();
+            if self.rr_depth.is_some_and(|d| k >= d) {
+                let q = beta.max_component().min(1.0);
+                if u_rr >= q {
+                    break;
+                }
+                beta *= 1.0 / q;
+            }
+            k += 1;
+        }
+    }
+}

@@ -1,0 +1,440 @@
+//! Rendering by light tracing: N i.i.d. light paths splat their camera connections onto the
+//! film (integrators::light).
+//!
+//! Per-pixel statistics. Path i gives pixel j the sample c_ij = the sum of its contributions
+//! to j (0 for most paths); the c_ij, i = 1..N, are i.i.d. with mean I_j. So each pixel's
+//! estimate is the sample mean of N values, and its variance is estimated exactly as for N
+//! samples of a camera-path render: s² = Σ(c − c̄)²/(N − 1), Var(mean) ≈ s²/N. Each channel keeps
+//! Σc and Σc² (f64) per chunk of paths, turned into (n, mean, m2) per chunk and merged across
+//! chunks with Chan et al.'s pairwise formula (stats::MeanVar::merge), so `film::Pixel`'s
+//! accumulators hold N, the mean and Σ(c − c̄)² and everything downstream (EXR variance
+//! channels, region statistics, comparisons) reads them unchanged.
+//!
+//! Pixels are NOT independent: one path may contribute to several pixels, so the variance of
+//! a region mean is not Σ Var(pixel)/n². For regions named up front the renderer also keeps the
+//! per-path region sums C_iR = Σ_{j∈R} c_ij and their exact statistics ([`LightImage::regions`]).
+//!
+//! Determinism: path i's random numbers depend only on (seed, i, dimension); the N paths are
+//! split into [`CHUNKS`] fixed chunks whatever the thread count, each chunk is accumulated in
+//! path order, and chunks are merged in chunk order: the same seed gives the same bits for
+//! any number of threads.
+
+use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
+use crate::film::{Film, Pixel};
+use crate::integrators::light::{unsupported_light, PinholeSensor, Sensor, Splat};
+use crate::integrators::LightTracer;
+use crate::math::rng::{mix64, SampleStream, Sampler};
+use crate::scene::Scene;
+use crate::spectrum::Wavelengths;
+use crate::stats::MeanVar;
+use rayon::prelude::*;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Number of chunks the light paths are split into (fixed, so results do not depend on the
+/// thread count).
+pub const CHUNKS: u64 = 64;
+
+/// The "pixel" key of light-path random streams (light paths are not tied to a pixel; this
+/// keeps them apart from every camera-path stream of the same seed).
+const LIGHT_STREAM: u64 = 0x4c49_4748_545f_5452; // "LIGHT_TR"
+
+/// A light-traced image: the film, plus exact statistics of per-path region sums.
+#[derive(Debug, Clone, PartialEq)]
+pub struct LightImage {
+    /// Per-pixel means and variances (X, Y, Z, R, G, B; count = number of light paths).
+    pub film: Film,
+    /// For each requested region [x0, y0, x1, y1) (pixels, end exclusive) and channel (X, Y, Z,
+    /// R, G, B): the statistics of the per-path SUM over the region's pixels. The region's
+    /// mean pixel value is `mean()/pixels` and its standard error `std_error()/pixels`.
+    pub regions: Vec<[MeanVar; 6]>,
+    /// Light paths traced.
+    pub paths: u64,
+}
+
+/// Renders `scene` by tracing `n_paths` light paths with `settings` (size, seed, threads,
+/// max_depth and rr_depth of `settings.integrator`, observer, spectral handling; `spp` is not
+/// used). `progress` is called with the number of paths finished so far (from worker
+/// threads, once per chunk).
+pub fn render_light_paths(
+    scene: &Scene,
+    settings: &RenderSettings,
+    n_paths: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Film, RenderError> {
+    let camera = scene
+        .camera
+        .build(settings.width, settings.height)
+        .map_err(RenderError::Settings)?;
+    let sensor = PinholeSensor {
+        camera,
+        width: settings.width,
+        height: settings.height,
+    };
+    trace_light_image(scene, settings, n_paths, &[], &sensor, progress).map(|i| i.film)
+}
+
+/// Per-chunk accumulators: Σc and Σc² per pixel and channel, the same per region.
+struct ChunkSums {
+    paths: u64,
+    /// [Σc (6 channels), Σc² (6 channels)] per pixel.
+    pixels: Vec<[f64; 12]>,
+    /// The same for the per-path region sums.
+    regions: Vec<[f64; 12]>,
+}
+
+fn add_sample(acc: &mut [f64; 12], v: &[f64; 6]) {
+    for c in 0..6 {
+        acc[c] += v[c];
+        acc[6 + c] += v[c] * v[c];
+    }
+}
+
+fn stats_of(paths: u64, acc: &[f64; 12]) -> [MeanVar; 6] {
+    std::array::from_fn(|c| MeanVar::from_sums(paths, acc[c], acc[6 + c]))
+}
+
+/// Light tracing with an explicit sensor (the pinhole of the scene for
+/// [`render_light_paths`]; tests pass deliberately wrong ones) and exact statistics of the
+/// region sums over `regions` ([x0, y0, x1, y1) pixel rectangles).
+pub fn trace_light_image<S: Sensor>(
+    scene: &Scene,
+    settings: &RenderSettings,
+    n_paths: u64,
+    regions: &[[usize; 4]],
+    sensor: &S,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<LightImage, RenderError> {
+    check_common(settings)?;
+    let (w, h) = (settings.width, settings.height);
+    if sensor.resolution() != (w, h) {
+        return Err(RenderError::Settings(format!(
+            "the sensor is {:?} pixels but the settings ask for {w}x{h}",
+            sensor.resolution()
+        )));
+    }
+    if n_paths < 2 {
+        return Err(RenderError::Settings(format!(
+            "{n_paths} light paths; at least 2 are needed for a variance estimate"
+        )));
+    }
+    if settings.sampler != Sampler::Independent {
+        return Err(RenderError::Settings(format!(
+            "sampler {:?} with the light tracer: its variance estimate treats light paths as independent samples, so only the independent sampler is allowed",
+            settings.sampler.name()
+        )));
+    }
+    if let Some(why) = unsupported_light(&scene.lights) {
+        return Err(RenderError::Settings(why));
+    }
+    if let Some(i) = scene.bsdfs.iter().position(|b| b.separates_wavelengths()) {
+        return Err(RenderError::Settings(format!(
+            "shape {i} has a dispersive dielectric: the light tracer does not yet drop the secondary wavelengths where directions depend on wavelength; use a constant ior or the path tracer"
+        )));
+    }
+    if let Some(r) = regions
+        .iter()
+        .find(|r| !(r[0] < r[2] && r[1] < r[3] && r[2] <= w && r[3] <= h))
+    {
+        return Err(RenderError::Settings(format!(
+            "region {r:?} is empty or does not fit the {w}x{h} image"
+        )));
+    }
+    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let response = FilmResponse::new(&settings.observer, grey, settings.spectral.wavelengths);
+    let tracer = LightTracer::from(&settings.integrator);
+    let seed = mix64(settings.seed ^ LIGHT_STREAM);
+    let done = AtomicU64::new(0);
+    let chunk = |c: u64| -> ChunkSums {
+        // Paths [c·N/K, (c+1)·N/K): the split depends only on N and K.
+        let bound = |c: u64| (c as u128 * n_paths as u128 / CHUNKS as u128) as u64;
+        let (start, end) = (bound(c), bound(c + 1));
+        let mut sums = ChunkSums {
+            paths: end - start,
+            pixels: vec![[0.0; 12]; w * h],
+            regions: vec![[0.0; 12]; regions.len()],
+        };
+        let mut splats: Vec<Splat> = Vec::new();
+        let mut merged: Vec<(usize, [f64; 6])> = Vec::new();
+        let mut region_sum = vec![[0.0f64; 6]; regions.len()];
+        let mut touched = vec![false; regions.len()];
+        for i in start..end {
+            let mut rng = SampleStream::new(seed, LIGHT_STREAM, i);
+            let u_lambda = rng.next_f64();
+            let wl = Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
+            splats.clear();
+            tracer.trace(scene, sensor, &wl, &mut rng, &mut splats);
+            if splats.is_empty() {
+                continue;
+            }
+            // The path's sample for each pixel is the sum of its splats there (square after summing).
+            splats.sort_by_key(|s| s.pixel);
+            merged.clear();
+            for s in &splats {
+                let xyz = response.xyz(&s.value, &wl);
+                let rgb = settings.observer.xyz_to_rgb(xyz);
+                let v = [xyz[0], xyz[1], xyz[2], rgb[0], rgb[1], rgb[2]];
+                match merged.last_mut() {
+                    Some((p, acc)) if *p == s.pixel => {
+                        for c in 0..6 {
+                            acc[c] += v[c];
+                        }
+                    }
+                    _ => merged.push((s.pixel, v)),
+                }
+            }
+            for (p, v) in &merged {
+                add_sample(&mut sums.pixels[*p], v);
+                let (x, y) = (p % w, p / w);
+                for (r, rect) in regions.iter().enumerate() {
+                    if x >= rect[0] && x < rect[2] && y >= rect[1] && y < rect[3] {
+                        touched[r] = true;
+                        for c in 0..6 {
+                            region_sum[r][c] += v[c];
+                        }
+                    }
+                }
+            }
+            for r in 0..regions.len() {
+                if touched[r] {
+                    add_sample(&mut sums.regions[r], &region_sum[r]);
+                    region_sum[r] = [0.0; 6];
+                    touched[r] = false;
+                }
+            }
+        }
+        let n = done.fetch_add(sums.paths, Ordering::Relaxed) + sums.paths;
+        progress(n);
+        sums
+    };
+    let work = || {
+        let mut pixels = vec![Pixel::default(); w * h];
+        let mut region_stats = vec![[MeanVar::default(); 6]; regions.len()];
+        // Chunks run a pool's width at a time (bounding memory to that many accumulators) and
+        // are merged in chunk order, so the batch width does not change the result.
+        let batch = rayon::current_num_threads().max(1) as u64;
+        let mut c0 = 0;
+        while c0 < CHUNKS {
+            let c1 = (c0 + batch).min(CHUNKS);
+            let results: Vec<ChunkSums> = (c0..c1).into_par_iter().map(chunk).collect();
+            for r in results {
+                for (px, acc) in pixels.iter_mut().zip(&r.pixels) {
+                    for (m, s) in px.channels.iter_mut().zip(&stats_of(r.paths, acc)) {
+                        m.merge(s);
+                    }
+                }
+                for (st, acc) in region_stats.iter_mut().zip(&r.regions) {
+                    for (m, s) in st.iter_mut().zip(&stats_of(r.paths, acc)) {
+                        m.merge(s);
+                    }
+                }
+            }
+            c0 = c1;
+        }
+        (pixels, region_stats)
+    };
+    let (pixels, regions) = in_pool(settings.threads, work)?;
+    Ok(LightImage {
+        film: Film {
+            width: w,
+            height: h,
+            pixels,
+        },
+        regions,
+        paths: n_paths,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrators::PathTracer;
+    use std::path::Path;
+
+    fn scene_file(rel: &str) -> Scene {
+        Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
+    }
+
+    fn settings(w: usize, h: usize, threads: usize, max_depth: Option<u32>) -> RenderSettings {
+        RenderSettings {
+            width: w,
+            height: h,
+            spp: 16,
+            seed: 5,
+            threads,
+            integrator: PathTracer {
+                max_depth,
+                ..PathTracer::default()
+            },
+            observer: Default::default(),
+            sampler: Sampler::Independent,
+            spectral: Default::default(),
+        }
+    }
+
+    fn light_image(scene: &Scene, s: &RenderSettings, n: u64) -> LightImage {
+        let sensor = PinholeSensor {
+            camera: scene.camera.build(s.width, s.height).unwrap(),
+            width: s.width,
+            height: s.height,
+        };
+        trace_light_image(scene, s, n, &[[0, 0, s.width, s.height]], &sensor, &|_| {}).unwrap()
+    }
+
+    #[test]
+    fn white_furnace_reads_e_over_one_minus_r_in_every_pixel() {
+        // E = 1, R = 0.5, unlimited bounces: L = E/(1 − R) = 2 everywhere (scenes/furnace-sphere.toml).
+        let scene = scene_file("scenes/furnace-sphere.toml");
+        let s = settings(8, 8, 0, None);
+        let img = light_image(&scene, &s, 400_000);
+        let whole = img.regions[0][1];
+        let n_px = 64.0;
+        let (mean, se) = (whole.mean() / n_px, whole.std_error() / n_px);
+        assert!((mean - 2.0).abs() < 4.5 * se && se < 0.01, "{mean} ± {se}");
+        // every pixel within noise (a 4.5σ bound is a ~1e-5 false alarm per pixel)
+        for (i, p) in img.film.pixels.iter().enumerate() {
+            let m = p.channels[1];
+            assert_eq!(m.count(), 400_000);
+            assert!(
+                (m.mean() - 2.0).abs() < 4.5 * m.std_error(),
+                "pixel {i}: {m:?}"
+            );
+        }
+        // with max_depth = 2: E(1 + R + R²) = 1.75
+        let s = settings(8, 8, 0, Some(2));
+        let whole = light_image(&scene, &s, 200_000).regions[0][1];
+        let (mean, se) = (whole.mean() / n_px, whole.std_error() / n_px);
+        assert!((mean - 1.75).abs() < 4.5 * se, "{mean} ± {se}");
+    }
+
+    #[test]
+    fn one_and_two_threads_give_the_same_bits() {
+        let scene = scene_file("scenes/cornell-box.toml");
+        let a = light_image(&scene, &settings(16, 16, 1, None), 20_000);
+        let b = light_image(&scene, &settings(16, 16, 2, None), 20_000);
+        assert!(a == b, "the image depends on the thread count");
+        assert!(a.film.means(1).iter().any(|v| *v > 0.0));
+        let c = light_image(&scene, &settings(16, 16, 2, None), 20_001);
+        assert!(a != c);
+    }
+
+    #[test]
+    fn region_variance_matches_replication_and_the_pixel_sum_does_not() {
+        // One light path reaches several pixels (and a path that lands in one pixel does not land
+        // in the others), so pixels are correlated and Var(region mean) ≠ Σ Var(pixel)/n². The
+        // per-path region sums give it exactly; checked against the spread of independent
+        // replicate renders. In the Cornell box the pixel sum overstates the whole-image
+        // variance about 2× (the negative, multinomial-like covariance dominates).
+        let scene = scene_file("scenes/cornell-box.toml");
+        let reps = 200;
+        let (mut exact, mut naive, mut sum, mut sum2) = (0.0, 0.0, 0.0, 0.0);
+        for seed in 0..reps {
+            let mut s = settings(16, 16, 0, None);
+            s.seed = 1000 + seed;
+            let img = light_image(&scene, &s, 2000);
+            let r = img.regions[0][1];
+            exact += r.variance() / r.count() as f64 / reps as f64;
+            naive += img.film.mean_variances(1).iter().sum::<f64>() / reps as f64;
+            let total: f64 = img.film.means(1).iter().sum();
+            assert!((r.mean() - total).abs() <= 1e-9 * total);
+            sum += total;
+            sum2 += total * total;
+        }
+        let n = reps as f64;
+        let empirical = (sum2 - sum * sum / n) / (n - 1.0);
+        // 200 replicates: the empirical variance has a relative standard error of ~10 %.
+        assert!(
+            (empirical / exact - 1.0).abs() < 0.3,
+            "replicates {empirical:.4e}, per-path region sums {exact:.4e}"
+        );
+        assert!(
+            (empirical / naive - 1.0).abs() > 0.3,
+            "replicates {empirical:.4e}, summed pixel variances {naive:.4e}"
+        );
+    }
+
+    const TWO_LIGHTS: &str = r#"
+[render]
+width = 12
+height = 12
+[camera]
+position = [0.0, 1.0, -3.0]
+look_at = [0.0, 0.3, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 60.0
+[materials.grey]
+type = "diffuse"
+reflectance = 0.6
+[materials.red]
+type = "diffuse"
+reflectance = { wavelengths = [400.0, 550.0, 700.0], values = [0.1, 0.2, 0.8] }
+[[shape]]
+type = "quad"
+corner = [-2.0, 0.0, -2.0]
+edge_u = [0.0, 0.0, 4.0]
+edge_v = [4.0, 0.0, 0.0]
+material = "grey"
+[[shape]]
+type = "quad"
+corner = [-2.0, 0.0, 1.5]
+edge_u = [4.0, 0.0, 0.0]
+edge_v = [0.0, 2.0, 0.0]
+material = "red"
+[[shape]]
+type = "quad"
+corner = [-0.4, 1.2, -0.4]
+edge_u = [0.8, 0.0, 0.0]
+edge_v = [0.0, 0.3, 0.8]
+material = "grey"
+emission = 3.0
+two_sided = true
+[[light]]
+type = "point"
+position = [0.8, 0.8, -0.5]
+intensity = 2.0
+"#;
+
+    #[test]
+    fn light_and_path_tracer_agree_with_a_point_light_and_a_two_sided_emitter() {
+        let scene = Scene::parse(TWO_LIGHTS, Path::new("two-lights.toml")).unwrap();
+        for depth in [Some(1), Some(3)] {
+            let mut s = settings(12, 12, 0, depth);
+            s.spp = 256;
+            let pt = crate::render::render(&scene, &s, &|_| {}).unwrap();
+            let lt = light_image(&scene, &s, 300_000);
+            for c in [0usize, 1, 2] {
+                let (m, v) = (pt.means(c), pt.mean_variances(c));
+                let n = m.len() as f64;
+                let (pm, pse) = (m.iter().sum::<f64>() / n, v.iter().sum::<f64>().sqrt() / n);
+                let r = lt.regions[0][c];
+                let (lm, lse) = (r.mean() / n, r.std_error() / n);
+                let z = (pm - lm) / (pse * pse + lse * lse).sqrt();
+                assert!(
+                    z.abs() < 4.5,
+                    "depth {depth:?} channel {c}: path {pm} ± {pse}, light {lm} ± {lse}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn environment_lights_and_bad_settings_are_refused_with_reasons() {
+        let text = format!("{TWO_LIGHTS}\n[[light]]\ntype = \"environment\"\nradiance = 1.0\n");
+        let scene = Scene::parse(&text, Path::new("env.toml")).unwrap();
+        let s = settings(12, 12, 0, Some(2));
+        let e = render_light_paths(&scene, &s, 100, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("light 2") && e.contains("environment"), "{e}");
+        let scene = Scene::parse(TWO_LIGHTS, Path::new("two-lights.toml")).unwrap();
+        let e = render_light_paths(&scene, &s, 1, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("at least 2"), "{e}");
+        let mut st = s.clone();
+        st.sampler = Sampler::Sobol;
+        let e = render_light_paths(&scene, &st, 100, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("independent"), "{e}");
+    }
+}
