@@ -19,6 +19,22 @@ use crate::stats::{normal_sf, z_test, MeanVar};
 /// Directional albedo per wavelength component by midpoint quadrature: `n_mu` × `n_phi` cells
 /// in (cos θi ∈ [−1, 1], φ), where dω = d(cos θ) dφ makes the cell weights exact.
 pub fn albedo_quadrature(b: &dyn Bxdf, wo: Vec3, n_mu: usize, n_phi: usize) -> [f64; 4] {
+    quadrature(b, wo, n_mu, n_phi, |_| [1.0; 4])
+}
+
+/// The same quadrature of the power albedo: each cell weighted by [`power_factor`].
+pub fn power_albedo_quadrature(b: &dyn Bxdf, wo: Vec3, n_mu: usize, n_phi: usize) -> [f64; 4] {
+    quadrature(b, wo, n_mu, n_phi, |wi| power_factor(b, wo, wi))
+}
+
+/// ∫ f(wo, wi)·factor(wi)·|cos θi| dωi per wavelength by the midpoint rule described above.
+fn quadrature(
+    b: &dyn Bxdf,
+    wo: Vec3,
+    n_mu: usize,
+    n_phi: usize,
+    factor: impl Fn(Vec3) -> [f64; 4],
+) -> [f64; 4] {
     let wl = registry::check_wavelengths();
     let mut acc = [0.0; 4];
     let cell = (2.0 / n_mu as f64) * (2.0 * PI / n_phi as f64);
@@ -29,8 +45,9 @@ pub fn albedo_quadrature(b: &dyn Bxdf, wo: Vec3, n_mu: usize, n_phi: usize) -> [
             let phi = (j as f64 + 0.5) * 2.0 * PI / n_phi as f64;
             let wi = Vec3::new(r * phi.cos(), r * phi.sin(), mu);
             let f = b.eval(wo, wi, &wl);
-            for (a, fk) in acc.iter_mut().zip(f.0) {
-                *a += fk * mu.abs() * cell;
+            let k = factor(wi);
+            for c in 0..4 {
+                acc[c] += f.0[c] * k[c] * mu.abs() * cell;
             }
         }
     }
@@ -112,24 +129,7 @@ pub fn measure(
                 )
             };
             if quadrature_resolves(*b, wo) {
-                let mut acc = [0.0; 4];
-                // the quadrature with the power factor
-                let n_mu = 512;
-                let n_phi = 64;
-                let cell = (2.0 / n_mu as f64) * (2.0 * PI / n_phi as f64);
-                for i in 0..n_mu {
-                    let mu = -1.0 + (i as f64 + 0.5) * 2.0 / n_mu as f64;
-                    let r = (1.0 - mu * mu).max(0.0).sqrt();
-                    for j in 0..n_phi {
-                        let phi = (j as f64 + 0.5) * 2.0 * PI / n_phi as f64;
-                        let wi = Vec3::new(r * phi.cos(), r * phi.sin(), mu);
-                        let f = b.eval(wo, wi, &wl);
-                        let kf = power_factor(*b, wo, wi);
-                        for k in 0..4 {
-                            acc[k] += f.0[k] * kf[k] * mu.abs() * cell;
-                        }
-                    }
-                }
+                let acc = power_albedo_quadrature(*b, wo, 512, 64);
                 for (k, &v) in acc.iter().enumerate() {
                     if v > quad_max.0 || v.is_nan() {
                         quad_max = (v, at(k));
