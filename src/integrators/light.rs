@@ -264,15 +264,10 @@ impl LightTracer {
             }
             ray = ray::spawn(&sp, frame.to_world(bs.wi));
 
-            // Russian roulette after the k-th bounce, as in PathTracer: q = min(1, max β),
-            // never capped below 1 (Arvo & Kirk 1990).
+            // Russian roulette after the k-th bounce, as in PathTracer.
             let u_rr = rng.next_f64();
-            if self.rr_depth.is_some_and(|d| k >= d) {
-                let q = beta.max_component().min(1.0);
-                if u_rr >= q {
-                    break;
-                }
-                beta *= 1.0 / q;
+            if self.rr_depth.is_some_and(|d| k >= d) && !super::roulette(&mut beta, u_rr) {
+                break;
             }
             k += 1;
         }

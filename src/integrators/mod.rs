@@ -7,3 +7,19 @@ pub mod path;
 
 pub use light::LightTracer;
 pub use path::{PathTracer, Strategy};
+
+use crate::spectrum::SampledSpectrum;
+
+/// Unbiased Russian roulette (Arvo & Kirk 1990, "Particle transport and image synthesis",
+/// SIGGRAPH) with survival probability q = min(1, max β), never capped below 1, so the
+/// estimator keeps finite variance at albedo near 1. With uniform `u`, returns false when the
+/// path ends; a surviving path's `beta` is divided by q.
+#[inline]
+pub fn roulette(beta: &mut SampledSpectrum, u: f64) -> bool {
+    let q = beta.max_component().min(1.0);
+    if u >= q {
+        return false;
+    }
+    *beta *= 1.0 / q;
+    true
+}

@@ -1,6 +1,6 @@
 //! Unidirectional path tracing with next-event estimation and multiple importance sampling
 //! (Veach 1997, PhD thesis, ch. 9, the power heuristic with β = 2, eq. 9.13), and unbiased
-//! Russian roulette (Arvo & Kirk 1990, "Particle transport and image synthesis", SIGGRAPH).
+//! Russian roulette ([`super::roulette`]).
 //!
 //! Depth counts scattering events (bounces): emission seen directly has depth 0, direct
 //! lighting depth 1. With `max_depth = D` the estimate is exactly the sum of paths with at
@@ -187,15 +187,10 @@ impl PathTracer {
             ray = ray::spawn(&sp, frame.to_world(bs.wi));
             depth += 1;
 
-            // Russian roulette: survival q = min(1, max β) is never capped below 1, so
-            // the estimator keeps finite variance at albedo near 1.
+            // Russian roulette (see super::roulette).
             let u_rr = rng.next_f64();
-            if self.rr_depth.is_some_and(|d| depth >= d) {
-                let q = beta.max_component().min(1.0);
-                if u_rr >= q {
-                    break;
-                }
-                beta *= 1.0 / q;
+            if self.rr_depth.is_some_and(|d| depth >= d) && !super::roulette(&mut beta, u_rr) {
+                break;
             }
         }
         l
