@@ -131,7 +131,5 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
             ),
         ));
     }
-    let mut m = combine(parts);
-    m.statistic = m.statistic.or(Some(Statistic::Z { z: f64::NAN }));
-    Ok(m)
+    Ok(combine(parts))
 }
