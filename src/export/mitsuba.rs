@@ -24,6 +24,7 @@ use super::ExportError;
 use crate::geometry::Shape;
 use crate::lights::Light;
 use crate::math::Vec3;
+use crate::scattering::microfacet::Ggx;
 use crate::scattering::{Bsdf, ConductorFresnel, Ior};
 use crate::scene::Scene;
 use crate::spectrum::curve::planck;
@@ -217,7 +218,8 @@ fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
         what: format!("shape[{i}] material"),
         why: why.into(),
     };
-    let rough = |x: &mut String, ax: f64, ay: f64, pad: &str| -> Result<(), ExportError> {
+    let rough = |x: &mut String, g: &Ggx, pad: &str| -> Result<(), ExportError> {
+        let (ax, ay) = (g.alpha_x, g.alpha_y);
         if ax != ay {
             return Err(unsupported("anisotropic roughness: Mitsuba's tangent frame differs from furnace's, so alpha_u/alpha_v would not line up; use equal alpha_x and alpha_y"));
         }
@@ -250,8 +252,8 @@ fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
                     spectrum(x, 8, "k", k);
                 }
             }
-            if !c.is_smooth() {
-                rough(x, c.alpha_x, c.alpha_y, "        ")?;
+            if let Some(g) = &c.microfacet {
+                rough(x, g, "        ")?;
             }
             x.push_str("      </bsdf>\n    </bsdf>\n");
         }
@@ -267,8 +269,8 @@ fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
             let _ = writeln!(x, "    <bsdf type=\"{kind}\">");
             let _ = writeln!(x, "      <float name=\"int_ior\" value=\"{n}\"/>");
             x.push_str("      <float name=\"ext_ior\" value=\"1\"/>\n");
-            if !d.is_smooth() {
-                rough(x, d.alpha_x, d.alpha_y, "      ")?;
+            if let Some(g) = &d.microfacet {
+                rough(x, g, "      ")?;
             }
             x.push_str("    </bsdf>\n");
         }

@@ -24,6 +24,7 @@ use super::ExportError;
 use crate::geometry::Shape;
 use crate::lights::Light;
 use crate::math::Vec3;
+use crate::scattering::microfacet::Ggx;
 use crate::scattering::{Bsdf, ConductorFresnel, Ior};
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
@@ -173,7 +174,9 @@ fn luminance(s: &Spectrum) -> f64 {
 /// The `Material` line of shape `i`. Roughness is passed as GGX α with `remaproughness`
 /// false (pbrt-v4's default remaps a perceptual roughness).
 fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
-    let rough = |ax: f64, ay: f64| {
+    // smooth = roughness 0 in pbrt-v4
+    let rough = |m: Option<Ggx>| {
+        let (ax, ay) = m.map_or((0.0, 0.0), |g| (g.alpha_x, g.alpha_y));
         format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" [ false ]")
     };
     Ok(match b {
@@ -188,7 +191,7 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
                     format!("{} {}", spectrum("eta", eta), spectrum("k", k))
                 }
             };
-            format!("Material \"conductor\" {f} {}", rough(c.alpha_x, c.alpha_y))
+            format!("Material \"conductor\" {f} {}", rough(c.microfacet))
         }
         Bsdf::Dielectric(d) => {
             let eta = match &d.ior {
@@ -201,10 +204,7 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
                     format!("\"spectrum eta\" [ {} ]", pairs.join(" "))
                 }
             };
-            format!(
-                "Material \"dielectric\" {eta} {}",
-                rough(d.alpha_x, d.alpha_y)
-            )
+            format!("Material \"dielectric\" {eta} {}", rough(d.microfacet))
         }
         Bsdf::Ward(_) => {
             return Err(ExportError::Unsupported {

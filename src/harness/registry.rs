@@ -8,6 +8,7 @@ use crate::geometry::{
 use crate::lights::Light;
 use crate::math::{warp, Vec3};
 use crate::media::{HenyeyGreenstein, Phase};
+use crate::scattering::microfacet::Ggx;
 use crate::scattering::{
     Bsdf, Bxdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward,
 };
@@ -32,24 +33,21 @@ fn conductor(n: f64, k: f64, ax: f64, ay: f64) -> Bsdf {
             eta: Spectrum::Constant(n),
             k: Spectrum::Constant(k),
         },
-        alpha_x: ax,
-        alpha_y: ay,
+        microfacet: Ggx::rough(ax, ay),
     })
 }
 
 fn perfect(alpha: f64) -> Bsdf {
     Bsdf::Conductor(Conductor {
         fresnel: ConductorFresnel::Perfect,
-        alpha_x: alpha,
-        alpha_y: alpha,
+        microfacet: Ggx::rough(alpha, alpha),
     })
 }
 
 fn dielectric(ior: Ior, alpha: f64) -> Bsdf {
     Bsdf::Dielectric(Dielectric {
         ior,
-        alpha_x: alpha,
-        alpha_y: alpha,
+        microfacet: Ggx::rough(alpha, alpha),
     })
 }
 
@@ -88,8 +86,7 @@ pub fn bsdfs() -> Vec<(String, Bsdf)> {
                     eta: n_ramp,
                     k: k_ramp,
                 },
-                alpha_x: 0.3,
-                alpha_y: 0.3,
+                microfacet: Ggx::rough(0.3, 0.3),
             }),
         ),
         (
@@ -154,15 +151,15 @@ pub enum AlbedoExpectation {
     },
 }
 
-/// The albedo expectations of the registered models that have one.
-pub fn albedo_expectation(name: &str) -> Option<AlbedoExpectation> {
+/// The albedo expectation of a registered model (`name` from [`bsdfs`]): lossless models are
+/// recognised from the model itself, the loss bands of the white GGX models by name.
+pub fn albedo_expectation(name: &str, bsdf: &Bsdf) -> Option<AlbedoExpectation> {
     use AlbedoExpectation::*;
+    if bsdf.is_lossless() {
+        return Some(Lossless);
+    }
     let loss = |min_loss, max_loss| Some(SingleScatteringLoss { min_loss, max_loss });
     match name {
-        "conductor/smooth perfect"
-        | "dielectric/smooth η=1.5"
-        | "dielectric/smooth bk7"
-        | "dielectric/smooth η=1.0001" => Some(Lossless),
         "conductor/ggx α=0.05 perfect" => loss(0.0, 0.12),
         "conductor/ggx α=0.3 perfect" => loss(0.10, 0.20),
         "conductor/ggx α=1 perfect" => loss(0.37, 0.71),

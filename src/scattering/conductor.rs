@@ -27,10 +27,8 @@ pub enum ConductorFresnel {
 pub struct Conductor {
     /// Fresnel model.
     pub fresnel: ConductorFresnel,
-    /// GGX roughness along local x; 0 (with `alpha_y` 0) = smooth.
-    pub alpha_x: f64,
-    /// GGX roughness along local y.
-    pub alpha_y: f64,
+    /// GGX microfacets, or None for a smooth mirror (a delta lobe).
+    pub microfacet: Option<Ggx>,
 }
 
 /// Mirrors `w` into the upper hemisphere (z ≥ 0).
@@ -42,14 +40,7 @@ pub(crate) fn upper(w: Vec3) -> Vec3 {
 impl Conductor {
     /// True for the smooth (delta) conductor.
     pub fn is_smooth(&self) -> bool {
-        self.alpha_x == 0.0 && self.alpha_y == 0.0
-    }
-
-    fn ggx(&self) -> Ggx {
-        Ggx {
-            alpha_x: self.alpha_x,
-            alpha_y: self.alpha_y,
-        }
+        self.microfacet.is_none()
     }
 
     /// Fresnel reflectance at incidence cosine `cos` per wavelength.
@@ -70,12 +61,14 @@ impl Bxdf for Conductor {
     // Cook & Torrance 1982 (ACM ToG 1(1)) microfacet reflection f = D G F / (4 cos θo cos θi)
     // with the GGX D and Smith G of Walter et al. 2007 (EGSR), eq. 20.
     fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
-        if self.is_smooth() || wo.z * wi.z <= 0.0 {
+        let Some(g) = &self.microfacet else {
+            return SampledSpectrum::ZERO;
+        };
+        if wo.z * wi.z <= 0.0 {
             return SampledSpectrum::ZERO;
         }
         let (o, i) = (upper(wo), upper(wi));
         let h = (o + i).normalize();
-        let g = self.ggx();
         let s = g.d(h) * g.g1(o, h) * g.g1(i, h) / (4.0 * o.z * i.z);
         if s.is_nan() || s <= 0.0 {
             return SampledSpectrum::ZERO;
@@ -95,15 +88,14 @@ impl Bxdf for Conductor {
             }
         };
         let o = upper(wo);
-        if self.is_smooth() {
+        let Some(g) = &self.microfacet else {
             return Some(BsdfSample {
                 wi: flip(Vec3::new(-o.x, -o.y, o.z)),
                 weight: self.fresnel(o.z, wl),
                 pdf: 1.0,
                 delta: true,
             });
-        }
-        let g = self.ggx();
+        };
         let m = g.sample_visible(o, u);
         let i = fresnel::reflect(o, m);
         if i.z <= 0.0 {
@@ -124,16 +116,18 @@ impl Bxdf for Conductor {
     }
 
     fn roughness(&self) -> f64 {
-        self.alpha_x.min(self.alpha_y)
+        self.microfacet.map_or(0.0, |g| g.alpha_x.min(g.alpha_y))
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> f64 {
-        if self.is_smooth() || wo.z * wi.z <= 0.0 {
+        let Some(g) = &self.microfacet else {
+            return 0.0;
+        };
+        if wo.z * wi.z <= 0.0 {
             return 0.0;
         }
         let (o, i) = (upper(wo), upper(wi));
         let h = (o + i).normalize();
-        let g = self.ggx();
         let p = g.d(h) * g.g1(o, h) / (4.0 * o.z);
         if p.is_finite() {
             p

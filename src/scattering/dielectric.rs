@@ -21,10 +21,8 @@ use crate::spectrum::{SampledSpectrum, Wavelengths};
 pub struct Dielectric {
     /// Refractive index of the inside (the side opposite the normal), relative to outside.
     pub ior: Ior,
-    /// GGX roughness along local x; 0 (with `alpha_y` 0) = smooth.
-    pub alpha_x: f64,
-    /// GGX roughness along local y.
-    pub alpha_y: f64,
+    /// GGX microfacets, or None for a smooth interface (delta lobes).
+    pub microfacet: Option<Ggx>,
 }
 
 /// The geometry of one (wo, wi) pair at one index, in the frame where wo.z > 0.
@@ -42,14 +40,7 @@ struct Pair {
 impl Dielectric {
     /// True for the smooth (delta) interface.
     pub fn is_smooth(&self) -> bool {
-        self.alpha_x == 0.0 && self.alpha_y == 0.0
-    }
-
-    fn ggx(&self) -> Ggx {
-        Ggx {
-            alpha_x: self.alpha_x,
-            alpha_y: self.alpha_y,
-        }
+        self.microfacet.is_none()
     }
 
     /// (wo, wi) mapped to the frame where wo is above the surface, with the microfacet
@@ -88,12 +79,11 @@ impl Dielectric {
         })
     }
 
-    /// f at one index `n` (radiance-carrying).
-    fn eval_at(&self, wo: Vec3, wi: Vec3, n: f64) -> f64 {
+    /// f of the rough interface `g` at one index `n` (radiance-carrying).
+    fn eval_at(g: &Ggx, wo: Vec3, wi: Vec3, n: f64) -> f64 {
         let Some(p) = Self::pair(wo, wi, n) else {
             return 0.0;
         };
-        let g = self.ggx();
         let (oh, ih) = (p.o.dot(p.h), p.i.dot(p.h));
         let (f, _) = fresnel::dielectric(oh, p.eta_t / p.eta_o);
         let dg = g.d(p.h) * g.g1(p.o, p.h) * g.g1(p.i, p.h);
@@ -115,11 +105,10 @@ impl Dielectric {
     /// Pdf of sampling wi at index `n`: the visible-normal pdf times the Jacobian of the
     /// reflection (1/(4 o·h)) or refraction (η_t² |i·h|/(η_t i·h + η_o o·h)², Walter et al.
     /// 2007, eq. 17) mapping, times the probability of choosing that lobe (F or 1 − F).
-    fn pdf_at(&self, wo: Vec3, wi: Vec3, n: f64) -> f64 {
+    fn pdf_at(g: &Ggx, wo: Vec3, wi: Vec3, n: f64) -> f64 {
         let Some(p) = Self::pair(wo, wi, n) else {
             return 0.0;
         };
-        let g = self.ggx();
         let (oh, ih) = (p.o.dot(p.h), p.i.dot(p.h));
         let (f, _) = fresnel::dielectric(oh, p.eta_t / p.eta_o);
         let dv = g.pdf_visible(p.o, p.h);
@@ -139,11 +128,11 @@ impl Dielectric {
 
 impl Bxdf for Dielectric {
     fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
-        if self.is_smooth() {
+        let Some(g) = &self.microfacet else {
             return SampledSpectrum::ZERO;
-        }
+        };
         SampledSpectrum(std::array::from_fn(|k| {
-            self.eval_at(wo, wi, self.ior.eval(wl.lambda[k]))
+            Self::eval_at(g, wo, wi, self.ior.eval(wl.lambda[k]))
         }))
     }
 
@@ -156,7 +145,7 @@ impl Bxdf for Dielectric {
         let flip = |w: Vec3| Vec3::new(w.x, w.y, w.z * s);
         let o = flip(wo);
         let (eta_o, eta_t) = if wo.z > 0.0 { (1.0, n0) } else { (n0, 1.0) };
-        if self.is_smooth() {
+        let Some(g) = &self.microfacet else {
             let (f0, cos_t) = fresnel::dielectric(o.z, eta_t / eta_o);
             if uc < f0 {
                 // Reflection: each wavelength's Fresnel over the hero's choice probability.
@@ -187,8 +176,7 @@ impl Bxdf for Dielectric {
                 pdf: 1.0 - f0,
                 delta: true,
             });
-        }
-        let g = self.ggx();
+        };
         let m = g.sample_visible(o, u);
         let (f, cos_t) = fresnel::dielectric(o.dot(m), eta_t / eta_o);
         let i = if uc < f {
@@ -200,7 +188,7 @@ impl Bxdf for Dielectric {
             return None;
         }
         let wi = flip(i);
-        let pdf = self.pdf_at(wo, wi, n0);
+        let pdf = Self::pdf_at(g, wo, wi, n0);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
@@ -217,14 +205,15 @@ impl Bxdf for Dielectric {
     /// tilted by θm deviates the ray by about (η − 1)θm), so the width is α·min(1, |η − 1|) at
     /// 550 nm.
     fn roughness(&self) -> f64 {
-        self.alpha_x.min(self.alpha_y) * (self.ior.eval(550.0) - 1.0).abs().min(1.0)
+        self.microfacet.map_or(0.0, |g| g.alpha_x.min(g.alpha_y))
+            * (self.ior.eval(550.0) - 1.0).abs().min(1.0)
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
-        if self.is_smooth() {
+        let Some(g) = &self.microfacet else {
             return 0.0;
-        }
-        self.pdf_at(wo, wi, self.ior.eval(wl.lambda[0]))
+        };
+        Self::pdf_at(g, wo, wi, self.ior.eval(wl.lambda[0]))
     }
 
     fn eta(&self, w: Vec3, wl: &Wavelengths) -> SampledSpectrum {

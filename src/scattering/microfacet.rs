@@ -17,6 +17,11 @@ pub struct Ggx {
 }
 
 impl Ggx {
+    /// The distribution for roughness (αx, αy), or None for 0 (a smooth surface, a delta lobe).
+    pub fn rough(alpha_x: f64, alpha_y: f64) -> Option<Ggx> {
+        (alpha_x > 0.0 || alpha_y > 0.0).then_some(Ggx { alpha_x, alpha_y })
+    }
+
     /// D(m) per steradian of normals, normalised so that ∫ D(m) cos θm dωm = 1
     /// (Trowbridge & Reitz 1975, JOSA 65; anisotropic form: Heitz 2014, JCGT 3(2), eq. 85).
     pub fn d(&self, m: Vec3) -> f64 {

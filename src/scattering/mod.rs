@@ -92,6 +92,16 @@ impl Bsdf {
         matches!(self, Bsdf::Dielectric(d) if d.ior.is_dispersive())
     }
 
+    /// True when the BSDF scatters all power at every angle at the hero wavelength: a smooth
+    /// dielectric (R + T = 1 in power; Born & Wolf §1.5.3) or a perfect smooth mirror.
+    pub fn is_lossless(&self) -> bool {
+        match self {
+            Bsdf::Dielectric(d) => d.is_smooth(),
+            Bsdf::Conductor(c) => c.is_smooth() && c.fresnel == ConductorFresnel::Perfect,
+            _ => false,
+        }
+    }
+
     /// True when nothing about the BSDF depends on wavelength (grey mode may be used).
     pub fn is_constant(&self) -> bool {
         match self {

@@ -14,6 +14,7 @@ use crate::camera::{fov_from_film, Camera};
 use crate::geometry::{mesh::TriangleMesh, meshio, quad::Quad, sphere::Sphere, Aggregate, Shape};
 use crate::lights::Light;
 use crate::math::Vec3;
+use crate::scattering::microfacet::Ggx;
 use crate::scattering::{Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward};
 use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use desc::{CameraDesc, LightDesc, MaterialDesc, RenderDesc, SceneDesc, ShapeDesc};
@@ -521,8 +522,7 @@ impl Builder<'_> {
                 };
                 Ok(Bsdf::Conductor(Conductor {
                     fresnel,
-                    alpha_x,
-                    alpha_y,
+                    microfacet: Ggx::rough(alpha_x, alpha_y),
                 }))
             }
             "dielectric" => {
@@ -531,8 +531,7 @@ impl Builder<'_> {
                 let ior = self.ior(&format!("{key}.ior"), v)?;
                 Ok(Bsdf::Dielectric(Dielectric {
                     ior,
-                    alpha_x,
-                    alpha_y,
+                    microfacet: Ggx::rough(alpha_x, alpha_y),
                 }))
             }
             _ => {

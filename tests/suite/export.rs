@@ -233,9 +233,9 @@ fn every_bundled_scene_exports_and_reads_back() {
                         check_spectrum(inner, "eta", eta, &what);
                         check_spectrum(inner, "k", k, &what);
                     }
-                    if !c.is_smooth() {
+                    if let Some(g) = &c.microfacet {
                         let a = &inner.child_named("float", "alpha").unwrap().attrs["value"];
-                        assert_eq!(a.parse::<f64>().unwrap(), c.alpha_x, "{what}");
+                        assert_eq!(a.parse::<f64>().unwrap(), g.alpha_x, "{what}");
                     }
                 }
                 Bsdf::Dielectric(d) => {

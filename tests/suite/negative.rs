@@ -517,10 +517,7 @@ impl BrokenConductor {
         let furnace::scattering::Bsdf::Conductor(c) = &self.inner else {
             unreachable!()
         };
-        let g = furnace::scattering::microfacet::Ggx {
-            alpha_x: c.alpha_x,
-            alpha_y: c.alpha_y,
-        };
+        let g = c.microfacet.expect("a rough conductor");
         let (o, i) = (
             Vec3::new(wo.x, wo.y, wo.z.abs()),
             Vec3::new(wi.x, wi.y, wi.z.abs()),
@@ -561,7 +558,12 @@ fn albedo_rejects_a_microfacet_model_missing_its_masking_term() {
     use furnace::harness::checks::albedo;
     use furnace::harness::registry::{albedo_expectation, AlbedoExpectation};
     let name = "conductor/ggx α=0.3 perfect";
-    let expect = albedo_expectation(name).unwrap();
+    let model = furnace::harness::registry::bsdfs()
+        .into_iter()
+        .find(|(n, _)| n == name)
+        .unwrap()
+        .1;
+    let expect = albedo_expectation(name, &model).unwrap();
     assert!(matches!(
         expect,
         AlbedoExpectation::SingleScatteringLoss { .. }
@@ -618,8 +620,7 @@ fn albedo_rejects_glass_without_radiance_scaling() {
     use furnace::scattering::{Dielectric, Ior};
     let glass = Dielectric {
         ior: Ior::Constant(1.5),
-        alpha_x: 0.0,
-        alpha_y: 0.0,
+        microfacet: None,
     };
     let m = albedo::measure(
         &GlassWithoutEtaScaling(glass),
@@ -660,8 +661,7 @@ fn reciprocity_rejects_a_btdf_with_swapped_indices() {
     use furnace::scattering::{Dielectric, Ior};
     let d = Dielectric {
         ior: Ior::Constant(1.5),
-        alpha_x: 0.3,
-        alpha_y: 0.3,
+        microfacet: furnace::scattering::microfacet::Ggx::rough(0.3, 0.3),
     };
     let good = reciprocity::measure(
         &[("rough glass".into(), &d as &dyn Bxdf)],

@@ -94,7 +94,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let rel_tol = p.rel_tol.unwrap_or(1e-12);
     let mut parts = Vec::new();
     for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
-        if let Some(e) = registry::albedo_expectation(name) {
+        if let Some(e) = registry::albedo_expectation(name, b) {
             parts.push((
                 name.clone(),
                 measure(b, e, theta, samples, rel_tol, mix64(ctx.seed ^ i as u64)),
@@ -122,7 +122,7 @@ pub fn loss_table(samples: u64) -> String {
     out.push('\n');
     for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
         let Some(AlbedoExpectation::SingleScatteringLoss { .. }) =
-            registry::albedo_expectation(name)
+            registry::albedo_expectation(name, b)
         else {
             continue;
         };

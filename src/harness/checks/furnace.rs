@@ -10,7 +10,7 @@ use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
 use crate::lights::Light;
-use crate::scattering::{Bsdf, ConductorFresnel};
+use crate::scattering::Bsdf;
 use crate::scene::Scene;
 use crate::spectrum::Spectrum;
 
@@ -23,14 +23,10 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     }
 }
 
-/// True for BSDFs whose directional albedo is exactly 1 everywhere: a smooth dielectric with
-/// a constant index (R + T = 1 in power; Born & Wolf §1.5.3) and a perfect smooth mirror.
+/// True for BSDFs whose directional albedo is exactly 1 everywhere and at every wavelength:
+/// lossless ([`Bsdf::is_lossless`]) and without dispersion.
 fn lossless(b: &Bsdf) -> bool {
-    match b {
-        Bsdf::Dielectric(d) => d.is_smooth() && !d.ior.is_dispersive(),
-        Bsdf::Conductor(c) => c.is_smooth() && c.fresnel == ConductorFresnel::Perfect,
-        _ => false,
-    }
+    b.is_lossless() && !b.separates_wavelengths()
 }
 
 /// The closed-form radiance (Y) a furnace scene must show, with a description.
