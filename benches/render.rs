@@ -42,6 +42,13 @@ fn cornell_frame(c: &mut Criterion) {
     g.bench_function("64x64_4spp_depth5_2threads", |b| {
         b.iter(|| render(&scene, &settings, &|_| {}).unwrap())
     });
+    // The same frame through the volumetric variant (no media in the scene: same image), to
+    // measure what compiling the media code out of surface-only scenes saves.
+    let mut with_media_code = settings.clone();
+    with_media_code.integrator.force_media_code = true;
+    g.bench_function("64x64_4spp_depth5_2threads_media_code", |b| {
+        b.iter(|| render(&scene, &with_media_code, &|_| {}).unwrap())
+    });
     g.finish();
 }
 

@@ -214,6 +214,9 @@ struct RenderArgs {
     /// Always take the spectral path, even when every spectrum is constant (grey mode off), to measure what grey mode saves.
     #[arg(long)]
     no_grey_mode: bool,
+    /// Run the path tracer's volumetric variant even when the scene has no participating media (the image is the same), to measure what skipping the media code saves.
+    #[arg(long)]
+    always_media_code: bool,
     /// Wavelengths per sample entering the film: 4 (hero wavelength sampling) or 1 (the single-wavelength estimator, for comparison).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
     wavelengths: u8,
@@ -309,6 +312,7 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
                 "light" => Strategy::LightOnly,
                 _ => Strategy::Mis,
             },
+            force_media_code: a.always_media_code,
         },
         observer: Observer::from_name(&a.observer).expect("clap restricts --observer"),
         sampler: Sampler::from_name(&a.sampler).expect("clap restricts --sampler"),
@@ -388,6 +392,7 @@ fn render_command(a: RenderArgs) -> Result<i32, Failure> {
         ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
         ("furnace.wavelengths".to_string(), settings.spectral.wavelengths.to_string()),
         ("furnace.grey_mode".to_string(), (settings.spectral.grey_mode && scene.is_grey()).to_string()),
+        ("furnace.media_code".to_string(), (scene.has_media() || settings.integrator.force_media_code).to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];
     if light {

@@ -19,6 +19,7 @@ Example (tiny smoke test):
 import argparse
 import hashlib
 import json
+import re
 import os
 import platform
 import subprocess
@@ -101,12 +102,12 @@ def main(argv=None):
     spp = sensor.sampler().sample_count()
     max_depth_mitsuba = params.get("max_depth")
     if max_depth_mitsuba is None:  # the export's default, read back from the XML text
-        import re
         m = re.search(r'<default name="max_depth" value="(-?\d+)"', open(xml).read())
         max_depth_mitsuba = int(m.group(1))
     k = max(args.batches, 1)
     if spp % k:
         raise SystemExit(f"spp {spp} must be a multiple of --batches {k}")
+    nonfinite = []
     t0 = time.perf_counter()
     imgs = []
     for b in range(k):
@@ -124,8 +125,20 @@ def main(argv=None):
     else:
         import numpy as np
         stack = np.stack([np.array(i, dtype=np.float64) for i in imgs])  # (K, H, W, 3)
-        mean = stack.mean(axis=0)
-        var_of_mean = stack.var(axis=0, ddof=1) / k
+        # A batch whose pixel is NaN/Inf (a Mitsuba sample went non-finite) is left out of that
+        # pixel's mean and variance, and every such (x, y, batch) is recorded in the sidecar.
+        finite = np.isfinite(stack).all(axis=3, keepdims=True)  # (K, H, W, 1)
+        for b, y, x in np.argwhere(~finite[..., 0]):
+            nonfinite.append([int(x), int(y), int(b)])
+        n = finite.sum(axis=0)
+        if (n < 2).any():
+            raise SystemExit("a pixel has fewer than 2 finite batches; cannot estimate its variance")
+        clean = np.where(finite, stack, 0.0)
+        mean = clean.sum(axis=0) / n
+        var_of_mean = (np.where(finite, (stack - mean) ** 2, 0.0).sum(axis=0) / (n - 1)) / n
+        if nonfinite:
+            print(f"warning: {len(nonfinite)} (pixel, batch) pairs were NaN/Inf in Mitsuba's output and were left out: "
+                  f"{nonfinite[:8]}{' ...' if len(nonfinite) > 8 else ''}")
         both = np.concatenate([mean, var_of_mean], axis=2).astype(np.float32)
         names = ["R", "G", "B", "variance.R", "variance.G", "variance.B"]
         mi.Bitmap(both, channel_names=names).write(out)
@@ -154,7 +167,8 @@ def main(argv=None):
         "export": rel(xml),
         "export_sha256": hashlib.sha256(open(xml, "rb").read()).hexdigest(),
         "filter": "box",
-        "integrator": "path",
+        "integrator": re.search(r'<integrator type="(\w+)"', open(xml).read()).group(1),
+        "nonfinite_pixel_batches": nonfinite,
         "sampler": "independent",
         "rgb_file": os.path.basename(out),
         "xyz_file": os.path.basename(xyz_out),

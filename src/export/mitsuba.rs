@@ -18,12 +18,20 @@
 //!   defaults, so a driver passes them to `mitsuba.load_file(path, spp=…)`; `max_depth`
 //!   follows Mitsuba's convention (bounces + 1, −1 = unlimited).
 //!
+//! - media → `homogeneous` with `sigma_t` = σa + σs and `albedo` = σs/σt (spectra; 1 nm
+//!   tables when either coefficient varies), `isotropic`, `hg` or `rayleigh` phase; a shape's
+//!   `interior`/`exterior` → `<ref name="interior"/"exterior">` (Mitsuba's interior is also
+//!   the side opposite the normal); `null` material → `null` BSDF; the camera's medium → a
+//!   medium reference inside the sensor; scenes with media use the `volpath` integrator, or
+//!   `volpathmis` (spectral MIS) when a medium's coefficients vary with wavelength.
+//!
 //! Two-sided emission has no one-shape Mitsuba equivalent and is an error.
 
 use super::ExportError;
 use crate::geometry::Shape;
 use crate::lights::Light;
 use crate::math::Vec3;
+use crate::media::{Medium, PhaseFunction};
 use crate::scattering::microfacet::Ggx;
 use crate::scattering::{Bsdf, ConductorFresnel, Ior};
 use crate::scene::Scene;
@@ -64,7 +72,20 @@ pub fn export(scene: &Scene) -> Result<MitsubaScene, ExportError> {
     ] {
         let _ = writeln!(x, "  <default name=\"{name}\" value=\"{value}\"/>");
     }
-    x.push_str("  <integrator type=\"path\">\n    <integer name=\"max_depth\" value=\"$max_depth\"/>\n  </integrator>\n");
+    // Mitsuba's `volpath` samples distances with the hero wavelength alone (its documentation
+    // says it lacks good strategies for spectrally varying extinction); `volpathmis` adds the
+    // spectral MIS that furnace uses, so chromatic media get it.
+    let integrator = if scene.media.iter().any(|m| !m.is_constant()) {
+        "volpathmis"
+    } else if scene.has_media() {
+        "volpath"
+    } else {
+        "path"
+    };
+    let _ = writeln!(x, "  <integrator type=\"{integrator}\">\n    <integer name=\"max_depth\" value=\"$max_depth\"/>\n  </integrator>");
+    for (m, name) in scene.media.iter().zip(&scene.medium_names) {
+        medium(&mut x, name, m);
+    }
     sensor(&mut x, scene);
     let shapes = scene.aggregate.shapes();
     for (i, shape) in shapes.iter().enumerate() {
@@ -88,6 +109,14 @@ pub fn export(scene: &Scene) -> Result<MitsubaScene, ExportError> {
             }
         }
         bsdf(&mut x, i, &scene.bsdfs[i])?;
+        if let Some(b) = scene.shape_media[i] {
+            for (side, m) in [("interior", b.interior), ("exterior", b.exterior)] {
+                if let Some(m) = m {
+                    let id = &scene.medium_names[m as usize];
+                    let _ = writeln!(x, "    <ref name=\"{side}\" id=\"medium-{id}\"/>");
+                }
+            }
+        }
         if let Some(li) = scene.shape_light[i] {
             if let Light::Area {
                 radiance,
@@ -196,6 +225,10 @@ fn sensor(x: &mut String, scene: &Scene) {
         v(cam.up)
     );
     x.push_str("    </transform>\n");
+    if let Some(m) = cam.medium {
+        let id = &scene.medium_names[m as usize];
+        let _ = writeln!(x, "    <ref name=\"medium\" id=\"medium-{id}\"/>");
+    }
     x.push_str("    <sampler type=\"independent\">\n      <integer name=\"sample_count\" value=\"$spp\"/>\n      <integer name=\"seed\" value=\"$seed\"/>\n    </sampler>\n");
     x.push_str("    <film type=\"hdrfilm\">\n      <integer name=\"width\" value=\"$width\"/>\n      <integer name=\"height\" value=\"$height\"/>\n      <string name=\"pixel_format\" value=\"rgb\"/>\n      <string name=\"component_format\" value=\"float32\"/>\n      <rfilter type=\"box\"/>\n    </film>\n");
     x.push_str("  </sensor>\n");
@@ -274,6 +307,7 @@ fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
             }
             x.push_str("    </bsdf>\n");
         }
+        Bsdf::Null(_) => x.push_str("    <bsdf type=\"null\"/>\n"),
         Bsdf::Ward(_) => {
             return Err(unsupported(
                 "the bounded-albedo Ward model has no Mitsuba 3 plugin",
@@ -281,6 +315,52 @@ fn bsdf(x: &mut String, i: usize, b: &Bsdf) -> Result<(), ExportError> {
         }
     }
     Ok(())
+}
+
+/// `<medium type="homogeneous">`: Mitsuba parameterises by σt and the single-scattering
+/// albedo σs/σt (0 where σt = 0).
+fn medium(x: &mut String, name: &str, m: &Medium) {
+    let _ = writeln!(x, "  <medium type=\"homogeneous\" id=\"medium-{name}\">");
+    if m.is_constant() {
+        let (a, sc) = (m.sigma_a.eval(550.0), m.sigma_s.eval(550.0));
+        let t = a + sc;
+        spectrum(x, 4, "sigma_t", &Spectrum::Constant(t));
+        spectrum(
+            x,
+            4,
+            "albedo",
+            &Spectrum::Constant(if t > 0.0 { sc / t } else { 0.0 }),
+        );
+    } else {
+        let wavelengths: Vec<f64> = (LAMBDA_MIN as u32..=LAMBDA_MAX as u32)
+            .map(f64::from)
+            .collect();
+        let (mut t, mut al) = (Vec::new(), Vec::new());
+        for &l in &wavelengths {
+            let (a, sc) = (m.sigma_a.eval(l), m.sigma_s.eval(l));
+            t.push(a + sc);
+            al.push(if a + sc > 0.0 { sc / (a + sc) } else { 0.0 });
+        }
+        let table = |values| Spectrum::Tabulated {
+            wavelengths: wavelengths.clone(),
+            values,
+            outside: crate::spectrum::Outside::Clamp,
+        };
+        spectrum(x, 4, "sigma_t", &table(t));
+        spectrum(x, 4, "albedo", &table(al));
+    }
+    match m.phase {
+        PhaseFunction::Isotropic => x.push_str("    <phase type=\"isotropic\"/>\n"),
+        PhaseFunction::HenyeyGreenstein(hg) => {
+            let _ = writeln!(
+                x,
+                "    <phase type=\"hg\">\n      <float name=\"g\" value=\"{}\"/>\n    </phase>",
+                hg.g
+            );
+        }
+        PhaseFunction::Rayleigh => x.push_str("    <phase type=\"rayleigh\"/>\n"),
+    }
+    x.push_str("  </medium>\n");
 }
 
 fn boolean(x: &mut String, name: &str, v: bool) {

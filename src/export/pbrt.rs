@@ -35,6 +35,13 @@ const FORMAT: &str = "pbrt-v4";
 /// The scene as pbrt-v4 text; `out` names the image pbrt writes; models pbrt-v4 lacks are
 /// refused by name.
 pub fn export(scene: &Scene, out: &str) -> Result<String, ExportError> {
+    if scene.has_media() {
+        return Err(ExportError::Unsupported {
+            format: FORMAT,
+            what: "[media]".into(),
+            why: "participating media are not exported to pbrt-v4 yet; export to Mitsuba 3".into(),
+        });
+    }
     let mut x = String::new();
     let r = &scene.render;
     let cam = &scene.camera;
@@ -205,6 +212,13 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
                 }
             };
             format!("Material \"dielectric\" {eta} {}", rough(d.microfacet))
+        }
+        Bsdf::Null(_) => {
+            return Err(ExportError::Unsupported {
+                format: FORMAT,
+                what: format!("shape[{i}] material"),
+                why: "null interfaces bound media, which are not exported to pbrt-v4".into(),
+            })
         }
         Bsdf::Ward(_) => {
             return Err(ExportError::Unsupported {

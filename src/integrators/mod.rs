@@ -6,7 +6,7 @@ pub mod light;
 pub mod path;
 
 pub use light::LightTracer;
-pub use path::{PathTracer, Strategy};
+pub use path::{power_heuristic, shadow_transmittance, PathTracer, Strategy};
 
 use crate::spectrum::SampledSpectrum;
 

@@ -6,14 +6,24 @@
 //! lighting depth 1. With `max_depth = D` the estimate is exactly the sum of paths with at
 //! most D bounces (so a furnace of emission E and albedo R reads E(1 − R^(D+1))/(1 − R)).
 //! Mitsuba's `max_depth` counts path segments: Mitsuba max_depth = D + 1.
+//!
+//! Participating media (only in scenes that have them): free-flight distances are sampled
+//! per segment with one-sample spectral MIS ([`crate::media::sample_free_flight`]); a
+//! scattering event is a bounce with next-event estimation through the medium (the
+//! transmittance of the shadow ray, stepping through null boundaries) and phase-function
+//! sampling, combined with the power heuristic on the directional pdfs; purely absorbing
+//! media apply their transmittance analytically. Null boundaries are stepped through without
+//! a bounce.
 
-use crate::geometry::{ray, Ray};
+use crate::geometry::{ray, Ray, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
+use crate::math::Vec3;
+use crate::media::{sample_free_flight, transmittance, Phase};
 use crate::scattering::Bxdf;
 use crate::scene::Scene;
-use crate::spectrum::{SampledSpectrum, Wavelengths};
+use crate::spectrum::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 
 /// How emitted light is found at each path vertex; the three are independent estimators of
 /// the same integral (except that BSDF sampling alone cannot find point lights).
@@ -38,6 +48,9 @@ pub struct PathTracer {
     pub rr_depth: Option<u32>,
     /// Light-finding strategy.
     pub strategy: Strategy,
+    /// Run the volumetric variant even for a scene without media (same image; for measuring
+    /// what skipping the media code saves).
+    pub force_media_code: bool,
 }
 
 impl Default for PathTracer {
@@ -46,6 +59,7 @@ impl Default for PathTracer {
             max_depth: None,
             rr_depth: Some(5),
             strategy: Strategy::Mis,
+            force_media_code: false,
         }
     }
 }
@@ -73,8 +87,26 @@ impl PathTracer {
         }
     }
 
-    /// Radiance along `camera_ray` at the wavelengths `wl`.
+    /// Radiance along `camera_ray` at the wavelengths `wl`; the camera sits in
+    /// `scene.camera.medium`. Scenes without media run the surface-only variant.
     pub fn radiance(
+        &self,
+        scene: &Scene,
+        camera_ray: Ray,
+        wl: &mut Wavelengths,
+        rng: &mut SampleStream,
+    ) -> SampledSpectrum {
+        if scene.has_media() || self.force_media_code {
+            self.radiance_variant::<true>(scene, camera_ray, wl, rng)
+        } else {
+            self.radiance_variant::<false>(scene, camera_ray, wl, rng)
+        }
+    }
+
+    /// [`PathTracer::radiance`] with the media code compiled in (`MEDIA`) or out. Public so
+    /// that a benchmark can measure what leaving it out saves on surface-only scenes; both
+    /// variants give the same image there.
+    pub fn radiance_variant<const MEDIA: bool>(
         &self,
         scene: &Scene,
         camera_ray: Ray,
@@ -91,8 +123,107 @@ impl PathTracer {
         let mut prev_bsdf_pdf: Option<f64> = None;
         let mut prev_p = ray.o;
         let mut depth: u32 = 0;
+        let mut medium = if MEDIA { scene.camera.medium } else { None };
+        // Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
+        let mut r = SampledSpectrum::ONE;
         loop {
-            let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) else {
+            let hit = scene.aggregate.intersect(&ray, f64::INFINITY);
+            if MEDIA {
+                if let Some(m) = medium {
+                    let med = &scene.media[m as usize];
+                    let t_max = hit.as_ref().map_or(f64::INFINITY, |h| h.t);
+                    let sigma_t = med.sigma_t(wl);
+                    if med.absorbs_only() {
+                        beta *= transmittance(sigma_t, t_max);
+                    } else {
+                        let ff = sample_free_flight(sigma_t, t_max, rng.next_f64());
+                        if ff.collided {
+                            beta *= med.sigma_s.sample(wl) * ff.weight;
+                        } else {
+                            beta *= ff.weight;
+                        }
+                        // Keep the lane-mean of the path's density ratios at 1, so that beta
+                        // is the balance-heuristic weight itself (see sample_free_flight).
+                        r *= ff.pdf_ratio;
+                        let lanes = if wl.secondary_terminated {
+                            1
+                        } else {
+                            N_WAVELENGTHS
+                        };
+                        let mean = r.0[..lanes].iter().sum::<f64>() / lanes as f64;
+                        if !(mean > 0.0 && mean.is_finite()) {
+                            break;
+                        }
+                        beta = beta / mean;
+                        r = r / mean;
+                        if ff.collided {
+                            // A scattering event in the medium: one bounce.
+                            if beta.is_black() || self.max_depth.is_some_and(|d| depth >= d) {
+                                break;
+                            }
+                            let p = ray.at(ff.t);
+                            let wo = -ray.d;
+                            let phase = &med.phase;
+                            let here = SurfacePoint {
+                                p,
+                                p_error: Vec3::ZERO,
+                                n: ray.d,
+                            };
+                            let u_light = rng.next_f64();
+                            let u_select = rng.next_f64();
+                            let u_pos = rng.next_2d();
+                            if self.strategy != Strategy::BsdfOnly {
+                                let li =
+                                    ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
+                                if let Some(ls) =
+                                    scene.lights[li].sample(p, u_select, u_pos, shapes, wl)
+                                {
+                                    if ls.pdf > 0.0 && !ls.radiance.is_black() {
+                                        let f = phase.eval(wo, ls.wi);
+                                        if f > 0.0 {
+                                            if let Some(tr) = shadow_transmittance(
+                                                scene,
+                                                &here,
+                                                ls.wi,
+                                                ls.point.as_ref(),
+                                                Some(m),
+                                                wl,
+                                            ) {
+                                                let light_pdf = select_pdf * ls.pdf;
+                                                let w = if ls.delta
+                                                    || self.strategy == Strategy::LightOnly
+                                                {
+                                                    1.0
+                                                } else {
+                                                    power_heuristic(light_pdf, phase.pdf(wo, ls.wi))
+                                                };
+                                                l += beta * tr * ls.radiance * (f * w / light_pdf);
+                                            }
+                                        }
+                                    }
+                                }
+                            }
+                            let ps = phase.sample(wo, rng.next_2d());
+                            beta *= ps.weight;
+                            prev_bsdf_pdf = Some(ps.pdf);
+                            prev_p = p;
+                            ray = Ray { o: p, d: ps.wi };
+                            depth += 1;
+                            let u_rr = rng.next_f64();
+                            if self.rr_depth.is_some_and(|d| depth >= d)
+                                && !super::roulette(&mut beta, u_rr)
+                            {
+                                break;
+                            }
+                            continue;
+                        }
+                    }
+                    if beta.is_black() {
+                        break;
+                    }
+                }
+            }
+            let Some(hit) = hit else {
                 for light in &scene.lights {
                     if let Light::Environment { radiance } = light {
                         let le = radiance.sample(wl);
@@ -123,13 +254,23 @@ impl PathTracer {
                     }
                 }
             }
+            let bsdf = &scene.bsdfs[hit.shape as usize];
+            if MEDIA && bsdf.is_null() {
+                // A medium boundary without scattering: step through, no bounce; the MIS
+                // state (prev_bsdf_pdf, prev_p) stays that of the last real vertex.
+                medium = scene.medium_after(hit.shape, sp.n, ray.d, medium);
+                ray = ray::spawn(&sp, ray.d);
+                continue;
+            }
             if self.max_depth.is_some_and(|d| depth >= d) {
                 break;
             }
-            let bsdf = &scene.bsdfs[hit.shape as usize];
             if bsdf.separates_wavelengths() && !wl.secondary_terminated {
                 wl.terminate_secondary();
-                beta = SampledSpectrum([beta.0[0], 0.0, 0.0, 0.0]);
+                // From here the hero alone carries the estimate with its own pdf: undo the
+                // lane mixture (r₀ = p₀/mean p; 1 without media).
+                beta = SampledSpectrum([beta.0[0] / r.0[0], 0.0, 0.0, 0.0]);
+                r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
             }
             let wl = &*wl;
             let frame = Frame::from_normal(sp.n);
@@ -150,23 +291,34 @@ impl PathTracer {
                     let wi = frame.to_local(ls.wi);
                     let f = bsdf.eval(wo, wi, wl);
                     if !f.is_black() {
-                        let unoccluded = match &ls.point {
-                            Some(target) => {
-                                let (shadow, t_max) = ray::spawn_to(&sp, target);
-                                !scene.aggregate.occluded(&shadow, t_max)
-                            }
-                            None => !scene
-                                .aggregate
-                                .occluded(&ray::spawn(&sp, ls.wi), f64::INFINITY),
+                        let tr = if MEDIA {
+                            let m = scene.medium_after(hit.shape, sp.n, ls.wi, medium);
+                            shadow_transmittance(scene, &sp, ls.wi, ls.point.as_ref(), m, wl)
+                        } else {
+                            let unoccluded = match &ls.point {
+                                Some(target) => {
+                                    let (shadow, t_max) = ray::spawn_to(&sp, target);
+                                    !scene.aggregate.occluded(&shadow, t_max)
+                                }
+                                None => !scene
+                                    .aggregate
+                                    .occluded(&ray::spawn(&sp, ls.wi), f64::INFINITY),
+                            };
+                            unoccluded.then_some(SampledSpectrum::ONE)
                         };
-                        if unoccluded {
+                        if let Some(tr) = tr {
                             let light_pdf = select_pdf * ls.pdf;
                             let w = if ls.delta || self.strategy == Strategy::LightOnly {
                                 1.0
                             } else {
                                 power_heuristic(light_pdf, bsdf.pdf(wo, wi, wl))
                             };
-                            l += beta * f * ls.radiance * (wi.z.abs() * w / light_pdf);
+                            let contrib = f * ls.radiance * (wi.z.abs() * w / light_pdf);
+                            l += if MEDIA {
+                                beta * tr * contrib
+                            } else {
+                                beta * contrib
+                            };
                         }
                     }
                 }
@@ -184,7 +336,11 @@ impl PathTracer {
             }
             prev_bsdf_pdf = if bs.delta { None } else { Some(bs.pdf) };
             prev_p = sp.p;
-            ray = ray::spawn(&sp, frame.to_world(bs.wi));
+            let wi_world = frame.to_world(bs.wi);
+            if MEDIA {
+                medium = scene.medium_after(hit.shape, sp.n, wi_world, medium);
+            }
+            ray = ray::spawn(&sp, wi_world);
             depth += 1;
 
             // Russian roulette (see super::roulette).
@@ -194,6 +350,44 @@ impl PathTracer {
             }
         }
         l
+    }
+}
+
+/// Transmittance from `from` towards a light in direction `wi` (to the point `target`, or to
+/// infinity for an environment light), starting in `medium`: the product of each medium
+/// segment's exp(−σt d), stepping through null boundaries; None when any other surface is in
+/// the way.
+pub fn shadow_transmittance(
+    scene: &Scene,
+    from: &SurfacePoint,
+    wi: Vec3,
+    target: Option<&SurfacePoint>,
+    mut medium: Option<u32>,
+    wl: &Wavelengths,
+) -> Option<SampledSpectrum> {
+    let mut tr = SampledSpectrum::ONE;
+    let mut at = *from;
+    loop {
+        let (shadow, t_max) = match target {
+            Some(t) => ray::spawn_to(&at, t),
+            None => (ray::spawn(&at, wi), f64::INFINITY),
+        };
+        let hit = scene.aggregate.intersect(&shadow, t_max);
+        if let Some(m) = medium {
+            let seg = hit.as_ref().map_or(t_max, |h| h.t);
+            tr *= transmittance(scene.media[m as usize].sigma_t(wl), seg);
+            if tr.is_black() {
+                return None;
+            }
+        }
+        let Some(h) = hit else {
+            return Some(tr);
+        };
+        if !scene.bsdfs[h.shape as usize].is_null() {
+            return None;
+        }
+        medium = scene.medium_after(h.shape, h.point.n, shadow.d, medium);
+        at = h.point;
     }
 }
 

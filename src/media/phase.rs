@@ -82,6 +82,47 @@ impl Phase for HenyeyGreenstein {
     }
 }
 
+/// The Rayleigh phase function p(μ) = 3(1 + μ²)/(16π) (Chandrasekhar 1960, *Radiative
+/// Transfer*, §17, eq. 2 for unpolarised light), sampled exactly by inverting its CDF.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Rayleigh;
+
+impl Rayleigh {
+    /// p as a function of the scattering-angle cosine μ.
+    pub fn eval_cos(mu: f64) -> f64 {
+        3.0 * (1.0 + mu * mu) / (16.0 * PI)
+    }
+
+    /// μ with CDF(μ) = ξ: the root of μ³ + 3μ = 8ξ − 4, μ = A − 1/A with
+    /// A = ∛(z + √(z² + 1)), z = 4ξ − 2 (Frisvad 2011, "Importance sampling the Rayleigh phase
+    /// function", JOSA A 28(12), eq. 14 form). A ≥ ∛(√5 − 2) > 0, so there is no cancellation.
+    pub fn sample_cos(xi: f64) -> f64 {
+        let z = 4.0 * xi - 2.0;
+        let a = (z + (z * z + 1.0).sqrt()).cbrt();
+        (a - 1.0 / a).clamp(-1.0, 1.0)
+    }
+}
+
+impl Phase for Rayleigh {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        Self::eval_cos(-wo.dot(wi))
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        let mu = Self::sample_cos(u[0]);
+        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+        let phi = 2.0 * PI * u[1];
+        let wi = Frame::from_normal(-wo).to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), mu));
+        PhaseSample {
+            wi,
+            pdf: Self::eval_cos(mu),
+            weight: 1.0,
+        }
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -94,6 +135,17 @@ mod tests {
         let exact = (1.0 + 0.9999) / (4.0 * PI * 1e-8);
         assert!((p / exact - 1.0).abs() < 1e-9, "{p} vs {exact}");
         assert!(hg.eval_cos(-1.0) > 0.0);
+    }
+
+    #[test]
+    fn rayleigh_inverse_cdf_is_exact() {
+        for k in 0..=20 {
+            let xi = k as f64 / 20.0;
+            let mu = Rayleigh::sample_cos(xi);
+            // CDF(μ) = 1/2 + (3/8)(μ + μ³/3)
+            let cdf = 0.5 + 0.375 * (mu + mu * mu * mu / 3.0);
+            assert!((cdf - xi).abs() < 1e-12, "ξ {xi}: μ {mu}, CDF {cdf}");
+        }
     }
 
     #[test]

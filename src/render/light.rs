@@ -126,6 +126,11 @@ pub fn trace_light_image<S: Sensor>(
     if let Some(why) = unsupported_light(&scene.lights) {
         return Err(RenderError::Settings(why));
     }
+    if scene.has_media() {
+        return Err(RenderError::Settings(
+            "the scene has participating media: the light tracer handles surface scenes only; use the path tracer".into(),
+        ));
+    }
     if let Some(i) = scene.bsdfs.iter().position(|b| b.separates_wavelengths()) {
         return Err(RenderError::Settings(format!(
             "shape {i} has a dispersive dielectric: the light tracer does not yet drop the secondary wavelengths where directions depend on wavelength; use a constant ior or the path tracer"
@@ -436,5 +441,14 @@ intensity = 2.0
             .unwrap_err()
             .to_string();
         assert!(e.contains("independent"), "{e}");
+        let foggy = format!(
+            "{TWO_LIGHTS}\n[media.fog]\nsigma_a = 0.1\nsigma_s = 0.0\nphase = \"isotropic\"\n"
+        );
+        let mut scene = Scene::parse(&foggy, Path::new("fog.toml")).unwrap();
+        scene.camera.medium = Some(0);
+        let e = render_light_paths(&scene, &s, 100, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("participating media"), "{e}");
     }
 }

@@ -11,12 +11,14 @@ pub mod dielectric;
 pub mod fresnel;
 pub mod lambert;
 pub mod microfacet;
+pub mod null;
 pub mod ward;
 
 pub use conductor::{Conductor, ConductorFresnel};
 pub use dielectric::Dielectric;
 pub use fresnel::Ior;
 pub use lambert::Lambertian;
+pub use null::NullInterface;
 pub use ward::Ward;
 
 use crate::math::Vec3;
@@ -71,6 +73,8 @@ pub enum Bsdf {
     Dielectric(Dielectric),
     /// Ward with bounded albedo.
     Ward(Ward),
+    /// Index-matched medium boundary (no scattering).
+    Null(NullInterface),
 }
 
 /// Dispatches a method call to the variant.
@@ -81,11 +85,18 @@ macro_rules! each {
             Bsdf::Conductor($b) => $e,
             Bsdf::Dielectric($b) => $e,
             Bsdf::Ward($b) => $e,
+            Bsdf::Null($b) => $e,
         }
     };
 }
 
 impl Bsdf {
+    /// True for a null interface, which integrators step through without a bounce.
+    #[inline]
+    pub fn is_null(&self) -> bool {
+        matches!(self, Bsdf::Null(_))
+    }
+
     /// True when the BSDF sends different wavelengths in different directions (a dispersive
     /// dielectric): a path through it keeps only its hero wavelength.
     pub fn separates_wavelengths(&self) -> bool {
@@ -98,6 +109,7 @@ impl Bsdf {
         match self {
             Bsdf::Dielectric(d) => d.is_smooth(),
             Bsdf::Conductor(c) => c.is_smooth() && c.fresnel == ConductorFresnel::Perfect,
+            Bsdf::Null(_) => true,
             _ => false,
         }
     }
@@ -112,6 +124,7 @@ impl Bsdf {
             },
             Bsdf::Dielectric(d) => !d.ior.is_dispersive(),
             Bsdf::Ward(w) => w.diffuse.is_constant() && w.specular.is_constant(),
+            Bsdf::Null(_) => true,
         }
     }
 }

@@ -21,6 +21,9 @@ pub struct SceneDesc {
     /// Named materials.
     #[serde(default)]
     pub materials: BTreeMap<String, Spanned<MaterialDesc>>,
+    /// Named participating media.
+    #[serde(default)]
+    pub media: BTreeMap<String, Spanned<MediumDesc>>,
     /// Shapes, in file order.
     #[serde(default)]
     pub shape: Vec<Spanned<ShapeDesc>>,
@@ -61,6 +64,22 @@ pub struct CameraDesc {
     pub focal_length: Option<Spanned<f64>>,
     /// Film size [width, height], metres.
     pub film_size: Option<Spanned<[f64; 2]>>,
+    /// Name of the medium the camera sits in.
+    pub medium: Option<Spanned<String>>,
+}
+
+/// `[media.NAME]`: a homogeneous medium.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MediumDesc {
+    /// Absorption coefficient spectrum, per scene unit.
+    pub sigma_a: Option<Spanned<Value>>,
+    /// Scattering coefficient spectrum, per scene unit.
+    pub sigma_s: Option<Spanned<Value>>,
+    /// Phase function name.
+    pub phase: Option<Spanned<String>>,
+    /// Henyey–Greenstein asymmetry.
+    pub g: Option<Spanned<f64>>,
 }
 
 /// `[materials.NAME]`.
@@ -123,6 +142,10 @@ pub struct ShapeDesc {
     pub indices: Option<Spanned<Vec<[i64; 3]>>>,
     /// Mesh file (OBJ or PLY).
     pub file: Option<Spanned<String>>,
+    /// Medium on the side opposite the normal.
+    pub interior: Option<Spanned<String>>,
+    /// Medium on the side the normal points to.
+    pub exterior: Option<Spanned<String>>,
 }
 
 /// `[[light]]`: the union of every light type's keys.

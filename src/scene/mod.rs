@@ -14,10 +14,13 @@ use crate::camera::{fov_from_film, Camera};
 use crate::geometry::{mesh::TriangleMesh, meshio, quad::Quad, sphere::Sphere, Aggregate, Shape};
 use crate::lights::Light;
 use crate::math::Vec3;
+use crate::media::{HenyeyGreenstein, Medium, PhaseFunction};
 use crate::scattering::microfacet::Ggx;
-use crate::scattering::{Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward};
+use crate::scattering::{
+    Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, NullInterface, Ward,
+};
 use crate::spectrum::{Spectrum, LAMBDA_MAX, LAMBDA_MIN};
-use desc::{CameraDesc, LightDesc, MaterialDesc, RenderDesc, SceneDesc, ShapeDesc};
+use desc::{CameraDesc, LightDesc, MaterialDesc, MediumDesc, RenderDesc, SceneDesc, ShapeDesc};
 use spectra::{Role, SpectrumParser};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -56,6 +59,8 @@ pub struct CameraSpec {
     pub fov_y: f64,
     /// Film width/height when given by `film_size`; the image must have this aspect.
     pub film_aspect: Option<f64>,
+    /// Index into [`Scene::media`] of the medium the camera sits in (None: vacuum).
+    pub medium: Option<u32>,
 }
 
 impl CameraSpec {
@@ -96,9 +101,42 @@ pub struct Scene {
     pub camera: CameraSpec,
     /// Render defaults.
     pub render: RenderDefaults,
+    /// Participating media (empty for a surface-only scene, which never runs media code).
+    pub media: Vec<Medium>,
+    /// Names of `media`, as in the scene file.
+    pub medium_names: Vec<String>,
+    /// Per shape: the media it separates, if it bounds any.
+    pub shape_media: Vec<Option<MediumBoundary>>,
+}
+
+/// The media on the two sides of a shape that bounds media (None: vacuum on that side).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MediumBoundary {
+    /// Medium on the side opposite the normal (inside a sphere whose normals are not flipped).
+    pub interior: Option<u32>,
+    /// Medium on the side the normal points to.
+    pub exterior: Option<u32>,
 }
 
 impl Scene {
+    /// True when the scene has participating media (the path tracer then runs its
+    /// volumetric variant; surface-only scenes never pay for it).
+    pub fn has_media(&self) -> bool {
+        !self.media.is_empty()
+    }
+
+    /// The medium a ray is in after leaving a surface point of `shape` (normal `n`) in
+    /// direction `d`, when it was in `current` before: a shape that bounds media sets the
+    /// medium of the side `d` points into; any other shape leaves it unchanged.
+    #[inline]
+    pub fn medium_after(&self, shape: u32, n: Vec3, d: Vec3, current: Option<u32>) -> Option<u32> {
+        match self.shape_media.get(shape as usize).copied().flatten() {
+            None => current,
+            Some(b) if d.dot(n) > 0.0 => b.exterior,
+            Some(b) => b.interior,
+        }
+    }
+
     /// True when every spectrum in the scene is constant, so radiance does not depend on
     /// wavelength and the renderer may skip wavelength sampling (grey mode).
     pub fn is_grey(&self) -> bool {
@@ -109,7 +147,8 @@ impl Scene {
             }
             Light::Point { intensity, .. } => intensity.is_constant(),
         });
-        bsdfs && lights
+        let media = self.media.iter().all(Medium::is_constant);
+        bsdfs && lights && media
     }
 
     /// The same scene with every position mapped to `scale`·p + `offset` (camera included);
@@ -157,6 +196,16 @@ impl Scene {
         let mut camera = self.camera.clone();
         camera.position = map(camera.position);
         camera.look_at = map(camera.look_at);
+        // coefficients are per unit length: σ/scale keeps every optical thickness
+        let media = self
+            .media
+            .iter()
+            .map(|m| Medium {
+                sigma_a: m.sigma_a.scaled(1.0 / scale),
+                sigma_s: m.sigma_s.scaled(1.0 / scale),
+                phase: m.phase,
+            })
+            .collect();
         Scene {
             aggregate: Aggregate::new(shapes),
             bsdfs: self.bsdfs.clone(),
@@ -164,6 +213,9 @@ impl Scene {
             lights,
             camera,
             render: self.render.clone(),
+            media,
+            medium_names: self.medium_names.clone(),
+            shape_media: self.shape_media.clone(),
         }
     }
 
@@ -202,7 +254,15 @@ struct Builder<'a> {
     base: PathBuf,
 }
 
-const SHAPE_COMMON: [&str; 5] = ["type", "material", "emission", "two_sided", "flip_normals"];
+const SHAPE_COMMON: [&str; 7] = [
+    "type",
+    "material",
+    "emission",
+    "two_sided",
+    "flip_normals",
+    "interior",
+    "exterior",
+];
 const SHAPE_TYPES: [(&str, &[&str]); 4] = [
     ("sphere", &["center", "radius"]),
     ("quad", &["corner", "edge_u", "edge_v"]),
@@ -237,6 +297,23 @@ impl Builder<'_> {
             }
         };
         let parser = SpectrumParser::new(self.src, &self.base, &desc.spectra)?;
+        let mut media = Vec::new();
+        let mut medium_names = Vec::new();
+        for (name, m) in &desc.media {
+            media.push(self.medium(name, m, &parser)?);
+            medium_names.push(name.clone());
+        }
+        let camera = CameraSpec {
+            medium: match desc
+                .camera
+                .as_ref()
+                .and_then(|c| c.get_ref().medium.as_ref())
+            {
+                Some(m) => Some(self.medium_ref(m, "camera.medium", &medium_names)?),
+                None => None,
+            },
+            ..camera
+        };
         let mut materials = BTreeMap::new();
         for (name, m) in &desc.materials {
             materials.insert(name.clone(), self.material(name, m, &parser)?);
@@ -245,9 +322,32 @@ impl Builder<'_> {
         let mut bsdfs = Vec::new();
         let mut shape_light = Vec::new();
         let mut lights = Vec::new();
+        let mut shape_media = Vec::new();
         for (i, s) in desc.shape.iter().enumerate() {
             let key = format!("shape[{i}]");
             let (shape, material, emission) = self.shape(&key, s, &materials, &parser)?;
+            let d = s.get_ref();
+            let side = |v: &Option<Spanned<String>>, k: &str| match v {
+                Some(m) => self
+                    .medium_ref(m, &format!("{key}.{k}"), &medium_names)
+                    .map(Some),
+                None => Ok(None),
+            };
+            let boundary = match (
+                side(&d.interior, "interior")?,
+                side(&d.exterior, "exterior")?,
+            ) {
+                _ if d.interior.is_none() && d.exterior.is_none() => None,
+                (interior, exterior) => Some(MediumBoundary { interior, exterior }),
+            };
+            if material.is_null() && boundary.is_none() {
+                return Err(self.err(
+                    d.material.as_ref().map_or(s.span(), |m| m.span()),
+                    format!("{key}.material"),
+                    "a null material only marks the boundary of a medium; give the shape `interior` and/or `exterior` (medium names)",
+                ));
+            }
+            shape_media.push(boundary);
             if let Some((radiance, two_sided)) = emission {
                 shape_light.push(Some(lights.len() as u32));
                 lights.push(Light::Area {
@@ -290,6 +390,71 @@ impl Builder<'_> {
             lights,
             camera,
             render,
+            media,
+            medium_names,
+            shape_media,
+        })
+    }
+
+    /// A medium name used by a shape or the camera.
+    fn medium_ref(
+        &self,
+        m: &Spanned<String>,
+        key: &str,
+        names: &[String],
+    ) -> Result<u32, SceneError> {
+        names
+            .iter()
+            .position(|n| n == m.get_ref())
+            .map(|i| i as u32)
+            .ok_or_else(|| {
+                self.err(
+                    m.span(),
+                    key,
+                    format!(
+                        "unknown medium {:?}; defined in [media]: [{}]",
+                        m.get_ref(),
+                        names.join(", ")
+                    ),
+                )
+            })
+    }
+
+    /// `[media.NAME]`: σa and σs spectra (per scene unit, both required) and a phase function.
+    fn medium(
+        &self,
+        name: &str,
+        m: &Spanned<MediumDesc>,
+        parser: &SpectrumParser,
+    ) -> Result<Medium, SceneError> {
+        let key = format!("media.{name}");
+        let d = m.get_ref();
+        let coefficient = |v: &Option<Spanned<Value>>, k: &str| {
+            let s = self.required(v, m.span(), &format!("{key}.{k}"), "a medium needs `sigma_a` and `sigma_s`, spectra >= 0 per scene unit of length (0 for none)")?;
+            parser.parse(s, &format!("{key}.{k}"), Role::Coefficient)
+        };
+        let sigma_a = coefficient(&d.sigma_a, "sigma_a")?;
+        let sigma_s = coefficient(&d.sigma_s, "sigma_s")?;
+        let phase_name = self.required(&d.phase, m.span(), &format!("{key}.phase"), "allowed phase functions: \"isotropic\", \"hg\" (Henyey-Greenstein, with `g`), \"rayleigh\"")?;
+        let phase = match (phase_name.get_ref().as_str(), &d.g) {
+            ("isotropic", None) => PhaseFunction::Isotropic,
+            ("isotropic", Some(g)) => return Err(self.err(g.span(), format!("{key}.g"), "`g` belongs to phase = \"hg\"; the isotropic phase function has no parameter")),
+            ("hg", Some(g)) => {
+                let v = *g.get_ref();
+                if !(v.is_finite() && v.abs() < 1.0) {
+                    return Err(self.err(g.span(), format!("{key}.g"), format!("{v}: the Henyey-Greenstein asymmetry must satisfy |g| < 1")));
+                }
+                PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g: v })
+            }
+            ("rayleigh", None) => PhaseFunction::Rayleigh,
+            ("rayleigh", Some(g)) => return Err(self.err(g.span(), format!("{key}.g"), "`g` belongs to phase = \"hg\"; the Rayleigh phase function has no parameter")),
+            ("hg", None) => return Err(self.err(phase_name.span(), format!("{key}.g"), "missing; phase = \"hg\" needs the asymmetry `g` with |g| < 1")),
+            (other, _) => return Err(self.err(phase_name.span(), format!("{key}.phase"), format!("unknown phase function {other:?}; allowed: \"isotropic\", \"hg\", \"rayleigh\""))),
+        };
+        Ok(Medium {
+            sigma_a,
+            sigma_s,
+            phase,
         })
     }
 
@@ -439,6 +604,7 @@ impl Builder<'_> {
             up,
             fov_y,
             film_aspect,
+            medium: None,
         })
     }
 
@@ -448,7 +614,7 @@ impl Builder<'_> {
         m: &Spanned<MaterialDesc>,
         parser: &SpectrumParser,
     ) -> Result<Bsdf, SceneError> {
-        const TYPES: &str = "\"diffuse\", \"conductor\", \"dielectric\", \"ward\"";
+        const TYPES: &str = "\"diffuse\", \"conductor\", \"dielectric\", \"ward\", \"null\"";
         let key = format!("materials.{name}");
         let d = m.get_ref();
         let kind = self.required(
@@ -477,6 +643,7 @@ impl Builder<'_> {
             "conductor" => &["eta", "k", "perfect", "alpha", "alpha_x", "alpha_y"],
             "dielectric" => &["ior", "alpha", "alpha_x", "alpha_y"],
             "ward" => &["diffuse", "specular", "alpha", "alpha_x", "alpha_y"],
+            "null" => &[],
             other => {
                 return Err(self.err(
                     kind.span(),
@@ -491,6 +658,7 @@ impl Builder<'_> {
             parser.parse(s, &format!("{key}.{k}"), role)
         };
         match kind_str {
+            "null" => Ok(Bsdf::Null(NullInterface)),
             "diffuse" => Ok(Bsdf::Diffuse(Lambertian {
                 reflectance: spectrum(
                     &d.reflectance,

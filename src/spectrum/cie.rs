@@ -72,9 +72,14 @@ impl CieTables {
 
     /// XYZ of a spectrum by 1 nm quadrature over 360–830 nm, normalised as in the module doc.
     pub fn spectrum_to_xyz(&self, s: &Spectrum) -> [f64; 3] {
+        self.function_to_xyz(|l| s.eval(l))
+    }
+
+    /// XYZ of a spectral function of wavelength (nm), normalised as [`Self::spectrum_to_xyz`].
+    pub fn function_to_xyz(&self, f: impl Fn(f64) -> f64) -> [f64; 3] {
         let mut acc = [0.0; 3];
         for (i, c) in self.xyz.iter().enumerate() {
-            let v = s.eval(LAMBDA_MIN + i as f64);
+            let v = f(LAMBDA_MIN + i as f64);
             for k in 0..3 {
                 acc[k] += v * c[k];
             }

@@ -115,6 +115,26 @@ impl Spectrum {
         Ok(Spectrum::Blackbody { kelvin, scale })
     }
 
+    /// The same spectrum multiplied by `f`.
+    pub fn scaled(&self, f: f64) -> Spectrum {
+        match self {
+            Spectrum::Constant(v) => Spectrum::Constant(v * f),
+            Spectrum::Tabulated {
+                wavelengths,
+                values,
+                outside,
+            } => Spectrum::Tabulated {
+                wavelengths: wavelengths.clone(),
+                values: values.iter().map(|v| v * f).collect(),
+                outside: *outside,
+            },
+            Spectrum::Blackbody { kelvin, scale } => Spectrum::Blackbody {
+                kelvin: *kelvin,
+                scale: scale * f,
+            },
+        }
+    }
+
     /// Value at `lambda` nm.
     pub fn eval(&self, lambda: f64) -> f64 {
         match self {

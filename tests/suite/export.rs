@@ -151,6 +151,49 @@ fn every_bundled_scene_exports_and_reads_back() {
         let doc = parse(&out.xml);
         assert_eq!(doc.name, "scene");
         assert_eq!(doc.attrs["version"], "3.0.0");
+        // every medium exported once, by name, with sigma_t = σa + σs and albedo = σs/σt
+        let media: Vec<&Node> = doc.children.iter().filter(|c| c.name == "medium").collect();
+        assert_eq!(media.len(), scene.media.len(), "{what}");
+        for (node, (m, name)) in media
+            .iter()
+            .zip(scene.media.iter().zip(&scene.medium_names))
+        {
+            assert_eq!(node.attrs["id"], format!("medium-{name}"), "{what}");
+            assert_eq!(node.attrs["type"], "homogeneous", "{what}");
+            let points = |key: &str| {
+                spectrum_points(&node.child_named("spectrum", key).unwrap().attrs["value"])
+            };
+            for (l, t) in points("sigma_t") {
+                let l = l.unwrap_or(550.0);
+                let want = m.sigma_a.eval(l) + m.sigma_s.eval(l);
+                assert!(
+                    (t - want).abs() <= 1e-12 * want.abs().max(1.0),
+                    "{what}: sigma_t {t} vs {want} at {l}"
+                );
+            }
+            for (l, a) in points("albedo") {
+                let l = l.unwrap_or(550.0);
+                let t = m.sigma_a.eval(l) + m.sigma_s.eval(l);
+                let want = if t > 0.0 { m.sigma_s.eval(l) / t } else { 0.0 };
+                assert!(
+                    (a - want).abs() <= 1e-12,
+                    "{what}: albedo {a} vs {want} at {l}"
+                );
+            }
+        }
+        let integrator = doc
+            .children
+            .iter()
+            .find(|c| c.name == "integrator")
+            .unwrap();
+        let want = if scene.media.iter().any(|m| !m.is_constant()) {
+            "volpathmis"
+        } else if scene.has_media() {
+            "volpath"
+        } else {
+            "path"
+        };
+        assert_eq!(integrator.attrs["type"], want, "{what}");
         let shapes: Vec<&Node> = doc.children.iter().filter(|c| c.name == "shape").collect();
         assert_eq!(shapes.len(), scene.aggregate.shapes().len(), "{what}");
         let meshes: BTreeMap<&str, &Vec<u8>> =
@@ -252,6 +295,25 @@ fn every_bundled_scene_exports_and_reads_back() {
                     assert_eq!(v.parse::<f64>().unwrap(), n, "{what}");
                 }
                 Bsdf::Ward(_) => panic!("{what}: Ward is not exportable"),
+                Bsdf::Null(_) => assert_eq!(bsdf.attrs["type"], "null", "{what}"),
+            }
+            // media on either side: references to the exported media, by name
+            let b = scene.shape_media[i];
+            for (side, m) in [
+                ("interior", b.and_then(|b| b.interior)),
+                ("exterior", b.and_then(|b| b.exterior)),
+            ] {
+                let r = node.children.iter().find(|c| {
+                    c.name == "ref" && c.attrs.get("name").map(String::as_str) == Some(side)
+                });
+                match m {
+                    None => assert!(r.is_none(), "{what}: unexpected {side}"),
+                    Some(m) => assert_eq!(
+                        r.expect("medium reference").attrs["id"],
+                        format!("medium-{}", scene.medium_names[m as usize]),
+                        "{what}"
+                    ),
+                }
             }
             let emitter = node.children.iter().find(|c| c.name == "emitter");
             match scene.shape_light[i] {
@@ -314,6 +376,10 @@ fn committed_reference_exports_are_current() {
             "tests/manifests/scenes/furnace-box-0.5.toml",
             "reference/mitsuba/furnace-box.export",
         ),
+        (
+            "scenes/rayleigh-sky.toml",
+            "reference/mitsuba/rayleigh-sky.export",
+        ),
     ] {
         let s = Scene::load(&root(scene)).unwrap();
         let out = mitsuba::export(&s).unwrap();
@@ -336,6 +402,11 @@ fn committed_reference_exports_are_current() {
 #[test]
 fn pbrt_export_snapshot_and_every_scene() {
     for (path, scene) in bundled() {
+        if scene.has_media() {
+            let e = furnace::export::pbrt::export(&scene, "out.exr").unwrap_err();
+            assert!(e.to_string().contains("participating media"), "{e}");
+            continue;
+        }
         let text = furnace::export::pbrt::export(&scene, "out.exr").unwrap();
         // Every shape in its own attribute block, every emitter with its luminance scale.
         assert_eq!(

@@ -135,6 +135,23 @@ fn image_is_bit_identical_for_one_and_two_threads() {
     assert!(a != c, "a different seed must give a different image");
 }
 
+/// A scene without media gives the same image, bit for bit, through the path tracer's
+/// volumetric variant (so leaving the media code out of surface scenes changes only time).
+#[test]
+fn media_code_leaves_surface_scenes_bit_identical() {
+    for file in ["scenes/cornell-box.toml", "scenes/cornell-glossy.toml"] {
+        let scene = Scene::load(&root(file)).unwrap();
+        let mut s = settings(24, 24, 4, 7, 0);
+        let a = render(&scene, &s, &|_| {}).unwrap();
+        s.integrator.force_media_code = true;
+        let b = render(&scene, &s, &|_| {}).unwrap();
+        assert!(
+            a == b,
+            "{file}: the volumetric variant changed a surface-only image"
+        );
+    }
+}
+
 #[test]
 fn bundled_scenes_render_without_nan_or_inf() {
     let mut count = 0;

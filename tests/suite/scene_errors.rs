@@ -65,6 +65,15 @@ fn error_messages() {
         ("nan_ior", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = nan\n{LIGHT}"))),
         ("unknown_glass", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = \"flint\"\n{LIGHT}"))),
         ("sellmeier_pole_in_range", error_of(&format!("[materials.x]\ntype = \"dielectric\"\nior = {{ sellmeier_b = [1.0, 0.0, 0.0], sellmeier_c = [0.25, 0.0, 0.0] }}\n{LIGHT}"))),
+        ("medium_hg_g_out_of_range", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"hg\"\ng = 1.0\n{LIGHT}"))),
+        ("medium_negative_sigma", error_of(&format!("[media.fog]\nsigma_a = {{ wavelengths = [400, 700], values = [0.1, -0.1] }}\nsigma_s = 1\nphase = \"isotropic\"\n{LIGHT}"))),
+        ("medium_missing_sigma_a", error_of(&format!("[media.fog]\nsigma_s = 1\nphase = \"isotropic\"\n{LIGHT}"))),
+        ("medium_g_with_isotropic", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"isotropic\"\ng = 0.3\n{LIGHT}"))),
+        ("medium_unknown_phase", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"mie\"\n{LIGHT}"))),
+        ("medium_unknown_key", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"isotropic\"\nalbedo = 0.5\n{LIGHT}"))),
+        ("unknown_interior_medium", error_of(&format!("[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"m\"\ninterior = \"smoke\"\n{LIGHT}"))),
+        ("null_material_without_medium", error_of(&format!("[materials.n]\ntype = \"null\"\n[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"n\"\n{LIGHT}"))),
+        ("power_law_without_reference", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = {{ power_law = -4 }}\nphase = \"rayleigh\"\n{LIGHT}"))),
     ];
     for (name, message) in cases {
         assert!(
