@@ -101,7 +101,20 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 16] = [
+pub const KINDS: [(&str, &[&str]); 18] = [
+    (
+        "transmittance",
+        &[
+            "scene",
+            "vary",
+            "spp",
+            "width",
+            "height",
+            "region",
+            "seed",
+            "rel_tolerance",
+        ],
+    ),
     (
         "furnace",
         &[
@@ -138,6 +151,7 @@ pub const KINDS: [(&str, &[&str]); 16] = [
     ("albedo", &["samples", "theta_max_deg", "rel_tol", "seed"]),
     ("smooth_limit", &["samples", "rel_tol", "seed"]),
     ("hg", &["g", "samples", "abs_tol", "bins", "seed"]),
+    ("phase", &["samples", "abs_tol", "rel_tol", "bins", "seed"]),
     ("chi2", &["samples", "bins", "seed"]),
     (
         "radiance_invariance",

@@ -7,7 +7,7 @@ use crate::geometry::{
 };
 use crate::lights::Light;
 use crate::math::{warp, Vec3};
-use crate::media::{HenyeyGreenstein, Phase};
+use crate::media::{HenyeyGreenstein, Phase, PhaseFunction};
 use crate::scattering::microfacet::Ggx;
 use crate::scattering::{
     Bsdf, Bxdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward,
@@ -206,10 +206,25 @@ impl DirectionSampler for BsdfSampler {
     }
 }
 
+/// Every phase function a medium can use, with its known mean scattering cosine: isotropic,
+/// Henyey–Greenstein from g = −0.9999 to 0.9999, and Rayleigh (mean cosine 0 by symmetry).
+pub fn phases() -> Vec<(String, PhaseFunction, f64)> {
+    let mut v = vec![("isotropic".to_string(), PhaseFunction::Isotropic, 0.0)];
+    for g in [-0.9999, -0.9, -0.3, 0.0, 0.5, 0.9, 0.9999] {
+        v.push((
+            format!("hg g={g}"),
+            PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g }),
+            g,
+        ));
+    }
+    v.push(("rayleigh".to_string(), PhaseFunction::Rayleigh, 0.0));
+    v
+}
+
 /// A phase function's sampling routine for a fixed `wo`.
 pub struct PhaseSampler {
     /// The phase function.
-    pub phase: HenyeyGreenstein,
+    pub phase: PhaseFunction,
     /// Outgoing direction.
     pub wo: Vec3,
 }
@@ -298,16 +313,16 @@ pub fn samplers() -> Vec<(String, MakeSampler)> {
             ));
         }
     }
-    for g in [-0.7, 0.0, 0.4, 0.8] {
+    // |g| = 0.9999 concentrates the lobe in ~1e-4 sr, below what the direction bins resolve;
+    // the phase kind tests those in the scattering cosine with graded bins instead.
+    for (name, phase, g) in phases() {
+        if g.abs() > 0.95 {
+            continue;
+        }
         let wo = Vec3::new(0.3, -0.2, 0.9).normalize();
         v.push((
-            format!("phase hg g={g}"),
-            Box::new(move || {
-                Box::new(PhaseSampler {
-                    phase: HenyeyGreenstein { g },
-                    wo,
-                })
-            }),
+            format!("phase {name}"),
+            Box::new(move || Box::new(PhaseSampler { phase, wo })),
         ));
     }
     let radiance = Spectrum::Constant(1.0);

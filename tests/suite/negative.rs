@@ -131,33 +131,49 @@ impl Renderer for Direct {
         {
             return BuiltIn.render(scene, s);
         }
-        let camera = scene.camera.build(s.width, s.height)?;
         let shapes = scene.aggregate.shapes();
-        let cmf = cie::tables();
-        let mut film = Film::new(s.width, s.height);
-        for y in 0..s.height {
-            for x in 0..s.width {
-                let px = &mut film.pixels[y * s.width + x];
-                for k in 0..s.spp {
-                    let mut rng = SampleStream::new(s.seed, (y * s.width + x) as u64, k);
-                    let wl = Wavelengths::sample_visible(rng.next_f64());
-                    let [jx, jy] = rng.next_2d();
-                    let r = camera.ray(x as f64 + jx, y as f64 + jy, s.width, s.height);
-                    let l = self.radiance(scene, shapes, r, &wl, &mut rng);
-                    let mut xyz = [0.0; 3];
-                    for i in 0..N_WAVELENGTHS {
-                        let c = cmf.cmf(wl.lambda[i]);
-                        for j in 0..3 {
-                            xyz[j] +=
-                                l.0[i] / wl.pdf[i] * c[j] / cmf.y_integral() / N_WAVELENGTHS as f64;
-                        }
+        film_of(scene, s, &mut |r, wl, rng| {
+            Ok(self.radiance(scene, shapes, r, wl, rng))
+        })
+    }
+}
+
+/// A film rendered by a test integrator: one camera ray per sample (box filter), four hero
+/// wavelengths, XYZ by the CIE 1931 table; `radiance` gives the spectral radiance of a ray.
+fn film_of(
+    scene: &Scene,
+    s: &RenderSettings,
+    radiance: &mut dyn FnMut(
+        Ray,
+        &Wavelengths,
+        &mut SampleStream,
+    ) -> Result<SampledSpectrum, String>,
+) -> Result<Film, String> {
+    let camera = scene.camera.build(s.width, s.height)?;
+    let cmf = cie::tables();
+    let mut film = Film::new(s.width, s.height);
+    for y in 0..s.height {
+        for x in 0..s.width {
+            let px = &mut film.pixels[y * s.width + x];
+            for k in 0..s.spp {
+                let mut rng = SampleStream::new(s.seed, (y * s.width + x) as u64, k);
+                let wl = Wavelengths::sample_visible(rng.next_f64());
+                let [jx, jy] = rng.next_2d();
+                let r = camera.ray(x as f64 + jx, y as f64 + jy, s.width, s.height);
+                let l = radiance(r, &wl, &mut rng)?;
+                let mut xyz = [0.0; 3];
+                for i in 0..N_WAVELENGTHS {
+                    let c = cmf.cmf(wl.lambda[i]);
+                    for j in 0..3 {
+                        xyz[j] +=
+                            l.0[i] / wl.pdf[i] * c[j] / cmf.y_integral() / N_WAVELENGTHS as f64;
                     }
-                    px.add(xyz, furnace::spectrum::color::xyz_to_linear_srgb(xyz));
                 }
+                px.add(xyz, furnace::spectrum::color::xyz_to_linear_srgb(xyz));
             }
         }
-        Ok(film)
     }
+    Ok(film)
 }
 
 impl Direct {
@@ -810,4 +826,208 @@ fn reciprocity_image_passes_the_unbroken_sensor_through_the_same_wrapper() {
         &WrongLightTracer(ImportanceBug::Unbroken),
         Verdict::Pass,
     );
+}
+
+// ---------------------------------------------------------------- participating media
+
+use furnace::harness::checks::phase as phase_check;
+use furnace::integrators::{power_heuristic, shadow_transmittance};
+use furnace::media::{sample_free_flight, transmittance, PhaseFunction, Rayleigh};
+
+#[derive(Clone, Copy, PartialEq)]
+enum MediumBug {
+    None,
+    /// Next-event estimation from medium points ignores the attenuation of the shadow ray.
+    NoShadowTransmittance,
+}
+
+/// A small volumetric path tracer for environment-lit scenes of media behind null boundaries
+/// (the media furnace), written from the library's pieces (free-flight sampling, shadow
+/// transmittance, phase functions) with one injected bug.
+struct Volumetric(MediumBug);
+
+impl Renderer for Volumetric {
+    fn name(&self) -> String {
+        "small volumetric tracer".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        film_of(scene, s, &mut |r, wl, rng| self.radiance(scene, r, wl, rng))
+    }
+}
+
+impl Volumetric {
+    fn radiance(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+    ) -> Result<SampledSpectrum, String> {
+        let Some(Light::Environment { radiance: env }) = scene.lights.first() else {
+            return Err("the small volumetric tracer needs an environment light only".into());
+        };
+        let le = env.sample(wl);
+        let (mut l, mut beta, mut ratio) = (
+            SampledSpectrum::ZERO,
+            SampledSpectrum::ONE,
+            SampledSpectrum::ONE,
+        );
+        let mut medium = scene.camera.medium;
+        let mut prev_pdf: Option<f64> = None;
+        for _ in 0..100_000 {
+            let hit = scene.aggregate.intersect(&ray, f64::INFINITY);
+            if let Some(m) = medium {
+                let med = &scene.media[m as usize];
+                let t_max = hit.as_ref().map_or(f64::INFINITY, |h| h.t);
+                let ff = sample_free_flight(med.sigma_t(wl), t_max, rng.next_f64());
+                beta *= ff.weight;
+                ratio *= ff.pdf_ratio;
+                let mean = ratio.average();
+                beta = beta / mean;
+                ratio = ratio / mean;
+                if ff.collided {
+                    beta *= med.sigma_s.sample(wl);
+                    let p = ray.at(ff.t);
+                    let here = furnace::geometry::SurfacePoint {
+                        p,
+                        p_error: Vec3::ZERO,
+                        n: ray.d,
+                    };
+                    let wo = -ray.d;
+                    let (u_sel, u) = (rng.next_f64(), rng.next_2d());
+                    if let Some(ls) =
+                        scene.lights[0].sample(p, u_sel, u, scene.aggregate.shapes(), wl)
+                    {
+                        let tr = match self.0 {
+                            MediumBug::NoShadowTransmittance => Some(SampledSpectrum::ONE),
+                            MediumBug::None => {
+                                shadow_transmittance(scene, &here, ls.wi, None, Some(m), wl)
+                            }
+                        };
+                        if let Some(tr) = tr {
+                            let f = med.phase.eval(wo, ls.wi);
+                            let w = power_heuristic(ls.pdf, med.phase.pdf(wo, ls.wi));
+                            l += beta * tr * ls.radiance * (f * w / ls.pdf);
+                        }
+                    }
+                    let ps = med.phase.sample(wo, rng.next_2d());
+                    prev_pdf = Some(ps.pdf);
+                    ray = Ray { o: p, d: ps.wi };
+                    continue;
+                }
+            }
+            let Some(h) = hit else {
+                let w = prev_pdf.map_or(1.0, |p| power_heuristic(p, warp::UNIFORM_SPHERE_PDF));
+                return Ok(l + beta * le * w);
+            };
+            if !scene.bsdfs[h.shape as usize].is_null() {
+                return Err("the small volumetric tracer handles null boundaries only".into());
+            }
+            medium = scene.medium_after(h.shape, h.point.n, ray.d, medium);
+            ray = ray::spawn(&h.point, ray.d);
+        }
+        Ok(l)
+    }
+}
+
+#[test]
+fn media_furnace_rejects_shadow_rays_without_transmittance() {
+    // guard: the same small tracer without the bug passes
+    assert_all(
+        "tests/manifests/media.toml",
+        "media/furnace-hg[g=0,sigma=1]",
+        &Volumetric(MediumBug::None),
+        Verdict::Pass,
+    );
+    assert_rejected(
+        "tests/manifests/media.toml",
+        "media/furnace-hg[g=0,sigma=1]",
+        &Volumetric(MediumBug::NoShadowTransmittance),
+    );
+}
+
+/// An absorber evaluated at 550 nm for every wavelength (a grey, RGB-to-scalar shortcut).
+struct GreyAbsorber;
+impl Renderer for GreyAbsorber {
+    fn name(&self) -> String {
+        "absorption taken at 550 nm".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let mut scene = scene.clone();
+        for m in &mut scene.media {
+            m.sigma_a = Spectrum::Constant(m.sigma_a.eval(550.0));
+        }
+        BuiltIn.render(&scene, s)
+    }
+}
+
+#[test]
+fn transmittance_rejects_a_grey_absorption_coefficient() {
+    assert_all(
+        "tests/manifests/media.toml",
+        "media/transmittance[sigma=1]",
+        &BuiltIn,
+        Verdict::Pass,
+    );
+    assert_rejected(
+        "tests/manifests/media.toml",
+        "media/transmittance[sigma=1]",
+        &GreyAbsorber,
+    );
+    // the transmittance itself, for the record: exp(−σ d) is 1 at σ = 0 even for d = ∞
+    assert_eq!(
+        transmittance(SampledSpectrum::ZERO, f64::INFINITY),
+        SampledSpectrum::ONE
+    );
+}
+
+/// A phase function that scatters more towards +z whatever the direction pair: not reciprocal.
+struct NonReciprocalPhase;
+impl Phase for NonReciprocalPhase {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        PhaseFunction::Isotropic.eval(wo, wi) * (1.0 + 0.5 * wi.z)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        let s = PhaseFunction::Isotropic.sample(wo, u);
+        PhaseSample {
+            pdf: self.eval(wo, s.wi),
+            ..s
+        }
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
+/// Claims the Rayleigh pdf but draws the scattering cosine uniformly.
+struct RayleighUniformDraw;
+impl Phase for RayleighUniformDraw {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        Rayleigh.eval(wo, wi)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        let s = PhaseFunction::Isotropic.sample(wo, u);
+        PhaseSample {
+            pdf: Rayleigh.eval(wo, s.wi),
+            ..s
+        }
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
+#[test]
+fn phase_rejects_a_non_reciprocal_phase_function_and_a_wrong_sampler() {
+    let (rec, _) = phase_check::reciprocity_error(&NonReciprocalPhase, 1000, 1);
+    assert!(rec > 0.1, "asymmetry {rec}");
+    let (rec_ok, pdf_ok) = phase_check::reciprocity_error(&Rayleigh, 1000, 1);
+    assert!(
+        rec_ok <= 1e-12 && pdf_ok <= phase_check::PDF_REL_TOL,
+        "{rec_ok} {pdf_ok}"
+    );
+    let m = hg::measure_phase(&RayleighUniformDraw, 0.0, 1e-6, 50_000, 40, 16, 1);
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+    let ok = hg::measure_phase(&Rayleigh, 0.0, 1e-6, 50_000, 40, 16, 1);
+    assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }

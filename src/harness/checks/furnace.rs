@@ -4,8 +4,15 @@
 //! with a constant kernel). White-furnace form: a convex object of albedo R under a uniform
 //! environment of radiance L reflects exactly R·L (it sees only the environment).
 //! The expected value is derived from the scene itself, so the check consumes scenes.
+//! Media form: a medium that scatters without absorbing (σa = 0, any σs(λ), any phase
+//! function) leaves an isotropic, uniform radiance field unchanged (the radiative transfer
+//! equation with dL/ds = −σt L + σs ∫ p L dω = 0; Chandrasekhar 1960, *Radiative Transfer*,
+//! §1.5), so lossless media may fill either form; absorbing media are refused.
 
-use super::{diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
+use super::{
+    combine, diagnosis_alpha, region_measurement, region_of, region_stats_of, render_region,
+    settings_for,
+};
 use crate::harness::manifest::CheckSpec;
 use crate::harness::{Context, Measurement};
 use crate::integrators::Strategy;
@@ -31,6 +38,18 @@ fn lossless(b: &Bsdf) -> bool {
 
 /// The closed-form radiance (Y) a furnace scene must show, with a description.
 pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String), String> {
+    if let Some(i) = scene.media.iter().position(|m| !m.is_lossless()) {
+        return Err(format!(
+            "medium {:?} absorbs (sigma_a is not 0): a furnace scene's media must only scatter, which leaves the uniform radiance unchanged",
+            scene.medium_names[i]
+        ));
+    }
+    if scene.has_media() && max_depth.is_some() {
+        return Err(
+            "media need unlimited depth: light may scatter any number of times before it leaves"
+                .into(),
+        );
+    }
     let albedos: Vec<f64> = scene
         .bsdfs
         .iter()
@@ -132,6 +151,9 @@ pub fn validate_view(
     if white && all_white {
         return Ok(());
     }
+    if white && scene.has_media() {
+        return Err("the white-furnace form with media needs every surface lossless (null boundaries, smooth glass, perfect mirrors, white Lambertian): otherwise the radiance is not uniform".into());
+    }
     if white && scene.aggregate.shapes().len() != 1 {
         return Err("the white-furnace form needs exactly one (convex) object unless every surface is lossless: others would be lit by its reflection".into());
     }
@@ -148,25 +170,38 @@ pub fn validate_view(
     .map(|_| ())
 }
 
-/// Runs a furnace check.
+/// Runs a furnace check. The expected radiance is the same at every wavelength, so a grey
+/// scene is tested in Y alone; a scene with spectral inputs (wavelength-dependent media
+/// coefficients) is tested in X, Y and Z, each against the flat spectrum's value, so that a
+/// bias at the blue or red end (which Y barely sees) fails too.
 pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let scene = spec.scene.as_ref().ok_or("furnace needs a scene")?;
     let max_depth = spec.render.max_depth.or(scene.render.max_depth);
     let (expected, what) = expectation(scene, max_depth)?;
     let s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
-    validate_view(scene, s.width, s.height, region_of(spec, &s)?)?;
-    let r = render_region(
-        ctx,
-        scene,
-        &s,
-        region_of(spec, &s)?,
-        None,
-        diagnosis_alpha(ctx, 1),
-    )?;
-    Ok(region_measurement(
-        &r,
-        expected,
-        spec.rel_tolerance,
-        format!("{what}; path tracer, {} spp", s.spp),
-    ))
+    let region = region_of(spec, &s)?;
+    validate_view(scene, s.width, s.height, region)?;
+    let what = format!("{what}; path tracer, {} spp", s.spp);
+    if scene.is_grey() {
+        let r = render_region(ctx, scene, &s, region, None, diagnosis_alpha(ctx, 1))?;
+        return Ok(region_measurement(&r, expected, spec.rel_tolerance, what));
+    }
+    let film = ctx.renderer.render(scene, &s)?;
+    let white = s.observer.white();
+    let parts = ["X", "Y", "Z"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let r = region_stats_of(&film, region, s.spp, diagnosis_alpha(ctx, 3), None, c);
+            let e = expected * white[c] / white[1];
+            (
+                name.to_string(),
+                region_measurement(&r, e, spec.rel_tolerance, format!("{what}; channel {name}")),
+            )
+        })
+        .collect();
+    // three channels of one image: count its camera paths once
+    let mut m = combine(parts);
+    m.samples = (s.width * s.height) as u64 * s.spp;
+    Ok(m)
 }

@@ -133,17 +133,37 @@ pub fn region_average(
     f: &RayClosedForm<'_>,
     k: usize,
 ) -> Result<f64, String> {
+    ray_average(
+        scene,
+        width,
+        height,
+        region,
+        &|ray| {
+            f(
+                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
+                ray.d,
+            )
+        },
+        k,
+    )
+}
+
+/// A closed form of whole camera rays averaged over `region` by k×k midpoint quadrature.
+pub fn ray_average(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(crate::geometry::Ray) -> Result<f64, String>,
+    k: usize,
+) -> Result<f64, String> {
     let camera = scene.camera.build(width, height)?;
     let mut sum = 0.0;
     for j in 0..k {
         for i in 0..k {
             let x = region[0] as f64 + (region[2] - region[0]) as f64 * (i as f64 + 0.5) / k as f64;
             let y = region[1] as f64 + (region[3] - region[1]) as f64 * (j as f64 + 0.5) / k as f64;
-            let ray = camera.ray(x, y, width, height);
-            sum += f(
-                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
-                ray.d,
-            )?;
+            sum += f(camera.ray(x, y, width, height))?;
         }
     }
     Ok(sum / (k * k) as f64)

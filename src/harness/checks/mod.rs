@@ -11,11 +11,13 @@ pub mod hg;
 pub mod image;
 pub mod lambert;
 pub mod measured;
+pub mod phase;
 pub mod radiance;
 pub mod reciprocity;
 pub mod reciprocity_image;
 pub mod scale;
 pub mod smooth_limit;
+pub mod transmittance;
 pub mod weights;
 
 use super::manifest::{CheckSpec, RenderOverrides};
@@ -36,6 +38,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "albedo" => albedo::run(spec, ctx),
         "smooth_limit" => smooth_limit::run(spec, ctx),
         "hg" => hg::run(spec, ctx),
+        "phase" => phase::run(spec, ctx),
         "chi2" => chi2::run(spec, ctx),
         "radiance_invariance" => radiance::run(spec, ctx),
         "estimator_agreement" => estimators::run(spec, ctx),
@@ -45,6 +48,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "measured" => measured::run(spec, ctx),
         "convergence" => convergence::run(spec, ctx),
         "reciprocity_image" => reciprocity_image::run(spec, ctx),
+        "transmittance" => transmittance::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }
@@ -92,6 +96,7 @@ pub fn settings_for(
             max_depth,
             rr_depth: if ov.roulette { Some(5) } else { None },
             strategy,
+            force_media_code: false,
         },
         observer: Default::default(),
         sampler: spec.params.sampler,
@@ -140,8 +145,13 @@ pub fn diagnosis_alpha(ctx: &Context, diagnoses: usize) -> f64 {
 
 /// Pixel means and variances of the mean (Y) over a region, row-major.
 pub fn region_pixels(film: &Film, region: [usize; 4]) -> (Vec<f64>, Vec<f64>) {
-    let means = film.means(1);
-    let vars = film.mean_variances(1);
+    region_pixels_of(film, region, 1)
+}
+
+/// Pixel means and variances of the mean of XYZ `channel` (0, 1, 2) over a region.
+pub fn region_pixels_of(film: &Film, region: [usize; 4], channel: usize) -> (Vec<f64>, Vec<f64>) {
+    let means = film.means(channel);
+    let vars = film.mean_variances(channel);
     let mut m = Vec::new();
     let mut v = Vec::new();
     for y in region[1]..region[3] {
@@ -162,7 +172,19 @@ pub fn region_stats(
     alpha: f64,
     expected_px: Option<&[f64]>,
 ) -> RegionStats {
-    let (px, vars) = region_pixels(film, region);
+    region_stats_of(film, region, spp, alpha, expected_px, 1)
+}
+
+/// [`region_stats`] of XYZ `channel` (0 = X, 1 = Y, 2 = Z).
+pub fn region_stats_of(
+    film: &Film,
+    region: [usize; 4],
+    spp: u64,
+    alpha: f64,
+    expected_px: Option<&[f64]>,
+    channel: usize,
+) -> RegionStats {
+    let (px, vars) = region_pixels_of(film, region, channel);
     let n = px.len() as f64;
     let mean = px.iter().sum::<f64>() / n;
     let se_within = vars.iter().sum::<f64>().sqrt() / n;

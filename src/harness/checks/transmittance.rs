@@ -1,0 +1,106 @@
+//! Beer–Lambert transmittance: emission seen through purely absorbing media is attenuated by
+//! exp(−Σ σa,i(λ) dᵢ) over the medium segments dᵢ of the camera ray (Bouguer 1729; Lambert
+//! 1760; Beer 1852 — the radiative transfer equation without scattering or emission,
+//! Chandrasekhar 1960, *Radiative Transfer*, §1.4). The expected Y of each pixel integrates
+//! the attenuated emission spectrum against ȳ at 1 nm along camera rays traced through the
+//! scene's null boundaries, so chromatic absorbers test the wavelength weights too. Rendered
+//! with emission only (max_depth 0; crossing a null boundary is not a bounce).
+
+use super::lambert::{ray_average, FOOTPRINT_K};
+use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
+use crate::geometry::{ray, Ray};
+use crate::harness::manifest::CheckSpec;
+use crate::harness::{Context, Measurement};
+use crate::integrators::Strategy;
+use crate::lights::Light;
+use crate::scene::Scene;
+use crate::spectrum::{cie, Spectrum};
+
+/// Y of the radiance arriving along `camera_ray` (starting in the camera's medium): the
+/// first emitter or the environment, attenuated by every absorbing segment before it.
+pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, String> {
+    let mut path: Vec<(u32, f64)> = Vec::new();
+    let mut medium = scene.camera.medium;
+    let mut r = camera_ray;
+    let emitted: Option<&Spectrum> = loop {
+        let hit = scene.aggregate.intersect(&r, f64::INFINITY);
+        if let Some(m) = medium {
+            if !scene.media[m as usize].absorbs_only() {
+                return Err(format!(
+                    "medium {:?} scatters; the transmittance kind needs purely absorbing media (sigma_s = 0)",
+                    scene.medium_names[m as usize]
+                ));
+            }
+            path.push((m, hit.as_ref().map_or(f64::INFINITY, |h| h.t)));
+        }
+        let Some(h) = hit else {
+            break scene.lights.iter().find_map(|l| match l {
+                Light::Environment { radiance } => Some(radiance),
+                _ => None,
+            });
+        };
+        if scene.bsdfs[h.shape as usize].is_null() && scene.shape_light[h.shape as usize].is_none()
+        {
+            medium = scene.medium_after(h.shape, h.point.n, r.d, medium);
+            r = ray::spawn(&h.point, r.d);
+            continue;
+        }
+        break match scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize]) {
+            Some(Light::Area {
+                radiance,
+                two_sided,
+                ..
+            }) if *two_sided || h.point.n.dot(-r.d) > 0.0 => Some(radiance),
+            _ => None,
+        };
+    };
+    let Some(le) = emitted else { return Ok(0.0) };
+    Ok(cie::tables().function_to_xyz(|l| {
+        let tau: f64 = path
+            .iter()
+            .map(|&(m, d)| {
+                let s = scene.media[m as usize].sigma_a.eval(l);
+                if s == 0.0 {
+                    0.0
+                } else {
+                    s * d
+                }
+            })
+            .sum();
+        le.eval(l) * (-tau).exp()
+    })[1])
+}
+
+/// Runs a transmittance check.
+pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
+    let scene = spec.scene.as_ref().ok_or("transmittance needs a scene")?;
+    if !scene.has_media() {
+        return Err("transmittance needs a scene with an absorbing medium".into());
+    }
+    let s = settings_for(spec, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
+    let region = region_of(spec, &s)?;
+    let mut px = Vec::new();
+    for y in region[1]..region[3] {
+        for x in region[0]..region[2] {
+            px.push(ray_average(
+                scene,
+                s.width,
+                s.height,
+                [x, y, x + 1, y + 1],
+                &|r| along(scene, r),
+                FOOTPRINT_K,
+            )?);
+        }
+    }
+    let expected = px.iter().sum::<f64>() / px.len() as f64;
+    let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
+    Ok(combine(vec![(
+        "transmittance".into(),
+        region_measurement(
+            &r,
+            expected,
+            spec.rel_tolerance,
+            format!("emission through absorbing media, expected Σ ȳ Le exp(−Σ σa d) per pixel; path tracer, emission only, {} spp", s.spp),
+        ),
+    )]))
+}
