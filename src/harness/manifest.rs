@@ -101,7 +101,20 @@ struct ManifestDesc {
 }
 
 /// The check kinds and the keys each uses (besides `name` and `kind`).
-pub const KINDS: [(&str, &[&str]); 18] = [
+pub const KINDS: [(&str, &[&str]); 19] = [
+    (
+        "half_space",
+        &[
+            "scene",
+            "vary",
+            "spp",
+            "width",
+            "height",
+            "region",
+            "seed",
+            "rel_tolerance",
+        ],
+    ),
     (
         "transmittance",
         &[
@@ -157,6 +170,7 @@ pub const KINDS: [(&str, &[&str]); 18] = [
         "radiance_invariance",
         &[
             "scene",
+            "vary",
             "distances",
             "spp",
             "width",

@@ -1031,3 +1031,31 @@ fn phase_rejects_a_non_reciprocal_phase_function_and_a_wrong_sampler() {
     let ok = hg::measure_phase(&Rayleigh, 0.0, 1e-6, 50_000, 40, 16, 1);
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }
+
+/// Single scattering only: the path stops after its first bounce (a common shortcut for media).
+struct SingleScattering;
+impl Renderer for SingleScattering {
+    fn name(&self) -> String {
+        "single scattering only".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let mut s = s.clone();
+        s.integrator.max_depth = Some(1);
+        BuiltIn.render(scene, &s)
+    }
+}
+
+#[test]
+fn half_space_rejects_single_scattering() {
+    assert_all(
+        "tests/manifests/media.toml",
+        "media/half-space-albedo-0.5*",
+        &BuiltIn,
+        Verdict::Pass,
+    );
+    assert_rejected(
+        "tests/manifests/media.toml",
+        "media/half-space-albedo-0.5*",
+        &SingleScattering,
+    );
+}

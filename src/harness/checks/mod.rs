@@ -7,6 +7,7 @@ pub mod convergence;
 pub mod energy;
 pub mod estimators;
 pub mod furnace;
+pub mod half_space;
 pub mod hg;
 pub mod image;
 pub mod lambert;
@@ -49,6 +50,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         "convergence" => convergence::run(spec, ctx),
         "reciprocity_image" => reciprocity_image::run(spec, ctx),
         "transmittance" => transmittance::run(spec, ctx),
+        "half_space" => half_space::run(spec, ctx),
         other => Err(format!("unknown check kind {other:?}")),
     }
 }

@@ -12,9 +12,10 @@ use crate::lights::Light;
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum};
 
-/// Y of a spectrum (Y = 1 for a constant 1 W·sr⁻¹·m⁻²·nm⁻¹).
+/// Y of a spectrum as the exact integral a renderer estimates (Y = 1 for a constant
+/// 1 W·sr⁻¹·m⁻²·nm⁻¹ up to the CMF table's end rows, 2e-8), so narrow bands count exactly.
 fn luminance_y(s: &Spectrum) -> f64 {
-    cie::tables().spectrum_to_xyz(s)[1]
+    cie::tables().integral_xyz(s)[1]
 }
 
 /// Emitted radiance (Y) seen along the region's camera rays, per pixel: the emitter's radiance
