@@ -12,7 +12,8 @@ use quick_xml::{Reader, XmlVersion};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-/// Every bundled scene: scenes/*.toml and the manifests' scenes (templates filled with 0.5).
+/// Every bundled scene: scenes/*.toml and the manifests' scenes (templates filled with 0.5, a
+/// wavelength band's `lo`/`hi` with 360/365 nm).
 fn bundled() -> Vec<(PathBuf, Scene)> {
     let mut out = Vec::new();
     for dir in ["scenes", "tests/manifests/scenes"] {
@@ -27,7 +28,12 @@ fn bundled() -> Vec<(PathBuf, Scene)> {
             let mut text = std::fs::read_to_string(&f).unwrap();
             while let Some(i) = text.find("${") {
                 let j = text[i..].find('}').unwrap() + i;
-                text.replace_range(i..=j, "0.5");
+                let value = match &text[i + 2..j] {
+                    "lo" => "360.0",
+                    "hi" => "365.0",
+                    _ => "0.5",
+                };
+                text.replace_range(i..=j, value);
             }
             let scene = Scene::parse(&text, &f).unwrap_or_else(|e| panic!("{e}"));
             out.push((f, scene));

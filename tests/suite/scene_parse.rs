@@ -129,8 +129,9 @@ fn readme_scene_example_is_valid() {
         .expect("a toml block");
     let scene =
         Scene::parse(block, &root("scenes/readme-example.toml")).unwrap_or_else(|e| panic!("{e}"));
-    assert_eq!(scene.aggregate.shapes().len(), 4);
+    assert_eq!(scene.aggregate.shapes().len(), 5);
     assert_eq!(scene.lights.len(), 3);
+    assert_eq!(scene.medium_names, ["fog"]);
     assert!(scene
         .camera
         .build(scene.render.width, scene.render.height)
