@@ -303,3 +303,32 @@ fn render_with_the_light_tracer() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `furnace … | head` closes the pipe early: the binary exits with status 141 (SIGPIPE's
+/// convention) and no panic message, whatever it was still printing.
+#[test]
+fn a_closed_stdout_pipe_ends_quietly() {
+    let mut child = furnace()
+        .args([
+            "render",
+            "scenes/furnace-sphere.toml",
+            "--spp",
+            "4",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--quiet",
+        ])
+        .arg("--out")
+        .arg(std::env::temp_dir().join("furnace-pipe-test.exr"))
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before anything is printed
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert_eq!(out.status.code(), Some(141), "{stderr}");
+}
