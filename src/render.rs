@@ -110,13 +110,10 @@ impl<'a> FilmResponse<'a> {
         if self.grey {
             return self.white.map(|c| c * l.0[0]);
         }
-        // After dispersion only the hero carries an estimate: it alone is an unbiased
-        // single-wavelength estimate (weight 1, not 1/lanes).
-        let lanes = if wl.secondary_terminated {
-            1
-        } else {
-            self.lanes
-        };
+        // The weights never depend on the path: when a path drops its secondary wavelengths
+        // (dispersion) the integrator scales the hero by the lane count instead, so what the
+        // path gathered before keeps its 1/lanes weight (integrators::path).
+        let lanes = self.lanes;
         let mut xyz = [0.0; 3];
         for i in 0..lanes {
             let c = self.observer.cmf(wl.lambda[i]);
@@ -216,6 +213,10 @@ pub fn render(
                             let u_lambda = rng.next_f64();
                             let mut wl =
                                 Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
+                            if lanes == 1 && !grey {
+                                // the single-wavelength estimator: one wavelength from the start
+                                wl.terminate_secondary();
+                            }
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
                             let l = settings.integrator.radiance(scene, ray, &mut wl, &mut rng);

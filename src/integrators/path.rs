@@ -128,6 +128,13 @@ impl PathTracer {
         let mut r = SampledSpectrum::ONE;
         loop {
             let hit = scene.aggregate.intersect(&ray, f64::INFINITY);
+            if MEDIA && hit.is_none() {
+                // No surface ahead: the ray has left every medium (media are bounded by the
+                // scene's shapes; the scene loader refuses a camera in an unbounded medium).
+                // This also covers a collision rounded just past a boundary, whose next ray
+                // leaving the medium no longer meets it.
+                medium = None;
+            }
             if MEDIA {
                 if let Some(m) = medium {
                     let med = &scene.media[m as usize];
@@ -267,9 +274,16 @@ impl PathTracer {
             }
             if bsdf.separates_wavelengths() && !wl.secondary_terminated {
                 wl.terminate_secondary();
-                // From here the hero alone carries the estimate with its own pdf: undo the
-                // lane mixture (r₀ = p₀/mean p; 1 without media).
-                beta = SampledSpectrum([beta.0[0] / r.0[0], 0.0, 0.0, 0.0]);
+                // From here the hero alone carries the estimate, with its own pdf (undo the
+                // lane mixture: r₀ = p₀/mean p, 1 without media) and with the weight of all
+                // the film's lanes, since the film keeps weighting each lane 1/N; what the path
+                // gathered before stays a four-lane estimate (Wilkie et al. 2014, §4.3).
+                let b0 = if r.0[0] > 0.0 {
+                    beta.0[0] / r.0[0]
+                } else {
+                    0.0
+                };
+                beta = SampledSpectrum([b0 * N_WAVELENGTHS as f64, 0.0, 0.0, 0.0]);
                 r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
             }
             let wl = &*wl;
@@ -356,7 +370,7 @@ impl PathTracer {
 /// Transmittance from `from` towards a light in direction `wi` (to the point `target`, or to
 /// infinity for an environment light), starting in `medium`: the product of each medium
 /// segment's exp(−σt d), stepping through null boundaries; None when any other surface is in
-/// the way.
+/// the way. A ray towards the environment with no surface ahead has left every medium.
 pub fn shadow_transmittance(
     scene: &Scene,
     from: &SurfacePoint,
@@ -373,7 +387,10 @@ pub fn shadow_transmittance(
             None => (ray::spawn(&at, wi), f64::INFINITY),
         };
         let hit = scene.aggregate.intersect(&shadow, t_max);
-        if let Some(m) = medium {
+        // towards an environment light with no surface ahead: the ray has left every medium
+        // (as in PathTracer::radiance_variant)
+        let leaves = target.is_none() && hit.is_none();
+        if let (Some(m), false) = (medium, leaves) {
             let seg = hit.as_ref().map_or(t_max, |h| h.t);
             tr *= transmittance(scene.media[m as usize].sigma_t(wl), seg);
             if tr.is_black() {

@@ -383,7 +383,7 @@ impl Builder<'_> {
                 "the scene has no light: give a shape an `emission` or add a [[light]] (point or environment)",
             ));
         }
-        Ok(Scene {
+        let scene = Scene {
             aggregate: Aggregate::new(shapes),
             bsdfs,
             shape_light,
@@ -393,7 +393,39 @@ impl Builder<'_> {
             media,
             medium_names,
             shape_media,
-        })
+        };
+        if let (Some(m), Some(span)) = (
+            scene.camera.medium,
+            desc.camera
+                .as_ref()
+                .and_then(|c| c.get_ref().medium.as_ref())
+                .map(|m| m.span()),
+        ) {
+            // A ray with no surface ahead leaves every medium (the path tracer's rule), so a
+            // camera medium must be enclosed: probe 256 directions (a Fibonacci sphere).
+            let n = 256;
+            for i in 0..n {
+                let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+                let rho = (1.0 - z * z).max(0.0).sqrt();
+                let phi = i as f64 * 2.399_963_229_728_653; // golden angle
+                let d = Vec3::new(rho * phi.cos(), rho * phi.sin(), z);
+                let ray = crate::geometry::Ray {
+                    o: scene.camera.position,
+                    d,
+                };
+                if scene.aggregate.intersect(&ray, f64::INFINITY).is_none() {
+                    return Err(self.err(
+                        span,
+                        "camera.medium",
+                        format!(
+                            "the camera sits in medium {:?}, but the ray from the camera towards [{:.3}, {:.3}, {:.3}] meets no shape; a medium must be enclosed by shapes (a ray with no surface ahead leaves every medium)",
+                            scene.medium_names[m as usize], d.x, d.y, d.z
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(scene)
     }
 
     /// A medium name used by a shape or the camera.
@@ -435,6 +467,18 @@ impl Builder<'_> {
         };
         let sigma_a = coefficient(&d.sigma_a, "sigma_a")?;
         let sigma_s = coefficient(&d.sigma_s, "sigma_s")?;
+        // A coefficient that is zero at every wavelength is the constant 0, so that the
+        // integrator's shortcuts (pure absorber, lossless medium) recognise it however written.
+        let sigma_a = if sigma_a.extremes().1 .1 == 0.0 {
+            Spectrum::Constant(0.0)
+        } else {
+            sigma_a
+        };
+        let sigma_s = if sigma_s.extremes().1 .1 == 0.0 {
+            Spectrum::Constant(0.0)
+        } else {
+            sigma_s
+        };
         let phase_name = self.required(&d.phase, m.span(), &format!("{key}.phase"), "allowed phase functions: \"isotropic\", \"hg\" (Henyey-Greenstein, with `g`), \"rayleigh\"")?;
         let phase = match (phase_name.get_ref().as_str(), &d.g) {
             ("isotropic", None) => PhaseFunction::Isotropic,

@@ -81,8 +81,23 @@ impl<'a> SpectrumParser<'a> {
             })?,
             other => self.value(other, span.clone(), key)?,
         };
+        // finite everywhere (tables are checked entry by entry; this catches a power law or a
+        // scale that overflows)
+        for l in LAMBDA_MIN as u32..=LAMBDA_MAX as u32 {
+            let v = s.eval(l as f64);
+            if !v.is_finite() {
+                return Err(self.src.error(
+                    span,
+                    key,
+                    format!(
+                        "{v} at {l} nm; spectra must be finite at every wavelength in 360-830 nm"
+                    ),
+                ));
+            }
+        }
         let ((l_lo, lo), (l_hi, hi)) = s.extremes();
         match role {
+            Role::Coefficient if hi > 1e15 => Err(self.src.error(span, key, format!("{hi} at {l_hi} nm is too large; a medium coefficient must be <= 1e15 per scene unit (free paths shorter than 1e-15 units fall below the resolution of positions)"))),
             Role::Reflectance if lo < 0.0 || hi > 1.0 => {
                 let (l, x) = if lo < 0.0 { (l_lo, lo) } else { (l_hi, hi) };
                 Err(self.src.error(span, key, format!("reflectance is {x} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))

@@ -89,8 +89,9 @@ pub struct Wavelengths {
     pub lambda: [f64; N_WAVELENGTHS],
     /// Marginal pdf of each wavelength, per nm.
     pub pdf: [f64; N_WAVELENGTHS],
-    /// Set when the path met a surface that sends wavelengths apart (dispersion): only the
-    /// hero (index 0) still carries an estimate, and the film weights it alone.
+    /// Set when the path met a surface that sends wavelengths apart (dispersion), or from the
+    /// start for the single-wavelength estimator: only the hero (index 0) still carries an
+    /// estimate from then on.
     pub secondary_terminated: bool,
 }
 
@@ -144,7 +145,8 @@ impl Wavelengths {
     }
 
     /// Drops every wavelength but the hero (Wilkie et al. 2014, §4.3: once directions
-    /// depend on wavelength, the secondary wavelengths' paths no longer exist).
+    /// depend on wavelength, the secondary wavelengths' paths no longer exist). The caller
+    /// rescales the hero's throughput by the lane count (the film weights every lane 1/N).
     pub fn terminate_secondary(&mut self) {
         self.secondary_terminated = true;
     }

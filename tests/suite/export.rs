@@ -153,7 +153,15 @@ fn check_spectrum(node: &Node, name: &str, s: &furnace::spectrum::Spectrum, what
 fn every_bundled_scene_exports_and_reads_back() {
     for (path, scene) in bundled() {
         let what = path.display().to_string();
-        let out = mitsuba::export(&scene).unwrap_or_else(|e| panic!("{what}: {e}"));
+        let out = match mitsuba::export(&scene) {
+            Ok(out) => out,
+            // refused by name: Mitsuba 3's dielectrics have no dispersive index
+            Err(e) if scene.bsdfs.iter().any(|b| b.separates_wavelengths()) => {
+                assert!(e.to_string().contains("dispersive"), "{what}: {e}");
+                continue;
+            }
+            Err(e) => panic!("{what}: {e}"),
+        };
         let doc = parse(&out.xml);
         assert_eq!(doc.name, "scene");
         assert_eq!(doc.attrs["version"], "3.0.0");

@@ -73,6 +73,8 @@ fn error_messages() {
         ("medium_unknown_key", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"isotropic\"\nalbedo = 0.5\n{LIGHT}"))),
         ("unknown_interior_medium", error_of(&format!("[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"m\"\ninterior = \"smoke\"\n{LIGHT}"))),
         ("null_material_without_medium", error_of(&format!("[materials.n]\ntype = \"null\"\n[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"n\"\n{LIGHT}"))),
+        ("medium_coefficient_too_large", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = 1e16\nphase = \"isotropic\"\n{LIGHT}"))),
+        ("power_law_overflows", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = {{ power_law = 16, reference = 1e-30 }}\nphase = \"isotropic\"\n{LIGHT}"))),
         ("power_law_without_reference", error_of(&format!("[media.fog]\nsigma_a = 0\nsigma_s = {{ power_law = -4 }}\nphase = \"rayleigh\"\n{LIGHT}"))),
     ];
     for (name, message) in cases {
@@ -91,6 +93,7 @@ fn camera_errors() {
         ("camera_up_parallel", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,0,2]\nfov = 40\n"),
         ("camera_fov_out_of_range", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 180\n"),
         ("camera_missing", "[[light]]\ntype = \"environment\"\nradiance = 1\n"),
+        ("camera_medium_unbounded", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 40\nmedium = \"fog\"\n[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"isotropic\"\n"),
     ];
     for (name, text) in camera_cases {
         let e = Scene::parse(&format!("{text}{LIGHT}"), Path::new("cam.toml"))

@@ -30,10 +30,10 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     }
 }
 
-/// True for BSDFs whose directional albedo is exactly 1 everywhere and at every wavelength:
-/// lossless ([`Bsdf::is_lossless`]) and without dispersion.
+/// True for BSDFs whose directional albedo is exactly 1 everywhere and at every wavelength
+/// ([`Bsdf::is_lossless`]: a smooth dielectric, dispersive or not, or a perfect mirror).
 fn lossless(b: &Bsdf) -> bool {
-    b.is_lossless() && !b.separates_wavelengths()
+    b.is_lossless()
 }
 
 /// The closed-form radiance (Y) a furnace scene must show, with a description.

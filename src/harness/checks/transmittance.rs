@@ -16,58 +16,63 @@ use crate::lights::Light;
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum};
 
-/// Y of the radiance arriving along `camera_ray` (starting in the camera's medium): the
-/// first emitter or the environment, attenuated by every absorbing segment before it.
+/// Y of the radiance arriving along `camera_ray` (starting in the camera's medium): every
+/// emitter met through null boundaries and finally the first other surface or the environment,
+/// each attenuated by the absorbing segments before it. A ray with no surface ahead has left
+/// every medium (as in the path tracer).
 pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, String> {
     let mut path: Vec<(u32, f64)> = Vec::new();
+    // (emitted spectrum, number of path segments in front of it)
+    let mut sources: Vec<(&Spectrum, usize)> = Vec::new();
     let mut medium = scene.camera.medium;
     let mut r = camera_ray;
-    let emitted: Option<&Spectrum> = loop {
+    loop {
         let hit = scene.aggregate.intersect(&r, f64::INFINITY);
-        if let Some(m) = medium {
+        if let (Some(m), Some(h)) = (medium, hit.as_ref()) {
             if !scene.media[m as usize].absorbs_only() {
                 return Err(format!(
                     "medium {:?} scatters; the transmittance kind needs purely absorbing media (sigma_s = 0)",
                     scene.medium_names[m as usize]
                 ));
             }
-            path.push((m, hit.as_ref().map_or(f64::INFINITY, |h| h.t)));
+            path.push((m, h.t));
         }
         let Some(h) = hit else {
-            break scene.lights.iter().find_map(|l| match l {
+            if let Some(env) = scene.lights.iter().find_map(|l| match l {
                 Light::Environment { radiance } => Some(radiance),
                 _ => None,
-            });
+            }) {
+                sources.push((env, path.len()));
+            }
+            break;
         };
-        if scene.bsdfs[h.shape as usize].is_null() && scene.shape_light[h.shape as usize].is_none()
+        if let Some(Light::Area {
+            radiance,
+            two_sided,
+            ..
+        }) = scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize])
         {
-            medium = scene.medium_after(h.shape, h.point.n, r.d, medium);
-            r = ray::spawn(&h.point, r.d);
-            continue;
+            if *two_sided || h.point.n.dot(-r.d) > 0.0 {
+                sources.push((radiance, path.len()));
+            }
         }
-        break match scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize]) {
-            Some(Light::Area {
-                radiance,
-                two_sided,
-                ..
-            }) if *two_sided || h.point.n.dot(-r.d) > 0.0 => Some(radiance),
-            _ => None,
-        };
-    };
-    let Some(le) = emitted else { return Ok(0.0) };
+        if !scene.bsdfs[h.shape as usize].is_null() {
+            break;
+        }
+        medium = scene.medium_after(h.shape, h.point.n, r.d, medium);
+        r = ray::spawn(&h.point, r.d);
+    }
     Ok(cie::tables().function_to_xyz(|l| {
-        let tau: f64 = path
+        sources
             .iter()
-            .map(|&(m, d)| {
-                let s = scene.media[m as usize].sigma_a.eval(l);
-                if s == 0.0 {
-                    0.0
-                } else {
-                    s * d
-                }
+            .map(|(le, n)| {
+                let tau: f64 = path[..*n]
+                    .iter()
+                    .map(|&(m, d)| scene.media[m as usize].sigma_a.eval(l) * d)
+                    .sum();
+                le.eval(l) * (-tau).exp()
             })
-            .sum();
-        le.eval(l) * (-tau).exp()
+            .sum()
     })[1])
 }
 
