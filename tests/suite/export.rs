@@ -394,6 +394,7 @@ fn committed_reference_exports_are_current() {
             "scenes/rayleigh-sky.toml",
             "reference/mitsuba/rayleigh-sky.export",
         ),
+        ("scenes/hg-fog.toml", "reference/mitsuba/hg-fog.export"),
     ] {
         let s = Scene::load(&root(scene)).unwrap();
         let out = mitsuba::export(&s).unwrap();

@@ -4,7 +4,9 @@
 //!   "Comparisons with Mitsuba 3"); the image comparison therefore rejects the sphere pair;
 //! - the colour-conversion difference that made two near-zero Cornell channels differ is the
 //!   size the conversion alone produces;
-//! - an image comparison rejects a reference with a 2 % tint on one wall (negative control).
+//! - an image comparison rejects a reference with a 2 % tint on one wall (negative control);
+//! - the forward-scattering fog comparison rejects a renderer that flips the sign of the
+//!   Henyey–Greenstein asymmetry (a scattering-angle convention error).
 
 use crate::root;
 use furnace::harness::checks::image;
@@ -110,6 +112,33 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
         "{}",
         m.message
     );
+}
+
+/// Henyey–Greenstein with the asymmetry's sign flipped (wo taken as the propagation direction).
+struct FlippedHg;
+impl Renderer for FlippedHg {
+    fn name(&self) -> String {
+        "HG sign flipped".into()
+    }
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<furnace::film::Film, String> {
+        let mut scene = scene.clone();
+        for m in &mut scene.media {
+            if let furnace::media::PhaseFunction::HenyeyGreenstein(hg) = &mut m.phase {
+                hg.g = -hg.g;
+            }
+        }
+        BuiltIn.render(&scene, s)
+    }
+}
+
+#[test]
+fn image_compare_rejects_a_flipped_scattering_angle_and_passes_the_fog() {
+    let s = spec("mitsuba/hg-fog");
+    let reference = RgbImage::load(&root("reference/mitsuba/hg-fog.exr")).unwrap();
+    let ok = image::run_against(&s, &ctx(&BuiltIn), &reference).unwrap();
+    assert!(ok.p_value.unwrap() > 1e-4, "{}", ok.message);
+    let bad = image::run_against(&s, &ctx(&FlippedHg), &reference).unwrap();
+    assert!(bad.p_value.unwrap() < 1e-12, "{}", bad.message);
 }
 
 fn region(name: &str) -> Region {
