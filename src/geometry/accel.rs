@@ -88,6 +88,18 @@ impl Aggregate {
         }
     }
 
+    /// A sphere (centre, radius) enclosing every shape, from the padded bounding box; radius 0
+    /// for an empty scene.
+    pub fn bounding_sphere(&self) -> (Vec3, f64) {
+        if self.prims.is_empty() {
+            return (Vec3::ZERO, 0.0);
+        }
+        (
+            (self.lo + self.hi) * 0.5,
+            (self.hi - self.lo).length() * 0.5,
+        )
+    }
+
     /// The shapes, indexed by [`Hit::shape`].
     pub fn shapes(&self) -> &[Shape] {
         &self.shapes

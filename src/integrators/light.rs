@@ -128,18 +128,6 @@ impl From<&crate::integrators::PathTracer> for LightTracer {
     }
 }
 
-/// The first light in `lights` the light tracer cannot start paths on, with the reason.
-pub fn unsupported_light(lights: &[Light]) -> Option<String> {
-    lights.iter().enumerate().find_map(|(i, l)| {
-        matches!(l, Light::Environment { .. }).then(|| {
-            format!(
-                "light {i} (type \"{}\") is not supported by the light tracer: it emits from infinity, so no light path can start on it; render this scene with the path tracer",
-                l.type_name()
-            )
-        })
-    })
-}
-
 /// The shadow-ray target at the eye (no error box: the eye is not on a surface).
 #[inline]
 fn eye_point(c: &SensorConnection) -> SurfacePoint {
@@ -152,9 +140,10 @@ fn eye_point(c: &SensorConnection) -> SurfacePoint {
 
 impl LightTracer {
     /// Traces one light path at wavelengths `wl` and appends its contributions to `splats`
-    /// (unordered; several may land in one pixel). Lights without a finite emitting point
-    /// (environment) contribute nothing: callers refuse such scenes first
-    /// ([`unsupported_light`]).
+    /// (unordered; several may land in one pixel). Environment light enters through the disk
+    /// of the scene's bounding sphere facing its direction ([`Light::sample_emission`]); the
+    /// camera seeing the environment directly (like a specular surface seen by the camera)
+    /// has no light-tracing estimate.
     pub fn trace(
         &self,
         scene: &Scene,
@@ -173,7 +162,9 @@ impl LightTracer {
         let u_dir = rng.next_2d();
         let li = ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
         let light = &scene.lights[li];
-        let Some(es) = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, wl) else {
+        let bounds = scene.aggregate.bounding_sphere();
+        let Some(es) = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, bounds, wl)
+        else {
             return;
         };
         if es.emitted.is_black() {

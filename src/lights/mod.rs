@@ -3,7 +3,7 @@
 
 use crate::geometry::{Shape, SurfacePoint};
 use crate::math::frame::Frame;
-use crate::math::{warp, Vec3};
+use crate::math::{warp, Vec3, PI};
 use crate::spectrum::{SampledSpectrum, Spectrum, Wavelengths};
 
 /// A light source.
@@ -168,7 +168,12 @@ impl Light {
     /// Area lights: a point uniform on the shape (pdf 1/area) and a cosine-weighted direction
     /// about the emitting side's normal (pdf cos θ/π, halved for a two-sided emitter, which
     /// picks each side with probability 1/2). Point lights: a uniform direction (pdf 1/(4π)).
-    /// Environment lights emit from infinity and are not sampled: None.
+    /// Environment lights: the direction light arrives from uniform on the sphere (pdf 1/(4π)),
+    /// the ray starting on the disk of the scene's bounding sphere (`bounds`: centre, radius)
+    /// that faces that direction, uniformly (pdf 1/(πr²)), travelling into the scene: every
+    /// line through the scene is covered (Pharr, Jakob & Humphreys, PBR 3rd ed., §16.1.2,
+    /// infinite area lights).
+    #[allow(clippy::too_many_arguments)]
     pub fn sample_emission(
         &self,
         u_select: f64,
@@ -176,6 +181,7 @@ impl Light {
         u_side: f64,
         u_dir: [f64; 2],
         shapes: &[Shape],
+        bounds: (Vec3, f64),
         wl: &Wavelengths,
     ) -> Option<EmissionSample> {
         match self {
@@ -227,7 +233,29 @@ impl Light {
                     delta_position: true,
                 })
             }
-            Light::Environment { .. } => None,
+            Light::Environment { radiance } => {
+                let (center, r) = bounds;
+                if !(r > 0.0 && r.is_finite()) {
+                    return None;
+                }
+                let from = warp::uniform_sphere(u_dir);
+                let [dx, dy] = warp::concentric_disk(u_pos);
+                let p = center + Frame::from_normal(from).to_world(Vec3::new(dx * r, dy * r, r));
+                let direction = -from;
+                Some(EmissionSample {
+                    point: SurfacePoint {
+                        p,
+                        p_error: Vec3::ZERO,
+                        n: direction,
+                    },
+                    direction,
+                    emitted: radiance.sample(wl),
+                    pdf_pos: 1.0 / (PI * r * r),
+                    pdf_dir: warp::UNIFORM_SPHERE_PDF,
+                    cos_theta: 1.0,
+                    delta_position: false,
+                })
+            }
         }
     }
 

@@ -6,6 +6,8 @@
 //! cosine, a wrong importance normalisation or a non-adjoint scattering weight in either shows
 //! as a difference.
 //!
+//! Scenes with an environment light are compared on their regions file only (the camera seeing
+//! the environment directly has no light-tracing estimate).
 //! Both images are rendered with independent seeds; each region (the whole image plus a k×k
 //! grid of blocks, or a regions file) × channel (R, G, B) mean is compared by the z test of
 //! harness::compare with the stated relative tolerance, and the check's p is the Šidák
@@ -50,7 +52,21 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     let mut s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
     s.observer = spec.params.observer.clone();
     let (w, h) = (s.width, s.height);
-    let mut regions = vec![whole_image()];
+    // No light path reaches the eye straight from an environment light (nor via a specular
+    // surface seen by the camera), so pixels where the camera sees the environment have no
+    // light-tracing estimate: such scenes are compared on a regions file that avoids them.
+    let environment = scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, crate::lights::Light::Environment { .. }));
+    let mut regions = Vec::new();
+    if environment {
+        if spec.params.regions.is_empty() {
+            return Err("the scene has an environment light: give `regions` (a regions file) that avoids the pixels where the camera sees the environment directly; light paths cannot reach the eye that way".into());
+        }
+    } else {
+        regions.push(whole_image());
+    }
     if spec.params.regions.is_empty() {
         regions.extend(grid_regions(spec.params.grid.unwrap_or(DEFAULT_GRID)));
     } else {
@@ -106,7 +122,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     )?;
     let whole: Vec<String> = results
         .iter()
-        .filter(|r| r.region == regions[0].name)
+        .filter(|r| !environment && r.region == regions[0].name)
         .map(|r| {
             format!(
                 "{} {} ± {} vs {} ± {}",
@@ -118,7 +134,9 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
             )
         })
         .collect();
-    m.message = format!("{}; whole image: {}", m.message, whole.join(", "));
+    if !whole.is_empty() {
+        m.message = format!("{}; {}: {}", m.message, regions[0].name, whole.join(", "));
+    }
     Ok(m)
 }
 
