@@ -196,7 +196,7 @@ struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// Estimator: path (camera paths, the default) or light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses media and dispersive glass).
+    /// Estimator: path (camera paths, the default) or light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media).
     #[arg(long, default_value = "path", value_parser = ["path", "light"])]
     integrator: String,
     /// Light paths traced by --integrator light [default: spp x width x height].

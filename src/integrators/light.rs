@@ -38,7 +38,7 @@ use crate::math::rng::SampleStream;
 use crate::math::Vec3;
 use crate::scattering::Bxdf;
 use crate::scene::Scene;
-use crate::spectrum::{SampledSpectrum, Wavelengths};
+use crate::spectrum::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 
 /// Where a world point lands on a sensor and how much importance reaches it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -148,7 +148,7 @@ impl LightTracer {
         &self,
         scene: &Scene,
         sensor: &impl Sensor,
-        wl: &Wavelengths,
+        wl: &mut Wavelengths,
         rng: &mut SampleStream,
         splats: &mut Vec<Splat>,
     ) {
@@ -238,6 +238,16 @@ impl LightTracer {
             if self.max_depth.is_some_and(|d| k >= d) {
                 break;
             }
+
+            // A dispersive surface sends the wavelengths different ways: past it only the hero
+            // continues, scaled by the lane count so that the film's 1/N lane weight holds
+            // (the camera connection above does not depend on wavelength and kept all lanes;
+            // see integrators::path).
+            if bsdf.separates_wavelengths() && !wl.secondary_terminated {
+                wl.terminate_secondary();
+                beta = SampledSpectrum([beta.0[0] * N_WAVELENGTHS as f64, 0.0, 0.0, 0.0]);
+            }
+            let wl = &*wl;
 
             // Continue with the adjoint BSDF: sample(wo = towards the previous vertex) gives
             // f(prev, next)|cos next|/pdf; the adjoint f*(prev, next) = f(prev, next)·η(next)²/η(prev)²
