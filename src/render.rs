@@ -211,12 +211,7 @@ pub fn render(
                                 settings.spp,
                             );
                             let u_lambda = rng.next_f64();
-                            let mut wl =
-                                Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
-                            if lanes == 1 && !grey {
-                                // the single-wavelength estimator: one wavelength from the start
-                                wl.terminate_secondary();
-                            }
+                            let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
                             let l = settings.integrator.radiance(scene, ray, &mut wl, &mut rng);

@@ -198,6 +198,30 @@ fn up(x: f64) -> f32 {
 
 #[cfg(test)]
 mod tests {
+    #[test]
+    fn bounding_sphere_encloses_every_shape_and_is_empty_for_no_shapes() {
+        assert_eq!(Aggregate::new(vec![]).bounding_sphere(), (Vec3::ZERO, 0.0));
+        let shapes = vec![
+            Shape::Sphere(Sphere {
+                center: Vec3::new(1.0, 0.0, 0.0),
+                radius: 0.5,
+                flip_normals: false,
+            }),
+            Shape::Sphere(Sphere {
+                center: Vec3::new(-2.0, 3.0, 1.0),
+                radius: 0.25,
+                flip_normals: false,
+            }),
+        ];
+        let a = Aggregate::new(shapes);
+        let (c, r) = a.bounding_sphere();
+        for (p, rad) in [
+            (Vec3::new(1.0, 0.0, 0.0), 0.5),
+            (Vec3::new(-2.0, 3.0, 1.0), 0.25),
+        ] {
+            assert!((p - c).length() + rad <= r, "{p:?} not inside ({c:?}, {r})");
+        }
+    }
     use super::*;
     use crate::geometry::{mesh::TriangleMesh, quad::Quad, sphere::Sphere};
     use crate::math::rng::SampleStream;

@@ -23,12 +23,18 @@
 //! roulette is the path tracer's: after the k-th bounce with k ≥ rr_depth the path survives
 //! with q = min(1, max β) (β the product of scattering weights, without the emitted power P).
 //!
+//! Environment light enters through the disk of the scene's bounding sphere that faces a
+//! uniformly chosen direction (`Light::sample_emission`: p_A = 1/(πr²), p_ω = 1/(4π),
+//! cos θ₀ = 1, so P = L·4π·πr²/p_sel, the flux through the disk); the disk point is never
+//! connected to the camera. A dispersive surface keeps only the hero wavelength past it,
+//! scaled by the lane count so that the film's 1/N lane weight holds (as in the path tracer).
+//!
 //! Not covered (documented limitations): surfaces seen by the camera through delta (specular)
-//! lobes — `eval` is zero for them, so a light path cannot be connected there; point lights
-//! seen directly (a delta in position: the path tracer cannot see them either, so c₀ is
-//! omitted for them); environment lights (no finite emitting point) are refused by the
-//! renderer. There are no shading normals in furnace, so no shading-normal adjoint correction
-//! (Veach §5.3) is needed.
+//! lobes — `eval` is zero for them, so a light path cannot be connected there; the environment
+//! seen directly (for the same reason); point lights seen directly (a delta in position: the
+//! path tracer cannot see them either, so c₀ is omitted for them); participating media
+//! (refused by the renderer). There are no shading normals in furnace, so no shading-normal
+//! adjoint correction (Veach §5.3) is needed.
 
 use crate::camera::Camera;
 use crate::geometry::{ray, Ray, SurfacePoint};

@@ -276,3 +276,34 @@ impl Light {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spectrum::Wavelengths;
+
+    #[test]
+    fn environment_emission_starts_on_the_bounding_disk_facing_into_the_scene() {
+        let env = Light::Environment {
+            radiance: Spectrum::Constant(1.0),
+        };
+        let wl = Wavelengths::sample_visible(0.3);
+        let (c, r) = (Vec3::new(1.0, 2.0, 3.0), 2.0);
+        for u in [[0.1, 0.2], [0.7, 0.9], [0.5, 0.5]] {
+            let e = env
+                .sample_emission(0.0, [0.3, 0.8], 0.0, u, &[], (c, r), &wl)
+                .unwrap();
+            // the start lies on the plane tangent to the sphere at c − r·direction, within r of the axis
+            let along = (e.point.p - c).dot(-e.direction);
+            assert!((along - r).abs() < 1e-12, "{along}");
+            let off_axis = (e.point.p - c) + e.direction * along;
+            assert!(off_axis.length() <= r * (1.0 + 1e-12));
+            assert!((e.pdf_pos * PI * r * r - 1.0).abs() < 1e-12);
+            assert_eq!(e.pdf_dir, warp::UNIFORM_SPHERE_PDF);
+        }
+        // an empty scene has no disk: no emission
+        assert!(env
+            .sample_emission(0.0, [0.3, 0.8], 0.0, [0.1, 0.2], &[], (c, 0.0), &wl)
+            .is_none());
+    }
+}

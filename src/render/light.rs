@@ -157,11 +157,7 @@ pub fn trace_light_image<S: Sensor>(
         for i in start..end {
             let mut rng = SampleStream::new(seed, LIGHT_STREAM, i);
             let u_lambda = rng.next_f64();
-            let mut wl = Wavelengths::sample_visible(if grey { 0.5 } else { u_lambda });
-            if settings.spectral.wavelengths == 1 && !grey {
-                // the single-wavelength estimator: one wavelength from the start
-                wl.terminate_secondary();
-            }
+            let mut wl = Wavelengths::for_film(u_lambda, settings.spectral.wavelengths, grey);
             splats.clear();
             tracer.trace(scene, sensor, &mut wl, &mut rng, &mut splats);
             if splats.is_empty() {
@@ -249,6 +245,7 @@ pub fn trace_light_image<S: Sensor>(
 mod tests {
     use super::*;
     use crate::integrators::PathTracer;
+    use crate::spectrum::N_WAVELENGTHS;
     use std::path::Path;
 
     fn scene_file(rel: &str) -> Scene {
@@ -424,9 +421,19 @@ radiance = { blackbody = 4000.0, scale = 1e-3 }
 "#;
 
     fn assert_path_and_light_agree(scene: &Scene, depths: &[Option<u32>], paths: u64) {
+        assert_path_and_light_agree_in(scene, depths, paths, N_WAVELENGTHS)
+    }
+
+    fn assert_path_and_light_agree_in(
+        scene: &Scene,
+        depths: &[Option<u32>],
+        paths: u64,
+        lanes: usize,
+    ) {
         for &depth in depths {
             let mut s = settings(12, 12, 0, depth);
             s.spp = 256;
+            s.spectral.wavelengths = lanes;
             let pt = crate::render::render(scene, &s, &|_| {}).unwrap();
             let lt = light_image(scene, &s, paths);
             for c in [0usize, 1, 2] {
@@ -484,6 +491,8 @@ emission = { blackbody = 5000.0, scale = 1e-3 }
         let scene = Scene::parse(DISPERSIVE, Path::new("dispersive.toml")).unwrap();
         assert!(scene.bsdfs.iter().any(|b| b.separates_wavelengths()));
         assert_path_and_light_agree(&scene, &[Some(3)], 300_000);
+        // and with the single-wavelength estimator (film weighting the hero alone)
+        assert_path_and_light_agree_in(&scene, &[Some(3)], 300_000, 1);
     }
 
     #[test]

@@ -134,6 +134,19 @@ impl Wavelengths {
         }
     }
 
+    /// The wavelengths of one film sample: [`Self::sample_visible`] from `u` (u = 0.5 in grey
+    /// mode, where nothing depends on wavelength), and for a film that weighs only the hero
+    /// (`lanes == 1`, the single-wavelength estimator) the secondaries dropped from the start,
+    /// so that integrators never scale the hero by the lane count for it. Both renderers use
+    /// this, which keeps the film weights and the integrators' hero scaling in step.
+    pub fn for_film(u: f64, lanes: usize, grey: bool) -> Self {
+        let mut wl = Self::sample_visible(if grey { 0.5 } else { u });
+        if lanes == 1 && !grey {
+            wl.terminate_secondary();
+        }
+        wl
+    }
+
     /// The visible-range pdf per nm at `lambda` (0 outside [360, 830] nm).
     pub fn visible_pdf(lambda: f64) -> f64 {
         if !(LAMBDA_MIN..=LAMBDA_MAX).contains(&lambda) {

@@ -152,6 +152,33 @@ fn media_code_leaves_surface_scenes_bit_identical() {
     }
 }
 
+/// Dispersive glass inside chromatic fog under a uniform sky reads the sky (1 × the flat
+/// spectrum's XYZ) with four wavelengths and with the single-wavelength estimator: the film's
+/// lane weights and the integrator's hero scaling after dispersion stay in step for both.
+#[test]
+fn dispersion_in_fog_reads_the_sky_with_one_and_four_wavelengths() {
+    let text = std::fs::read_to_string(root(
+        "tests/manifests/scenes/medium-furnace-dispersive.toml",
+    ))
+    .unwrap()
+    .replace("${sigma}", "3.0");
+    let scene = Scene::parse(&text, &root("tests/manifests/scenes/dispersive-3.toml")).unwrap();
+    let white = cie::tables().spectrum_to_xyz(&Spectrum::Constant(1.0));
+    for lanes in [4, 1] {
+        let mut s = settings(12, 12, 512, 3, 0);
+        s.spectral.wavelengths = lanes;
+        let film = render(&scene, &s, &|_| {}).unwrap();
+        for (c, w) in white.iter().enumerate() {
+            let (m, se) = image_mean(&film, c);
+            let z = (m - w) / se;
+            assert!(
+                z.abs() < 4.5,
+                "{lanes} wavelengths, channel {c}: {m} ± {se} vs {w}"
+            );
+        }
+    }
+}
+
 #[test]
 fn bundled_scenes_render_without_nan_or_inf() {
     let mut count = 0;
