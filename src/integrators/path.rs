@@ -87,6 +87,66 @@ impl PathTracer {
         }
     }
 
+    /// Next-event estimation at a path vertex `at` (a surface point, or a medium point with no
+    /// error box): one light chosen uniformly, a point or direction on it sampled, and the
+    /// contribution f·c·L·T·w/pdf before the path throughput, where `scatter(wi)` gives the
+    /// vertex's f and scalar factor c (the BSDF and |cos θi|, or 1 and the phase function;
+    /// None when zero), T is the shadow ray's transmittance (with `MEDIA`, starting in
+    /// `medium_of(wi)` and stepping through null boundaries; otherwise its visibility) and w the
+    /// power heuristic against the vertex's own sampling pdf `scatter_pdf(wi)`. Draws four
+    /// numbers whatever the strategy.
+    #[allow(clippy::too_many_arguments)]
+    fn next_event<const MEDIA: bool>(
+        &self,
+        scene: &Scene,
+        at: &SurfacePoint,
+        medium_of: impl Fn(Vec3) -> Option<u32>,
+        scatter: impl Fn(Vec3) -> Option<(SampledSpectrum, f64)>,
+        scatter_pdf: impl Fn(Vec3) -> f64,
+        rng: &mut SampleStream,
+        wl: &Wavelengths,
+    ) -> Option<SampledSpectrum> {
+        let u_light = rng.next_f64();
+        let u_select = rng.next_f64();
+        let u_pos = rng.next_2d();
+        if self.strategy == Strategy::BsdfOnly {
+            return None;
+        }
+        let n_lights = scene.lights.len();
+        let li = ((u_light * n_lights as f64) as usize).min(n_lights - 1);
+        let shapes = scene.aggregate.shapes();
+        let ls = scene.lights[li].sample(at.p, u_select, u_pos, shapes, wl)?;
+        if !(ls.pdf > 0.0) || ls.radiance.is_black() {
+            return None;
+        }
+        let (f, c) = scatter(ls.wi)?;
+        let tr = if MEDIA {
+            shadow_transmittance(scene, at, ls.wi, ls.point.as_ref(), medium_of(ls.wi), wl)?
+        } else {
+            let occluded = match &ls.point {
+                Some(target) => {
+                    let (shadow, t_max) = ray::spawn_to(at, target);
+                    scene.aggregate.occluded(&shadow, t_max)
+                }
+                None => scene
+                    .aggregate
+                    .occluded(&ray::spawn(at, ls.wi), f64::INFINITY),
+            };
+            if occluded {
+                return None;
+            }
+            SampledSpectrum::ONE
+        };
+        let light_pdf = (1.0 / n_lights as f64) * ls.pdf;
+        let w = if ls.delta || self.strategy == Strategy::LightOnly {
+            1.0
+        } else {
+            power_heuristic(light_pdf, scatter_pdf(ls.wi))
+        };
+        let contrib = f * ls.radiance * (c * w / light_pdf);
+        Some(if MEDIA { tr * contrib } else { contrib })
+    }
+
     /// Radiance along `camera_ray` at the wavelengths `wl`; the camera sits in
     /// `scene.camera.medium`. Scenes without media run the surface-only variant.
     pub fn radiance(
@@ -176,39 +236,20 @@ impl PathTracer {
                                 p_error: Vec3::ZERO,
                                 n: ray.d,
                             };
-                            let u_light = rng.next_f64();
-                            let u_select = rng.next_f64();
-                            let u_pos = rng.next_2d();
-                            if self.strategy != Strategy::BsdfOnly {
-                                let li =
-                                    ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
-                                if let Some(ls) =
-                                    scene.lights[li].sample(p, u_select, u_pos, shapes, wl)
-                                {
-                                    if ls.pdf > 0.0 && !ls.radiance.is_black() {
-                                        let f = phase.eval(wo, ls.wi);
-                                        if f > 0.0 {
-                                            if let Some(tr) = shadow_transmittance(
-                                                scene,
-                                                &here,
-                                                ls.wi,
-                                                ls.point.as_ref(),
-                                                Some(m),
-                                                wl,
-                                            ) {
-                                                let light_pdf = select_pdf * ls.pdf;
-                                                let w = if ls.delta
-                                                    || self.strategy == Strategy::LightOnly
-                                                {
-                                                    1.0
-                                                } else {
-                                                    power_heuristic(light_pdf, phase.pdf(wo, ls.wi))
-                                                };
-                                                l += beta * tr * ls.radiance * (f * w / light_pdf);
-                                            }
-                                        }
-                                    }
-                                }
+                            let nee = self.next_event::<true>(
+                                scene,
+                                &here,
+                                |_| Some(m),
+                                |wi| {
+                                    let f = phase.eval(wo, wi);
+                                    (f > 0.0).then_some((SampledSpectrum::ONE, f))
+                                },
+                                |wi| phase.pdf(wo, wi),
+                                rng,
+                                wl,
+                            );
+                            if let Some(c) = nee {
+                                l += beta * c;
                             }
                             let ps = phase.sample(wo, rng.next_2d());
                             beta *= ps.weight;
@@ -290,52 +331,22 @@ impl PathTracer {
             let frame = Frame::from_normal(sp.n);
             let wo = frame.to_local(wo_world);
 
-            // Next-event estimation: one light chosen uniformly.
-            let u_light = rng.next_f64();
-            let u_select = rng.next_f64();
-            let u_pos = rng.next_2d();
-            let li = ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
-            let light = &scene.lights[li];
-            let nee = self.strategy != Strategy::BsdfOnly;
-            if let Some(ls) = light
-                .sample(sp.p, u_select, u_pos, shapes, wl)
-                .filter(|_| nee)
-            {
-                if ls.pdf > 0.0 && !ls.radiance.is_black() {
-                    let wi = frame.to_local(ls.wi);
+            // Next-event estimation.
+            let nee = self.next_event::<MEDIA>(
+                scene,
+                &sp,
+                |wi| scene.medium_after(hit.shape, sp.n, wi, medium),
+                |wi| {
+                    let wi = frame.to_local(wi);
                     let f = bsdf.eval(wo, wi, wl);
-                    if !f.is_black() {
-                        let tr = if MEDIA {
-                            let m = scene.medium_after(hit.shape, sp.n, ls.wi, medium);
-                            shadow_transmittance(scene, &sp, ls.wi, ls.point.as_ref(), m, wl)
-                        } else {
-                            let unoccluded = match &ls.point {
-                                Some(target) => {
-                                    let (shadow, t_max) = ray::spawn_to(&sp, target);
-                                    !scene.aggregate.occluded(&shadow, t_max)
-                                }
-                                None => !scene
-                                    .aggregate
-                                    .occluded(&ray::spawn(&sp, ls.wi), f64::INFINITY),
-                            };
-                            unoccluded.then_some(SampledSpectrum::ONE)
-                        };
-                        if let Some(tr) = tr {
-                            let light_pdf = select_pdf * ls.pdf;
-                            let w = if ls.delta || self.strategy == Strategy::LightOnly {
-                                1.0
-                            } else {
-                                power_heuristic(light_pdf, bsdf.pdf(wo, wi, wl))
-                            };
-                            let contrib = f * ls.radiance * (wi.z.abs() * w / light_pdf);
-                            l += if MEDIA {
-                                beta * tr * contrib
-                            } else {
-                                beta * contrib
-                            };
-                        }
-                    }
-                }
+                    (!f.is_black()).then_some((f, wi.z.abs()))
+                },
+                |wi| bsdf.pdf(wo, frame.to_local(wi), wl),
+                rng,
+                wl,
+            );
+            if let Some(c) = nee {
+                l += beta * c;
             }
 
             // Continue the path by sampling the BSDF.
