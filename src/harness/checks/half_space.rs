@@ -7,7 +7,7 @@
 //! boundary, optically ≥ 1e3 thick along every region ray, under an environment light; the
 //! expected value of each pixel uses μ = |n·d| at its camera rays' hits.
 
-use super::lambert::{ray_average, FOOTPRINT_K};
+use super::lambert::{per_pixel_rays, FOOTPRINT_K};
 use super::{diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::geometry::{ray, Ray};
 use crate::harness::manifest::CheckSpec;
@@ -153,19 +153,7 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
         }
         Ok(env * r_of(mu))
     };
-    let mut px = Vec::new();
-    for y in region[1]..region[3] {
-        for x in region[0]..region[2] {
-            px.push(ray_average(
-                scene,
-                s.width,
-                s.height,
-                [x, y, x + 1, y + 1],
-                &expected_ray,
-                FOOTPRINT_K,
-            )?);
-        }
-    }
+    let px = per_pixel_rays(scene, s.width, s.height, region, &expected_ray, FOOTPRINT_K)?;
     let expected = px.iter().sum::<f64>() / px.len() as f64;
     let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
     Ok(region_measurement(

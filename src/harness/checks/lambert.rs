@@ -123,31 +123,6 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Stri
 /// Quadrature points per pixel side of the checks' closed-form footprint averages.
 pub const FOOTPRINT_K: usize = 9;
 
-/// A closed form along camera rays averaged over `region` by k×k midpoint quadrature (the box
-/// filter's average); `f` gives the value for one ray's first hit (None: the ray escapes).
-pub fn region_average(
-    scene: &Scene,
-    width: usize,
-    height: usize,
-    region: [usize; 4],
-    f: &RayClosedForm<'_>,
-    k: usize,
-) -> Result<f64, String> {
-    ray_average(
-        scene,
-        width,
-        height,
-        region,
-        &|ray| {
-            f(
-                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
-                ray.d,
-            )
-        },
-        k,
-    )
-}
-
 /// A closed form of whole camera rays averaged over `region` by k×k midpoint quadrature.
 pub fn ray_average(
     scene: &Scene,
@@ -211,10 +186,35 @@ pub fn per_pixel_k(
     f: &RayClosedForm<'_>,
     k: usize,
 ) -> Result<Vec<f64>, String> {
+    per_pixel_rays(
+        scene,
+        width,
+        height,
+        region,
+        &|ray| {
+            f(
+                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
+                ray.d,
+            )
+        },
+        k,
+    )
+}
+
+/// A closed form of whole camera rays for every pixel of `region` (row-major), each averaged
+/// over its footprint by k×k midpoint quadrature ([`ray_average`]).
+pub fn per_pixel_rays(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(crate::geometry::Ray) -> Result<f64, String>,
+    k: usize,
+) -> Result<Vec<f64>, String> {
     let mut v = Vec::new();
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
-            v.push(region_average(
+            v.push(ray_average(
                 scene,
                 width,
                 height,

@@ -6,7 +6,7 @@
 //! scene's null boundaries, so chromatic absorbers test the wavelength weights too. Rendered
 //! with emission only (max_depth 0; crossing a null boundary is not a bounce).
 
-use super::lambert::{ray_average, FOOTPRINT_K};
+use super::lambert::{per_pixel_rays, FOOTPRINT_K};
 use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::geometry::{ray, Ray};
 use crate::harness::manifest::CheckSpec;
@@ -84,19 +84,14 @@ pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
     }
     let s = settings_for(spec, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
     let region = region_of(spec, &s)?;
-    let mut px = Vec::new();
-    for y in region[1]..region[3] {
-        for x in region[0]..region[2] {
-            px.push(ray_average(
-                scene,
-                s.width,
-                s.height,
-                [x, y, x + 1, y + 1],
-                &|r| along(scene, r),
-                FOOTPRINT_K,
-            )?);
-        }
-    }
+    let px = per_pixel_rays(
+        scene,
+        s.width,
+        s.height,
+        region,
+        &|r| along(scene, r),
+        FOOTPRINT_K,
+    )?;
     let expected = px.iter().sum::<f64>() / px.len() as f64;
     let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
     Ok(combine(vec![(
