@@ -116,7 +116,8 @@ impl PathTracer {
         let li = ((u_light * n_lights as f64) as usize).min(n_lights - 1);
         let shapes = scene.aggregate.shapes();
         let ls = scene.lights[li].sample(at.p, u_select, u_pos, shapes, wl)?;
-        if !(ls.pdf > 0.0) || ls.radiance.is_black() {
+        let usable = ls.pdf > 0.0 && !ls.radiance.is_black();
+        if !usable {
             return None;
         }
         let (f, c) = scatter(ls.wi)?;
