@@ -113,16 +113,15 @@ impl<'a> FilmResponse<'a> {
         // The weights never depend on the path: when a path drops its secondary wavelengths
         // (dispersion) the integrator scales the hero by the lane count instead, so what the
         // path gathered before keeps its 1/lanes weight (integrators::path).
-        let lanes = self.lanes;
         let mut xyz = [0.0; 3];
-        for i in 0..lanes {
+        for i in 0..self.lanes {
             let c = self.observer.cmf(wl.lambda[i]);
             let k = l.0[i] / wl.pdf[i];
             for j in 0..3 {
                 xyz[j] += k * c[j];
             }
         }
-        xyz.map(|v| v * self.y_norm / lanes as f64)
+        xyz.map(|v| v * self.y_norm / self.lanes as f64)
     }
 }
 

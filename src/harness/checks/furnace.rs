@@ -30,12 +30,6 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     }
 }
 
-/// True for BSDFs whose directional albedo is exactly 1 everywhere and at every wavelength
-/// ([`Bsdf::is_lossless`]: a smooth dielectric, dispersive or not, or a perfect mirror).
-fn lossless(b: &Bsdf) -> bool {
-    b.is_lossless()
-}
-
 /// The closed-form radiance (Y) a furnace scene must show, with a description.
 pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String), String> {
     if let Some(i) = scene.media.iter().position(|m| !m.is_lossless()) {
@@ -55,7 +49,8 @@ pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String
         .iter()
         .map(|b| match b {
             Bsdf::Diffuse(l) => constant(&l.reflectance, "a reflectance"),
-            b if lossless(b) => Ok(1.0),
+            // lossless at every wavelength: smooth glass (dispersive or not), a perfect mirror
+            b if b.is_lossless() => Ok(1.0),
             _ => Err("a furnace scene needs Lambertian surfaces or lossless ones (a smooth dielectric with a constant index, a perfect smooth mirror); other models reflect a direction-dependent fraction".to_string()),
         })
         .collect::<Result<_, _>>()?;
@@ -146,7 +141,7 @@ pub fn validate_view(
     // rays included: each path ends in the environment with its full weight.
     let all_white = scene.bsdfs.iter().all(|b| match b {
         Bsdf::Diffuse(l) => l.reflectance == Spectrum::Constant(1.0),
-        b => lossless(b),
+        b => b.is_lossless(),
     });
     if white && all_white {
         return Ok(());
