@@ -1,29 +1,59 @@
-//! The scene aggregate: all shapes under one `obvhs` BVH2 (the only home of `obvhs`).
+//! The scene aggregate: all shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
+//! only home of `obvhs`).
 //!
-//! The BVH works in f32 and only culls: its boxes are built in coordinates relative to the
-//! scene centre and padded by 1e-5 of the scene extent, far more than the f32 rounding of
-//! boxes, ray origin and direction (≈ 1e-7 of the extent), and rays are clipped to the scene
-//! box in f64 before conversion, so the culling is conservative at any scale or offset.
-//! Every candidate is then intersected exactly, in f64. BVH2 is used rather than obvhs's
-//! CWBVH because the CWBVH node test clamps t to an absolute 1e-4, which would skip nearby
-//! geometry in small scenes.
+//! The BVH works in f32 and only culls. It is built in a normalised frame: coordinates
+//! relative to the scene centre, scaled so that the scene's extent is [`FRAME_EXTENT`], with
+//! boxes padded by 1e-5 of the extent — far more than the f32 rounding of boxes, ray origin and
+//! direction (≈ 1e-7 of the extent) — and rays clipped to the scene box in f64 before
+//! conversion, so the culling is conservative at any scale or offset. The normalisation also
+//! makes the CWBVH node test's absolute lower bound on t (1e-4) harmless: a ray that meets a
+//! primitive at any t ≥ 0 stays inside that primitive's padded box until at least t + pad,
+//! and pad (0.04 in the frame) is 400 times that bound, so no box holding a hittable primitive
+//! is ever skipped. Every candidate is then intersected exactly, in f64, from a flat list in
+//! BVH order (mesh triangles with their corners and normal inline), and the surface point is
+//! computed for the nearest hit only.
 
-use super::{triangle::ShearedRay, Hit, Ray, Shape};
+use super::{
+    triangle::{self, ShearedRay},
+    Hit, Ray, Shape, SurfacePoint,
+};
 use crate::math::Vec3;
-use obvhs::{aabb::Aabb, bvh2::Bvh2, ray::Ray as BvhRay, BvhBuildParams};
+use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray as BvhRay, BvhBuildParams};
 use std::time::Duration;
 
 /// Relative padding of BVH boxes (fraction of the scene extent).
 const PAD: f64 = 1e-5;
 
+/// The scene's largest extent in the BVH's normalised frame.
+const FRAME_EXTENT: f64 = 4096.0;
+
+/// One BVH primitive, in BVH order.
+#[derive(Debug, Clone, PartialEq)]
+enum Candidate {
+    /// A mesh triangle: its corners and oriented unit normal (as [`super::mesh::TriangleMesh`]
+    /// gives them), and its shape.
+    Triangle { p: [Vec3; 3], n: Vec3, shape: u32 },
+    /// Any other primitive, intersected through its shape.
+    Other { shape: u32, prim: u32 },
+}
+
+/// The nearest hit so far: a triangle's BVH slot and barycentrics (its point is computed once,
+/// at the end), or another shape's index and point.
+enum Nearest {
+    Triangle(usize, [f64; 3]),
+    Point(u32, SurfacePoint),
+}
+
 /// Shapes plus their BVH.
 #[derive(Clone)]
 pub struct Aggregate {
     shapes: Vec<Shape>,
-    /// (shape, primitive) per BVH primitive.
-    prims: Vec<(u32, u32)>,
-    bvh: Bvh2,
+    /// The primitives in the BVH's leaf order (index = BVH primitive slot).
+    candidates: Vec<Candidate>,
+    bvh: CwBvh,
     center: Vec3,
+    /// Scene units to BVH-frame units.
+    scale: f64,
     lo: Vec3,
     hi: Vec3,
 }
@@ -32,7 +62,7 @@ impl std::fmt::Debug for Aggregate {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("Aggregate")
             .field("shapes", &self.shapes.len())
-            .field("primitives", &self.prims.len())
+            .field("primitives", &self.candidates.len())
             .field("bvh_nodes", &self.bvh.nodes.len())
             .finish()
     }
@@ -54,18 +84,23 @@ impl Aggregate {
                 prims.push((si as u32, p as u32));
             }
         }
-        let (center, pad) = if prims.is_empty() {
-            (Vec3::ZERO, 0.0)
+        let (center, pad, scale) = if prims.is_empty() {
+            (Vec3::ZERO, 0.0, 1.0)
         } else {
             let extent = (hi - lo).max_element().max(f64::MIN_POSITIVE);
-            ((lo + hi) * 0.5, PAD * extent)
+            ((lo + hi) * 0.5, PAD * extent, FRAME_EXTENT / extent)
         };
         let aabbs: Vec<Aabb> = boxes
             .iter()
-            .map(|(a, b)| Aabb::new(to_f32_down(*a - center - pad), to_f32_up(*b - center + pad)))
+            .map(|(a, b)| {
+                Aabb::new(
+                    to_f32_down((*a - center - pad) * scale),
+                    to_f32_up((*b - center + pad) * scale),
+                )
+            })
             .collect();
         let bvh = if aabbs.is_empty() {
-            Bvh2::default()
+            CwBvh::default()
         } else {
             let mut build_time = Duration::ZERO;
             // The highest-quality build pays off (+15 % Cornell Box throughput, measured);
@@ -76,13 +111,29 @@ impl Aggregate {
             } else {
                 BvhBuildParams::medium_build()
             };
-            obvhs::bvh2::builder::build_bvh2(&aabbs, params, &mut build_time)
+            obvhs::cwbvh::builder::build_cwbvh(&aabbs, params, &mut build_time)
         };
+        let candidates = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| {
+                let (si, p) = prims[i as usize];
+                match &shapes[si as usize] {
+                    Shape::Mesh(m) => Candidate::Triangle {
+                        p: m.vertices(p as usize),
+                        n: m.normal(p as usize),
+                        shape: si,
+                    },
+                    _ => Candidate::Other { shape: si, prim: p },
+                }
+            })
+            .collect();
         Aggregate {
             shapes,
-            prims,
+            candidates,
             bvh,
             center,
+            scale,
             lo: lo - pad * 2.0,
             hi: hi + pad * 2.0,
         }
@@ -91,7 +142,7 @@ impl Aggregate {
     /// A sphere (centre, radius) enclosing every shape, from the padded bounding box; radius 0
     /// for an empty scene.
     pub fn bounding_sphere(&self) -> (Vec3, f64) {
-        if self.prims.is_empty() {
+        if self.candidates.is_empty() {
             return (Vec3::ZERO, 0.0);
         }
         (
@@ -105,10 +156,11 @@ impl Aggregate {
         &self.shapes
     }
 
-    /// Clips the ray to the padded scene box in f64; returns the BVH ray and the f64 entry
-    /// distance, or None when the ray misses the box before `t_max`.
+    /// Clips the ray to the padded scene box in f64; returns the BVH ray (normalised frame)
+    /// and the f64 entry distance, or None when the ray misses the box before `t_max`.
+    #[inline]
     fn clip(&self, ray: &Ray, t_max: f64) -> Option<(BvhRay, f64)> {
-        if self.prims.is_empty() {
+        if self.candidates.is_empty() {
             return None;
         }
         let inv = ray.d.recip();
@@ -120,11 +172,15 @@ impl Aggregate {
         if t_near.is_nan() || t_far.is_nan() || t_near > t_far {
             return None;
         }
-        let o = ray.at(t_near) - self.center;
-        let len = ((t_far - t_near) * (1.0 + 1e-6)) as f32;
+        let o = (ray.at(t_near) - self.center) * self.scale;
+        let len = ((t_far - t_near) * self.scale * (1.0 + 1e-6)) as f32;
+        // + 0.0 turns −0.0 into +0.0: the CWBVH node test takes a component's sign from
+        // `d < 0` but its reciprocal from the sign bit, so a −0.0 component would cull every
+        // box (the mixed-shapes test below has such a ray).
+        let d = ray.d.as_vec3() + glam::Vec3::ZERO;
         let r = BvhRay::new(
             o.as_vec3().into(),
-            ray.d.as_vec3().into(),
+            d.into(),
             0.0,
             if len.is_finite() { len } else { f32::INFINITY },
         );
@@ -135,26 +191,46 @@ impl Aggregate {
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
         let (bray, t0) = self.clip(ray, t_max)?;
         let sheared = ShearedRay::new(*ray);
-        let mut best: Option<Hit> = None;
         let mut best_t = t_max;
+        let mut best: Option<Nearest> = None;
         let mut hit = obvhs::ray::RayHit::none();
         self.bvh.ray_traverse(bray, &mut hit, |_, i| {
-            let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
-            match self.shapes[si as usize].intersect_primitive(p as usize, &sheared, best_t) {
-                Some((t, point)) => {
-                    best_t = t;
-                    best = Some(Hit {
-                        t,
-                        point,
-                        shape: si,
-                    });
-                    // Conservative f32 distance for the BVH's own culling.
-                    (((t - t0) * (1.0 + 1e-6)) as f32).next_up()
+            let t = match &self.candidates[i] {
+                Candidate::Triangle { p, .. } => {
+                    let Some((t, bary)) = triangle::intersect_sheared(&sheared, *p, best_t) else {
+                        return f32::INFINITY;
+                    };
+                    best = Some(Nearest::Triangle(i, bary));
+                    t
                 }
-                None => f32::INFINITY,
-            }
+                &Candidate::Other { shape, prim } => {
+                    let Some((t, point)) = self.shapes[shape as usize].intersect_primitive(
+                        prim as usize,
+                        &sheared,
+                        best_t,
+                    ) else {
+                        return f32::INFINITY;
+                    };
+                    best = Some(Nearest::Point(shape, point));
+                    t
+                }
+            };
+            best_t = t;
+            // Conservative f32 distance for the BVH's own culling.
+            (((t - t0) * self.scale * (1.0 + 1e-6)) as f32).next_up()
         });
-        best
+        let (point, shape) = match best? {
+            Nearest::Point(shape, point) => (point, shape),
+            Nearest::Triangle(i, bary) => match self.candidates[i] {
+                Candidate::Triangle { p, n, shape } => (triangle::surface_point(bary, p, n), shape),
+                Candidate::Other { .. } => unreachable!("slot {i} was recorded as a triangle"),
+            },
+        };
+        Some(Hit {
+            t: best_t,
+            point,
+            shape,
+        })
     }
 
     /// True when something lies on the ray with 0 < t < t_max.
@@ -164,10 +240,19 @@ impl Aggregate {
         };
         let sheared = ShearedRay::new(*ray);
         !self.bvh.ray_traverse_miss(bray, |_, i| {
-            let (si, p) = self.prims[self.bvh.primitive_indices[i] as usize];
-            match self.shapes[si as usize].intersect_primitive(p as usize, &sheared, t_max) {
-                Some(_) => 0.0,
-                None => f32::INFINITY,
+            let blocked = match &self.candidates[i] {
+                Candidate::Triangle { p, .. } => {
+                    triangle::intersect_sheared(&sheared, *p, t_max).is_some()
+                }
+                Candidate::Other { shape, prim } => self.shapes[*shape as usize]
+                    .intersect_primitive(*prim as usize, &sheared, t_max)
+                    .is_some(),
+            };
+            // below any tmax the traversal can hold, so it stops
+            if blocked {
+                f32::NEG_INFINITY
+            } else {
+                f32::INFINITY
             }
         })
     }
