@@ -18,6 +18,8 @@ pub struct TriangleMesh {
     area_cdf: Vec<f64>,
     /// Vertices gathered per triangle, so intersection needs no index indirection.
     corners: Vec<[Vec3; 3]>,
+    /// Each triangle's oriented unit normal, computed once (light sampling and every hit use it).
+    normals: Vec<Vec3>,
 }
 
 impl TriangleMesh {
@@ -34,7 +36,11 @@ impl TriangleMesh {
             flip_normals,
             area_cdf: Vec::new(),
             corners,
+            normals: Vec::new(),
         };
+        mesh.normals = (0..mesh.triangles.len())
+            .map(|i| mesh.computed_normal(i))
+            .collect();
         let mut acc = 0.0;
         mesh.area_cdf = (0..mesh.triangles.len())
             .map(|i| {
@@ -63,7 +69,13 @@ impl TriangleMesh {
     }
 
     /// Unit geometric normal of triangle `i`.
+    #[inline]
     pub fn normal(&self, i: usize) -> Vec3 {
+        self.normals[i]
+    }
+
+    /// The normal from the corners: (v1 − v0) × (v2 − v0), normalised, flipped if asked.
+    fn computed_normal(&self, i: usize) -> Vec3 {
         let [a, b, c] = self.vertices(i);
         let n = (b - a).cross(c - a).normalize();
         if self.flip_normals {

@@ -145,41 +145,27 @@ impl Spectrum {
                 outside,
             } => {
                 let n = wavelengths.len();
-                if lambda < wavelengths[0] || lambda > wavelengths[n - 1] {
+                let (first, last) = (wavelengths[0], wavelengths[n - 1]);
+                if lambda < first || lambda > last {
                     return match outside {
                         Outside::Zero => 0.0,
-                        Outside::Clamp if lambda < wavelengths[0] => values[0],
+                        Outside::Clamp if lambda < first => values[0],
                         Outside::Clamp => values[n - 1],
                     };
                 }
-                // First index with wavelength > lambda, in 1..=n. Measured tables are
-                // usually evenly spaced, so start from the index an even spacing predicts and
-                // walk at most a few steps; otherwise binary search. Same result either way.
-                let guess = if n > 1 {
-                    let f = (lambda - wavelengths[0]) / (wavelengths[n - 1] - wavelengths[0]);
-                    ((f * (n - 1) as f64) as usize).min(n - 1)
-                } else {
-                    0
-                };
-                let mut hi = guess + 1;
-                let mut steps = 0;
-                while steps < 4 && hi > 1 && wavelengths[hi - 1] > lambda {
-                    hi -= 1;
-                    steps += 1;
-                }
-                while steps < 4 && hi < n && wavelengths[hi] <= lambda {
-                    hi += 1;
-                    steps += 1;
-                }
-                let bracketed =
-                    wavelengths[hi - 1] <= lambda && (hi == n || wavelengths[hi] > lambda);
-                if !bracketed {
-                    hi = wavelengths.partition_point(|&w| w <= lambda);
-                }
-                if hi >= n {
+                if lambda >= last {
                     return values[n - 1];
                 }
-                let lo = hi - 1;
+                // Now n >= 2 and first <= lambda < last. Find lo with w[lo] <= lambda <
+                // w[lo + 1]: measured tables are usually evenly spaced, so try the index an even
+                // spacing predicts, else binary search. Same result either way.
+                // (through i64: f64 → u64 has no single x86-64 instruction; the value is >= 0)
+                let guess = ((lambda - first) / (last - first) * (n - 1) as f64) as i64 as usize;
+                let mut lo = guess.min(n - 2);
+                if wavelengths[lo] > lambda || wavelengths[lo + 1] <= lambda {
+                    lo = wavelengths.partition_point(|&w| w <= lambda) - 1;
+                }
+                let hi = lo + 1;
                 let t = (lambda - wavelengths[lo]) / (wavelengths[hi] - wavelengths[lo]);
                 values[lo] + t * (values[hi] - values[lo])
             }
