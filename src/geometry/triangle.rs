@@ -21,20 +21,22 @@ pub struct ShearedRay {
 impl ShearedRay {
     /// Precomputes the permutation that makes z the dominant direction axis and the shear.
     pub fn new(ray: Ray) -> Self {
-        let d = ray.d;
-        let kz = d.abs().max_position();
-        let mut kx = (kz + 1) % 3;
-        let mut ky = (kx + 1) % 3;
+        let d = ray.d.to_array();
+        let kz = ray.d.abs().max_position();
+        let mut kx = if kz == 2 { 0 } else { kz + 1 };
+        let mut ky = if kx == 2 { 0 } else { kx + 1 };
         if d[kz] < 0.0 {
             std::mem::swap(&mut kx, &mut ky);
         }
         let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        let mut rows = [Vec3::ZERO; 3];
+        // plain arrays: constant-size indexing without Vec3's checked IndexMut
+        let mut rows = [[0.0; 3]; 3];
         rows[0][kx] = 1.0;
         rows[0][kz] = -sx;
         rows[1][ky] = 1.0;
         rows[1][kz] = -sy;
         rows[2][kz] = sz;
+        let rows = rows.map(Vec3::from_array);
         ShearedRay { ray, rows }
     }
 }
