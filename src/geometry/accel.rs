@@ -37,10 +37,15 @@ enum Candidate {
     Other { shape: u32, prim: u32 },
 }
 
-/// The nearest hit so far: a triangle's BVH slot and barycentrics (its point is computed once,
-/// at the end), or another shape's index and point.
-enum Nearest {
-    Triangle(usize, [f64; 3]),
+/// A hit found during traversal: a triangle with its barycentrics (the point is computed once,
+/// for the nearest), or another shape's index and point.
+enum Found<'a> {
+    Triangle {
+        p: &'a [Vec3; 3],
+        n: &'a Vec3,
+        shape: u32,
+        bary: [f64; 3],
+    },
     Point(u32, SurfacePoint),
 }
 
@@ -187,44 +192,46 @@ impl Aggregate {
         Some((r, t_near))
     }
 
+    /// Intersects the primitive in BVH slot `i` for 0 < t < t_max.
+    #[inline(always)]
+    fn intersect_slot(&self, i: usize, ray: &ShearedRay, t_max: f64) -> Option<(f64, Found<'_>)> {
+        match &self.candidates[i] {
+            Candidate::Triangle { p, n, shape } => {
+                triangle::intersect_sheared(ray, *p, t_max).map(|(t, bary)| {
+                    let found = Found::Triangle {
+                        p,
+                        n,
+                        shape: *shape,
+                        bary,
+                    };
+                    (t, found)
+                })
+            }
+            &Candidate::Other { shape, prim } => self.shapes[shape as usize]
+                .intersect_primitive(prim as usize, ray, t_max)
+                .map(|(t, point)| (t, Found::Point(shape, point))),
+        }
+    }
+
     /// Nearest hit with 0 < t < t_max.
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
         let (bray, t0) = self.clip(ray, t_max)?;
         let sheared = ShearedRay::new(*ray);
         let mut best_t = t_max;
-        let mut best: Option<Nearest> = None;
+        let mut best: Option<Found> = None;
         let mut hit = obvhs::ray::RayHit::none();
         self.bvh.ray_traverse(bray, &mut hit, |_, i| {
-            let t = match &self.candidates[i] {
-                Candidate::Triangle { p, .. } => {
-                    let Some((t, bary)) = triangle::intersect_sheared(&sheared, *p, best_t) else {
-                        return f32::INFINITY;
-                    };
-                    best = Some(Nearest::Triangle(i, bary));
-                    t
-                }
-                &Candidate::Other { shape, prim } => {
-                    let Some((t, point)) = self.shapes[shape as usize].intersect_primitive(
-                        prim as usize,
-                        &sheared,
-                        best_t,
-                    ) else {
-                        return f32::INFINITY;
-                    };
-                    best = Some(Nearest::Point(shape, point));
-                    t
-                }
+            let Some((t, found)) = self.intersect_slot(i, &sheared, best_t) else {
+                return f32::INFINITY;
             };
             best_t = t;
+            best = Some(found);
             // Conservative f32 distance for the BVH's own culling.
             (((t - t0) * self.scale * (1.0 + 1e-6)) as f32).next_up()
         });
         let (point, shape) = match best? {
-            Nearest::Point(shape, point) => (point, shape),
-            Nearest::Triangle(i, bary) => match self.candidates[i] {
-                Candidate::Triangle { p, n, shape } => (triangle::surface_point(bary, p, n), shape),
-                Candidate::Other { .. } => unreachable!("slot {i} was recorded as a triangle"),
-            },
+            Found::Point(shape, point) => (point, shape),
+            Found::Triangle { p, n, shape, bary } => (triangle::surface_point(bary, *p, *n), shape),
         };
         Some(Hit {
             t: best_t,
@@ -240,19 +247,10 @@ impl Aggregate {
         };
         let sheared = ShearedRay::new(*ray);
         !self.bvh.ray_traverse_miss(bray, |_, i| {
-            let blocked = match &self.candidates[i] {
-                Candidate::Triangle { p, .. } => {
-                    triangle::intersect_sheared(&sheared, *p, t_max).is_some()
-                }
-                Candidate::Other { shape, prim } => self.shapes[*shape as usize]
-                    .intersect_primitive(*prim as usize, &sheared, t_max)
-                    .is_some(),
-            };
             // below any tmax the traversal can hold, so it stops
-            if blocked {
-                f32::NEG_INFINITY
-            } else {
-                f32::INFINITY
+            match self.intersect_slot(i, &sheared, t_max) {
+                Some(_) => f32::NEG_INFINITY,
+                None => f32::INFINITY,
             }
         })
     }
