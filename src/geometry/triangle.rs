@@ -11,33 +11,24 @@ use crate::math::Vec3;
 pub struct ShearedRay {
     /// The ray.
     pub ray: Ray,
-    /// Rows of the permute-and-shear map as dot products: x' = a[kx] − sx·a[kz],
-    /// y' = a[ky] − sy·a[kz], z' = sz·a[kz]. The zero entries add exact zeros, so each row
-    /// rounds exactly as the two-term expression does (one product, one sum), and the
-    /// branch-free form avoids per-triangle indexing by the permutation.
-    rows: [Vec3; 3],
+    /// The dominant axis of the direction (0, 1, 2): it becomes z'; x' and y' are the next
+    /// two axes in cyclic order.
+    kz: usize,
+    /// Shear and scale: x' = a[kx] − sx·a[kz], y' = a[ky] − sy·a[kz], z' = sz·a[kz].
+    s: [f64; 3],
 }
 
 impl ShearedRay {
     /// Precomputes the permutation that makes z the dominant direction axis and the shear.
+    /// Woop et al. swap x' and y' when d[kz] < 0 to keep the winding; the test here is
+    /// two-sided, and without the swap u, v, w, det and t·det change sign exactly (IEEE
+    /// negation), so t and the barycentrics are the same bits.
     pub fn new(ray: Ray) -> Self {
         let d = ray.d.to_array();
         let kz = ray.d.abs().max_position();
-        let mut kx = if kz == 2 { 0 } else { kz + 1 };
-        let mut ky = if kx == 2 { 0 } else { kx + 1 };
-        if d[kz] < 0.0 {
-            std::mem::swap(&mut kx, &mut ky);
-        }
-        let (sx, sy, sz) = (d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]);
-        // plain arrays: constant-size indexing without Vec3's checked IndexMut
-        let mut rows = [[0.0; 3]; 3];
-        rows[0][kx] = 1.0;
-        rows[0][kz] = -sx;
-        rows[1][ky] = 1.0;
-        rows[1][kz] = -sy;
-        rows[2][kz] = sz;
-        let rows = rows.map(Vec3::from_array);
-        ShearedRay { ray, rows }
+        let (kx, ky) = ((kz + 1) % 3, (kz + 2) % 3);
+        let s = [d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]];
+        ShearedRay { ray, kz, s }
     }
 }
 
@@ -49,14 +40,31 @@ pub fn intersect(ray: &Ray, p0: Vec3, p1: Vec3, p2: Vec3, t_max: f64) -> Option<
 /// [`intersect`] with the per-ray setup done once.
 #[inline]
 pub fn intersect_sheared(r: &ShearedRay, p: [Vec3; 3], t_max: f64) -> Option<(f64, [f64; 3])> {
-    let [rx, ry, rz] = r.rows;
-    let a = p[0] - r.ray.o;
-    let b = p[1] - r.ray.o;
-    let c = p[2] - r.ray.o;
+    // one well-predicted branch per test (kz is fixed for the ray); each arm has constant
+    // indices, so the permutation costs nothing
+    match r.kz {
+        0 => intersect_axis::<0>(r, p, t_max),
+        1 => intersect_axis::<1>(r, p, t_max),
+        _ => intersect_axis::<2>(r, p, t_max),
+    }
+}
+
+/// The test with the dominant axis `KZ` known at compile time.
+#[inline(always)]
+fn intersect_axis<const KZ: usize>(
+    r: &ShearedRay,
+    p: [Vec3; 3],
+    t_max: f64,
+) -> Option<(f64, [f64; 3])> {
+    let (kx, ky) = ((KZ + 1) % 3, (KZ + 2) % 3);
+    let [sx, sy, sz] = r.s;
+    let a = (p[0] - r.ray.o).to_array();
+    let b = (p[1] - r.ray.o).to_array();
+    let c = (p[2] - r.ray.o).to_array();
     // Shear and scale so the ray runs along +z.
-    let (ax, ay) = (rx.dot(a), ry.dot(a));
-    let (bx, by) = (rx.dot(b), ry.dot(b));
-    let (cx, cy) = (rx.dot(c), ry.dot(c));
+    let (ax, ay) = (a[kx] - sx * a[KZ], a[ky] - sy * a[KZ]);
+    let (bx, by) = (b[kx] - sx * b[KZ], b[ky] - sy * b[KZ]);
+    let (cx, cy) = (c[kx] - sx * c[KZ], c[ky] - sy * c[KZ]);
     // Scaled barycentric coordinates (edge functions).
     let u = cx * by - cy * bx;
     let v = ax * cy - ay * cx;
@@ -68,7 +76,7 @@ pub fn intersect_sheared(r: &ShearedRay, p: [Vec3; 3], t_max: f64) -> Option<(f6
     if det == 0.0 {
         return None;
     }
-    let (az, bz, cz) = (rz.dot(a), rz.dot(b), rz.dot(c));
+    let (az, bz, cz) = (sz * a[KZ], sz * b[KZ], sz * c[KZ]);
     let t_scaled = u * az + v * bz + w * cz;
     // Compare with the sign of det to avoid dividing before the range test.
     if det > 0.0 {
