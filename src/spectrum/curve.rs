@@ -1,7 +1,7 @@
 //! Spectral curves: constant, piecewise-linear tables and Planck blackbodies, evaluated at
 //! wavelengths in nm.
 
-use super::{SampledSpectrum, Wavelengths, LAMBDA_MAX, LAMBDA_MIN};
+use super::{SampledSpectrum, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, N_WAVELENGTHS};
 
 /// What a table returns outside its first and last wavelength.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -34,6 +34,24 @@ pub enum Spectrum {
         /// Multiplier.
         scale: f64,
     },
+}
+
+/// Linear interpolation of a table (n >= 2, strictly increasing wavelengths, as many values)
+/// at `first <= lambda < last`. Measured tables are usually evenly spaced, so the index
+/// `scale`·(λ − first), scale = (n − 1)/(last − first), is tried first and checked, else a
+/// binary search finds w[lo] <= λ < w[lo + 1]: the same result either way.
+#[inline(always)]
+fn interpolate(wavelengths: &[f64], values: &[f64], lambda: f64, scale: f64) -> f64 {
+    let n = wavelengths.len();
+    let values = &values[..n];
+    // (through i64: f64 → u64 has no single x86-64 instruction; the value is >= 0)
+    let mut lo = (((lambda - wavelengths[0]) * scale) as i64 as usize).min(n - 2);
+    if wavelengths[lo] > lambda || wavelengths[lo + 1] <= lambda {
+        lo = wavelengths.partition_point(|&w| w <= lambda) - 1;
+    }
+    let hi = lo + 1;
+    let t = (lambda - wavelengths[lo]) / (wavelengths[hi] - wavelengths[lo]);
+    values[lo] + t * (values[hi] - values[lo])
 }
 
 /// Why a spectrum could not be built.
@@ -156,18 +174,8 @@ impl Spectrum {
                 if lambda >= last {
                     return values[n - 1];
                 }
-                // Now n >= 2 and first <= lambda < last. Find lo with w[lo] <= lambda <
-                // w[lo + 1]: measured tables are usually evenly spaced, so try the index an even
-                // spacing predicts, else binary search. Same result either way.
-                // (through i64: f64 → u64 has no single x86-64 instruction; the value is >= 0)
-                let guess = ((lambda - first) / (last - first) * (n - 1) as f64) as i64 as usize;
-                let mut lo = guess.min(n - 2);
-                if wavelengths[lo] > lambda || wavelengths[lo + 1] <= lambda {
-                    lo = wavelengths.partition_point(|&w| w <= lambda) - 1;
-                }
-                let hi = lo + 1;
-                let t = (lambda - wavelengths[lo]) / (wavelengths[hi] - wavelengths[lo]);
-                values[lo] + t * (values[hi] - values[lo])
+                // Now n >= 2 and first <= lambda < last.
+                interpolate(wavelengths, values, lambda, (n - 1) as f64 / (last - first))
             }
             Spectrum::Blackbody { kelvin, scale } => scale * planck(lambda, *kelvin),
         }
@@ -177,7 +185,35 @@ impl Spectrum {
     pub fn sample(&self, wl: &Wavelengths) -> SampledSpectrum {
         match self {
             Spectrum::Constant(v) => SampledSpectrum::splat(*v),
-            _ => SampledSpectrum(wl.lambda.map(|l| self.eval(l))),
+            // the table's bounds and index scale once for the four wavelengths; the same
+            // values as `eval`
+            Spectrum::Tabulated {
+                wavelengths,
+                values,
+                ..
+            } if wavelengths.len() >= 2 => {
+                let n = wavelengths.len();
+                let (first, last) = (wavelengths[0], wavelengths[n - 1]);
+                let scale = (n - 1) as f64 / (last - first);
+                // (an index loop: `[T; N]::map` compiled to a call per lane through its
+                // try-fold machinery here)
+                let mut out = [0.0; N_WAVELENGTHS];
+                for (o, &l) in out.iter_mut().zip(&wl.lambda) {
+                    *o = if l >= first && l < last {
+                        interpolate(wavelengths, values, l, scale)
+                    } else {
+                        self.eval(l)
+                    };
+                }
+                SampledSpectrum(out)
+            }
+            _ => {
+                let mut out = [0.0; N_WAVELENGTHS];
+                for (o, &l) in out.iter_mut().zip(&wl.lambda) {
+                    *o = self.eval(l);
+                }
+                SampledSpectrum(out)
+            }
         }
     }
 
