@@ -130,7 +130,7 @@ impl SampleStream {
     }
 
     /// Next uniform number in [0, 1).
-    #[inline]
+    #[inline(always)]
     pub fn next_f64(&mut self) -> f64 {
         let d = self.dimension;
         self.dimension += 1;
