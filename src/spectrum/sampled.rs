@@ -122,10 +122,17 @@ impl Wavelengths {
         let mut pdf = [0.0; N_WAVELENGTHS];
         for i in 0..N_WAVELENGTHS {
             let ui = (u + i as f64 / N_WAVELENGTHS as f64).fract();
-            let l = VIS_B + (t0 + ui * (t1 - t0)).atanh() / VIS_A;
-            let l = l.clamp(LAMBDA_MIN, LAMBDA_MAX);
-            lambda[i] = l;
-            pdf[i] = Self::visible_pdf(l);
+            let x = t0 + ui * (t1 - t0);
+            let l = VIS_B + x.atanh() / VIS_A;
+            lambda[i] = l.clamp(LAMBDA_MIN, LAMBDA_MAX);
+            // tanh(A (λ − B)) = x at the sampled λ, so sech² = 1 − x² without a second
+            // transcendental (equal to visible_pdf(λ) up to λ's rounding); a λ clamped to the
+            // range ends takes the pdf there.
+            pdf[i] = if l == lambda[i] {
+                VIS_NORM * (1.0 - x * x)
+            } else {
+                Self::visible_pdf(lambda[i])
+            };
         }
         Wavelengths {
             lambda,
@@ -223,6 +230,25 @@ mod tests {
                 .iter()
                 .all(|l| (LAMBDA_MIN..=LAMBDA_MAX).contains(l)));
             assert!(w.pdf.iter().all(|p| p.is_finite() && *p > 0.0));
+        }
+    }
+
+    #[test]
+    fn sampled_pdf_is_the_visible_pdf_at_the_sampled_wavelength() {
+        // the pdf comes from the inverse-CDF argument, not from λ: they must agree to rounding
+        for k in 0..10_000 {
+            let w = Wavelengths::sample_visible((k as f64 + 0.5) / 10_000.0);
+            for (l, p) in w.lambda.iter().zip(&w.pdf) {
+                let want = Wavelengths::visible_pdf(*l);
+                assert!((p - want).abs() <= 1e-12 * want, "{l} nm: {p} vs {want}");
+            }
+        }
+        for u in [0.0, 1e-17, 0.999_999_999_999_999_9] {
+            let w = Wavelengths::sample_visible(u);
+            for (l, p) in w.lambda.iter().zip(&w.pdf) {
+                let want = Wavelengths::visible_pdf(*l);
+                assert!((p - want).abs() <= 1e-12 * want, "{l} nm: {p} vs {want}");
+            }
         }
     }
 }
