@@ -23,21 +23,24 @@ impl Ray {
 
 /// The origin for a ray leaving `sp` in direction `w`: moved along ±n just past the error
 /// box, then each component rounded one ulp away from `sp.p` (PBR 3rd ed., §3.9.5).
+#[inline]
 pub fn offset_origin(sp: &SurfacePoint, w: Vec3) -> Vec3 {
     let d = sp.n.abs().dot(sp.p_error);
     let mut offset = sp.n * d;
     if w.dot(sp.n) < 0.0 {
         offset = -offset;
     }
-    let mut po = sp.p + offset;
+    // plain arrays: constant-size indexing without Vec3's checked Index/IndexMut
+    let off = offset.to_array();
+    let mut po = (sp.p + offset).to_array();
     for i in 0..3 {
-        if offset[i] > 0.0 {
+        if off[i] > 0.0 {
             po[i] = po[i].next_up();
-        } else if offset[i] < 0.0 {
+        } else if off[i] < 0.0 {
             po[i] = po[i].next_down();
         }
     }
-    po
+    Vec3::from_array(po)
 }
 
 /// A ray leaving `sp` in unit direction `w`.
