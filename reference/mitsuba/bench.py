@@ -17,8 +17,10 @@ variants trace 4 wavelengths per path), furnace rendered with --observer mitsuba
 use Mitsuba's colour pipeline.
 
     cargo build --release
+    RUSTFLAGS="-C target-cpu=native" cargo build --release --target-dir target/native   # optional
     DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 \\
-        python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral
+        python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral \\
+        --furnace-native target/native/release/furnace
 
 Writes the results as JSON (--json) and prints a table.
 """
@@ -50,6 +52,10 @@ def parse_args(argv=None):
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--variants", default="scalar_spectral")
     p.add_argument("--furnace", default=os.path.join(REPO, "target", "release", "furnace"))
+    p.add_argument("--furnace-native", default=None,
+                   help="a second furnace binary built for this CPU (RUSTFLAGS='-C target-cpu=native'), "
+                        "run in the same alternation as 'furnace:native' (Mitsuba's LLVM variants JIT for "
+                        "the host CPU)")
     p.add_argument("--json", default=None, help="write the results here")
     return p.parse_args(argv)
 
@@ -87,7 +93,10 @@ def main(argv=None):
     xml = os.path.join(xml_dir, "scene.xml")
     samples = width * height * args.spp
     variants = [v for v in args.variants.split(",") if v]
-    rows = {"furnace": []}
+    furnaces = {"furnace": args.furnace}
+    if args.furnace_native:
+        furnaces["furnace:native"] = args.furnace_native
+    rows = {name: [] for name in furnaces}
     for v in variants:
         rows[f"mitsuba3:{v}"] = []
     scenes = {}
@@ -111,17 +120,18 @@ def main(argv=None):
         return float((d * d * weight).mean()) - ref_term
 
     for rep in range(args.reps):
-        out = os.path.join(tmp, f"furnace-{rep}.exr")
-        depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
-        r = subprocess.run([args.furnace, "render", args.scene, "--width", str(width), "--height", str(height),
-                            "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
-                            "--observer", "mitsuba3", "--quiet", "--out", out] + depth,
-                           check=True, capture_output=True, text=True)
-        secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
-        mi.set_variant("scalar_spectral")
-        rgb, _ = read_rgb(mi, out)
-        rows["furnace"].append((secs, mse(rgb)))
-        print(f"rep {rep}: furnace {secs:.3f} s", file=sys.stderr)
+        for name, binary in furnaces.items():
+            out = os.path.join(tmp, f"{name.replace(':', '-')}-{rep}.exr")
+            depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
+            r = subprocess.run([binary, "render", args.scene, "--width", str(width), "--height", str(height),
+                                "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
+                                "--observer", "mitsuba3", "--quiet", "--out", out] + depth,
+                               check=True, capture_output=True, text=True)
+            secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
+            mi.set_variant("scalar_spectral")
+            rgb, _ = read_rgb(mi, out)
+            rows[name].append((secs, mse(rgb)))
+            print(f"rep {rep}: {name} {secs:.3f} s", file=sys.stderr)
         for v in variants:
             mi.set_variant(v)
             dr.set_thread_count(args.threads)
