@@ -16,7 +16,7 @@
 //! a bounce.
 
 use crate::geometry::{ray, Ray, SurfacePoint};
-use crate::lights::{area_radiance, Light};
+use crate::lights::{emits_towards, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
@@ -74,6 +74,25 @@ pub fn power_heuristic(a: f64, b: f64) -> f64 {
     a2 / (a2 + b2)
 }
 
+/// The spectra of the scene's first lights at one path's wavelengths, each evaluated on first
+/// use: the wavelengths are fixed for the path, so next-event estimation at every vertex and
+/// emitters hit along the way reuse them (later lights are evaluated each time).
+#[derive(Debug, Default)]
+struct EmissionCache {
+    values: [Option<SampledSpectrum>; 4],
+}
+
+impl EmissionCache {
+    /// Light `li`'s spectrum at `wl`.
+    #[inline]
+    fn get(&mut self, li: usize, light: &Light, wl: &Wavelengths) -> SampledSpectrum {
+        match self.values.get_mut(li) {
+            Some(slot) => *slot.get_or_insert_with(|| light.spectrum().sample(wl)),
+            None => light.spectrum().sample(wl),
+        }
+    }
+}
+
 impl PathTracer {
     /// Weight of emission found by a BSDF-sampled ray (`prev_bsdf_pdf` None: camera ray or a
     /// delta bounce, where light sampling could not have found it); `light_pdf` is the
@@ -105,6 +124,7 @@ impl PathTracer {
         scatter_pdf: impl Fn(Vec3) -> f64,
         rng: &mut SampleStream,
         wl: &Wavelengths,
+        emission: &mut EmissionCache,
     ) -> Option<SampledSpectrum> {
         let u_light = rng.next_f64();
         let u_select = rng.next_f64();
@@ -115,7 +135,9 @@ impl PathTracer {
         let n_lights = scene.lights.len();
         let li = ((u_light * n_lights as f64) as usize).min(n_lights - 1);
         let shapes = scene.aggregate.shapes();
-        let ls = scene.lights[li].sample(at.p, u_select, u_pos, shapes, wl)?;
+        let light = &scene.lights[li];
+        let le = emission.get(li, light, wl);
+        let ls = light.sample_with(at.p, u_select, u_pos, shapes, &le)?;
         let usable = ls.pdf > 0.0 && !ls.radiance.is_black();
         if !usable {
             return None;
@@ -187,6 +209,7 @@ impl PathTracer {
         let mut medium = if MEDIA { scene.camera.medium } else { None };
         // Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
         let mut r = SampledSpectrum::ONE;
+        let mut emission = EmissionCache::default();
         loop {
             let hit = scene.aggregate.intersect(&ray, f64::INFINITY);
             if MEDIA && hit.is_none() {
@@ -248,6 +271,7 @@ impl PathTracer {
                                 |wi| phase.pdf(wo, wi),
                                 rng,
                                 wl,
+                                &mut emission,
                             );
                             if let Some(c) = nee {
                                 l += beta * c;
@@ -273,9 +297,9 @@ impl PathTracer {
                 }
             }
             let Some(hit) = hit else {
-                for light in &scene.lights {
-                    if let Light::Environment { radiance } = light {
-                        let le = radiance.sample(wl);
+                for (li, light) in scene.lights.iter().enumerate() {
+                    if let Light::Environment { .. } = light {
+                        let le = emission.get(li, light, wl);
                         let w = self.emitted_weight(prev_bsdf_pdf, || {
                             select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF
                         });
@@ -288,13 +312,13 @@ impl PathTracer {
             let wo_world = -ray.d;
             if let Some(li) = scene.shape_light[hit.shape as usize] {
                 let light = &scene.lights[li as usize];
-                if let Light::Area {
-                    radiance,
-                    two_sided,
-                    ..
-                } = light
-                {
-                    let le = area_radiance(radiance, *two_sided, sp.n, wo_world, wl);
+                if let Light::Area { two_sided, .. } = light {
+                    // the light's radiance towards wo (area_radiance, from the path's cache)
+                    let le = if emits_towards(*two_sided, sp.n, wo_world) {
+                        emission.get(li as usize, light, wl)
+                    } else {
+                        SampledSpectrum::ZERO
+                    };
                     if !le.is_black() {
                         let w = self.emitted_weight(prev_bsdf_pdf, || {
                             select_pdf * light.pdf_area_hit(prev_p, &sp, shapes)
@@ -345,6 +369,7 @@ impl PathTracer {
                 |wi| bsdf.pdf(wo, frame.to_local(wi), wl),
                 rng,
                 wl,
+                &mut emission,
             );
             if let Some(c) = nee {
                 l += beta * c;

@@ -68,6 +68,13 @@ pub struct EmissionSample {
     pub delta_position: bool,
 }
 
+/// True when a surface with normal `n` emits towards `w`: always when two-sided, else only
+/// on the side the normal points to.
+#[inline]
+pub fn emits_towards(two_sided: bool, n: Vec3, w: Vec3) -> bool {
+    two_sided || n.dot(w) > 0.0
+}
+
 /// Radiance leaving an area emitter's surface point with normal `n` in direction `w`.
 pub fn area_radiance(
     radiance: &Spectrum,
@@ -76,7 +83,7 @@ pub fn area_radiance(
     w: Vec3,
     wl: &Wavelengths,
 ) -> SampledSpectrum {
-    if two_sided || n.dot(w) > 0.0 {
+    if emits_towards(two_sided, n, w) {
         radiance.sample(wl)
     } else {
         SampledSpectrum::ZERO
@@ -84,6 +91,14 @@ pub fn area_radiance(
 }
 
 impl Light {
+    /// The light's spectrum: radiance (area, environment) or intensity (point).
+    pub fn spectrum(&self) -> &Spectrum {
+        match self {
+            Light::Area { radiance, .. } | Light::Environment { radiance } => radiance,
+            Light::Point { intensity, .. } => intensity,
+        }
+    }
+
     /// Samples a direction towards the light from `p`; `u_select` picks a mesh triangle.
     pub fn sample(
         &self,
@@ -93,11 +108,22 @@ impl Light {
         shapes: &[Shape],
         wl: &Wavelengths,
     ) -> Option<LightSample> {
+        self.sample_with(p, u_select, u, shapes, &self.spectrum().sample(wl))
+    }
+
+    /// [`Light::sample`] with the light's [`Light::spectrum`] already evaluated at the path's
+    /// wavelengths (`le`), so that a path evaluates it once, not at every vertex.
+    pub fn sample_with(
+        &self,
+        p: Vec3,
+        u_select: f64,
+        u: [f64; 2],
+        shapes: &[Shape],
+        le: &SampledSpectrum,
+    ) -> Option<LightSample> {
         match self {
             Light::Area {
-                shape,
-                radiance,
-                two_sided,
+                shape, two_sided, ..
             } => {
                 let s = &shapes[*shape as usize];
                 let sp = s.sample(u_select, u);
@@ -113,7 +139,11 @@ impl Light {
                 }
                 // area pdf 1/A converted to solid angle: d²/(|cos θl| A)
                 let pdf = d2 / (cos_l * s.area());
-                let radiance = area_radiance(radiance, *two_sided, sp.n, -wi, wl);
+                let radiance = if emits_towards(*two_sided, sp.n, -wi) {
+                    *le
+                } else {
+                    SampledSpectrum::ZERO
+                };
                 Some(LightSample {
                     wi,
                     radiance,
@@ -122,10 +152,7 @@ impl Light {
                     delta: false,
                 })
             }
-            Light::Point {
-                position,
-                intensity,
-            } => {
+            Light::Point { position, .. } => {
                 let v = *position - p;
                 let d2 = v.length_squared();
                 if d2 == 0.0 {
@@ -138,15 +165,15 @@ impl Light {
                 };
                 Some(LightSample {
                     wi: v / d2.sqrt(),
-                    radiance: intensity.sample(wl) / d2,
+                    radiance: *le / d2,
                     pdf: 1.0,
                     point: Some(point),
                     delta: true,
                 })
             }
-            Light::Environment { radiance } => Some(LightSample {
+            Light::Environment { .. } => Some(LightSample {
                 wi: warp::uniform_sphere(u),
-                radiance: radiance.sample(wl),
+                radiance: *le,
                 pdf: warp::UNIFORM_SPHERE_PDF,
                 point: None,
                 delta: false,
