@@ -146,7 +146,7 @@ impl SampleStream {
     }
 
     /// Next pair of uniform numbers in [0, 1)².
-    #[inline]
+    #[inline(always)]
     pub fn next_2d(&mut self) -> [f64; 2] {
         match self.sampler {
             Sampler::Stratified => {
