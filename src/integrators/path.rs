@@ -21,7 +21,7 @@ use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
 use crate::media::{sample_free_flight, transmittance, Phase};
-use crate::scattering::Bxdf;
+use crate::scattering::SampledBsdf;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 
@@ -353,6 +353,7 @@ impl PathTracer {
                 r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
             }
             let wl = &*wl;
+            let vertex_bsdf = SampledBsdf::new(bsdf, wl);
             let frame = Frame::from_normal(sp.n);
             let wo = frame.to_local(wo_world);
 
@@ -363,10 +364,10 @@ impl PathTracer {
                 |wi| scene.medium_after(hit.shape, sp.n, wi, medium),
                 |wi| {
                     let wi = frame.to_local(wi);
-                    let f = bsdf.eval(wo, wi, wl);
+                    let f = vertex_bsdf.eval(wo, wi);
                     (!f.is_black()).then_some((f, wi.z.abs()))
                 },
-                |wi| bsdf.pdf(wo, frame.to_local(wi), wl),
+                |wi| vertex_bsdf.pdf(wo, frame.to_local(wi)),
                 rng,
                 wl,
                 &mut emission,
@@ -378,7 +379,7 @@ impl PathTracer {
             // Continue the path by sampling the BSDF.
             let u_lobe = rng.next_f64();
             let u_dir = rng.next_2d();
-            let Some(bs) = bsdf.sample(wo, u_dir, u_lobe, wl) else {
+            let Some(bs) = vertex_bsdf.sample(wo, u_dir, u_lobe) else {
                 break;
             };
             beta *= bs.weight;

@@ -12,15 +12,19 @@ pub struct Lambertian {
     pub reflectance: Spectrum,
 }
 
-impl Bxdf for Lambertian {
-    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+impl Lambertian {
+    /// [`Bxdf::eval`] with the reflectance `r` already evaluated at the path's wavelengths.
+    #[inline]
+    pub fn eval_with(wo: Vec3, wi: Vec3, r: &SampledSpectrum) -> SampledSpectrum {
         if wo.z * wi.z <= 0.0 {
             return SampledSpectrum::ZERO;
         }
-        self.reflectance.sample(wl) * INV_PI
+        *r * INV_PI
     }
 
-    fn sample(&self, wo: Vec3, u: [f64; 2], _uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+    /// [`Bxdf::sample`] with the reflectance `r` already evaluated at the path's wavelengths.
+    #[inline]
+    pub fn sample_with(wo: Vec3, u: [f64; 2], r: &SampledSpectrum) -> Option<BsdfSample> {
         if wo.z == 0.0 {
             return None;
         }
@@ -35,10 +39,20 @@ impl Bxdf for Lambertian {
         // f·cos/pdf = (R/π)·cos/(cos/π) = R exactly.
         Some(BsdfSample {
             wi,
-            weight: self.reflectance.sample(wl),
+            weight: *r,
             pdf,
             delta: false,
         })
+    }
+}
+
+impl Bxdf for Lambertian {
+    fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        Self::eval_with(wo, wi, &self.reflectance.sample(wl))
+    }
+
+    fn sample(&self, wo: Vec3, u: [f64; 2], _uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        Self::sample_with(wo, u, &self.reflectance.sample(wl))
     }
 
     fn pdf(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> f64 {

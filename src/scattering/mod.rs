@@ -129,6 +129,57 @@ impl Bsdf {
     }
 }
 
+/// A BSDF at one path vertex with the spectra its evaluation and its sampling share already
+/// evaluated at the path's wavelengths (a Lambertian's reflectance), so next-event estimation
+/// and sampling at the vertex evaluate them once; the same values as the [`Bsdf`] itself.
+#[derive(Debug, Clone, Copy)]
+pub struct SampledBsdf<'a> {
+    bsdf: &'a Bsdf,
+    wl: &'a Wavelengths,
+    /// A Lambertian's reflectance at `wl`.
+    reflectance: Option<SampledSpectrum>,
+}
+
+impl<'a> SampledBsdf<'a> {
+    /// `bsdf` at the wavelengths `wl`.
+    #[inline]
+    pub fn new(bsdf: &'a Bsdf, wl: &'a Wavelengths) -> Self {
+        let reflectance = match bsdf {
+            Bsdf::Diffuse(l) => Some(l.reflectance.sample(wl)),
+            _ => None,
+        };
+        SampledBsdf {
+            bsdf,
+            wl,
+            reflectance,
+        }
+    }
+
+    /// [`Bxdf::eval`] at the vertex's wavelengths.
+    #[inline]
+    pub fn eval(&self, wo: Vec3, wi: Vec3) -> SampledSpectrum {
+        match (self.bsdf, &self.reflectance) {
+            (Bsdf::Diffuse(_), Some(r)) => Lambertian::eval_with(wo, wi, r),
+            (b, _) => b.eval(wo, wi, self.wl),
+        }
+    }
+
+    /// [`Bxdf::sample`] at the vertex's wavelengths.
+    #[inline]
+    pub fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64) -> Option<BsdfSample> {
+        match (self.bsdf, &self.reflectance) {
+            (Bsdf::Diffuse(_), Some(r)) => Lambertian::sample_with(wo, u, r),
+            (b, _) => b.sample(wo, u, uc, self.wl),
+        }
+    }
+
+    /// [`Bxdf::pdf`] at the vertex's wavelengths.
+    #[inline]
+    pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.bsdf.pdf(wo, wi, self.wl)
+    }
+}
+
 impl Bxdf for Bsdf {
     #[inline]
     fn eval(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
@@ -148,5 +199,44 @@ impl Bxdf for Bsdf {
     }
     fn roughness(&self) -> f64 {
         each!(self, b => b.roughness())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::spectrum::Spectrum;
+
+    #[test]
+    fn sampled_bsdf_gives_the_bsdfs_own_values() {
+        // a tabulated reflectance, so that a wrong or stale cached spectrum would show
+        let r = Spectrum::tabulated(
+            vec![400.0, 500.0, 600.0, 700.0],
+            vec![0.2, 0.5, 0.7, 0.4],
+            crate::spectrum::Outside::Zero,
+            1.0,
+        )
+        .unwrap();
+        let bsdfs = [
+            Bsdf::Diffuse(Lambertian { reflectance: r }),
+            Bsdf::Dielectric(Dielectric {
+                ior: Ior::Constant(1.5),
+                microfacet: None,
+            }),
+        ];
+        let wo = Vec3::new(0.3, 0.1, 0.9).normalize();
+        let wi = Vec3::new(-0.2, 0.4, 0.7).normalize();
+        for u in [0.1, 0.45, 0.8] {
+            let wl = Wavelengths::sample_visible(u);
+            for b in &bsdfs {
+                let at = SampledBsdf::new(b, &wl);
+                assert_eq!(at.eval(wo, wi), b.eval(wo, wi, &wl));
+                assert_eq!(at.pdf(wo, wi), b.pdf(wo, wi, &wl));
+                assert_eq!(
+                    at.sample(wo, [0.3, 0.6], 0.4),
+                    b.sample(wo, [0.3, 0.6], 0.4, &wl)
+                );
+            }
+        }
     }
 }
