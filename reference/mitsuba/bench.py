@@ -16,11 +16,11 @@ Russian roulette from depth 5 in both, 4 wavelengths per sample in both (Mitsuba
 variants trace 4 wavelengths per path), furnace rendered with --observer mitsuba3 so both images
 use Mitsuba's colour pipeline.
 
-    cargo build --release
-    RUSTFLAGS="-C target-cpu=native" cargo build --release --target-dir target/native   # optional
+    cargo build --release        # for this machine's CPU (.cargo/config.toml)
+    RUSTFLAGS="-C target-cpu=x86-64" cargo build --release --target-dir target/portable   # optional
     DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 \\
         python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral \\
-        --furnace-native target/native/release/furnace
+        --furnace-portable target/portable/release/furnace
 
 Writes the results as JSON (--json) and prints a table.
 """
@@ -52,10 +52,10 @@ def parse_args(argv=None):
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--variants", default="scalar_spectral")
     p.add_argument("--furnace", default=os.path.join(REPO, "target", "release", "furnace"))
-    p.add_argument("--furnace-native", default=None,
-                   help="a second furnace binary built for this CPU (RUSTFLAGS='-C target-cpu=native'), "
-                        "run in the same alternation as 'furnace:native' (Mitsuba's LLVM variants JIT for "
-                        "the host CPU)")
+    p.add_argument("--furnace-portable", default=None,
+                   help="a second furnace binary built for baseline x86-64 (RUSTFLAGS='-C target-cpu=x86-64'; "
+                        "the default build targets the building CPU, see .cargo/config.toml), run in the same "
+                        "alternation and reported as 'furnace:portable'")
     p.add_argument("--json", default=None, help="write the results here")
     return p.parse_args(argv)
 
@@ -94,8 +94,8 @@ def main(argv=None):
     samples = width * height * args.spp
     variants = [v for v in args.variants.split(",") if v]
     furnaces = {"furnace": args.furnace}
-    if args.furnace_native:
-        furnaces["furnace:native"] = args.furnace_native
+    if args.furnace_portable:
+        furnaces["furnace:portable"] = args.furnace_portable
     rows = {name: [] for name in furnaces}
     for v in variants:
         rows[f"mitsuba3:{v}"] = []
