@@ -168,15 +168,22 @@ impl Aggregate {
         if self.candidates.is_empty() {
             return None;
         }
-        let inv = ray.d.recip();
-        let t1 = (self.lo - ray.o) * inv;
-        let t2 = (self.hi - ray.o) * inv;
-        // NaN from 0·inf (origin on a slab with a parallel ray) is dropped by max/min.
-        let t_near = t1.min(t2).max_element().max(0.0);
-        let t_far = t1.max(t2).min_element().min(t_max);
-        if t_near.is_nan() || t_far.is_nan() || t_near > t_far {
-            return None;
-        }
+        let (t_near, t_far) = if ray.o.cmpge(self.lo).all() && ray.o.cmple(self.hi).all() {
+            // Secondary rays start inside the box: the entry is the origin, and the BVH ray may
+            // run to t_max (nothing lies outside the box), so the slab test is not needed.
+            (0.0, t_max)
+        } else {
+            let inv = ray.d.recip();
+            let t1 = (self.lo - ray.o) * inv;
+            let t2 = (self.hi - ray.o) * inv;
+            // NaN from 0·inf (origin on a slab with a parallel ray) is dropped by max/min.
+            let t_near = t1.min(t2).max_element().max(0.0);
+            let t_far = t1.max(t2).min_element().min(t_max);
+            if t_near.is_nan() || t_far.is_nan() || t_near > t_far {
+                return None;
+            }
+            (t_near, t_far)
+        };
         let o = (ray.at(t_near) - self.center) * self.scale;
         let len = ((t_far - t_near) * self.scale * (1.0 + 1e-6)) as f32;
         // + 0.0 turns −0.0 into +0.0: the CWBVH node test takes a component's sign from
