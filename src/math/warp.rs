@@ -43,42 +43,42 @@ pub fn concentric_disk(u: [f64; 2]) -> [f64; 2] {
 /// general-range library call with its argument reduction costs several times more.
 #[inline]
 pub fn sin_cos_quarter(x: f64) -> (f64, f64) {
+    // 1/n! for n = 2..=18
+    const INV_FACT: [f64; 17] = {
+        let mut f = [0.0; 17];
+        let mut n = 2;
+        let mut fact = 1.0;
+        while n <= 18 {
+            fact *= n as f64;
+            f[n - 2] = 1.0 / fact;
+            n += 1;
+        }
+        f
+    };
+    // Σ_k (−z)^k c_k by Horner's rule, from the last coefficient in
+    #[inline(always)]
+    fn alternating<const N: usize>(z: f64, c: [f64; N]) -> f64 {
+        let mut acc = c[N - 1];
+        for k in (0..N - 1).rev() {
+            acc = c[k] - z * acc;
+        }
+        acc
+    }
+    // every other one, from `first`
+    const fn every_other<const N: usize>(first: usize) -> [f64; N] {
+        let mut c = [0.0; N];
+        let mut k = 0;
+        while k < N {
+            c[k] = INV_FACT[first + 2 * k];
+            k += 1;
+        }
+        c
+    }
+    const ODD: [f64; 8] = every_other(1); // 1/3!, 1/5!, …, 1/17!
+    const EVEN: [f64; 9] = every_other(0); // 1/2!, 1/4!, …, 1/18!
     let z = x * x;
-    // 1/n! for n = 2..18, exact enough as f64 literals
-    const F2: f64 = 1.0 / 2.0;
-    const F3: f64 = 1.0 / 6.0;
-    const F4: f64 = 1.0 / 24.0;
-    const F5: f64 = 1.0 / 120.0;
-    const F6: f64 = 1.0 / 720.0;
-    const F7: f64 = 1.0 / 5040.0;
-    const F8: f64 = 1.0 / 40320.0;
-    const F9: f64 = 1.0 / 362880.0;
-    const F10: f64 = 1.0 / 3628800.0;
-    const F11: f64 = 1.0 / 39916800.0;
-    const F12: f64 = 1.0 / 479001600.0;
-    const F13: f64 = 1.0 / 6227020800.0;
-    const F14: f64 = 1.0 / 87178291200.0;
-    const F15: f64 = 1.0 / 1307674368000.0;
-    const F16: f64 = 1.0 / 20922789888000.0;
-    const F17: f64 = 1.0 / 355687428096000.0;
-    const F18: f64 = 1.0 / 6402373705728000.0;
-    let s = F15 + z * (-F17);
-    let s = F13 + z * (-s);
-    let s = F11 + z * (-s);
-    let s = F9 + z * (-s);
-    let s = F7 + z * (-s);
-    let s = F5 + z * (-s);
-    let s = F3 + z * (-s);
-    let sin = x - x * z * s;
-    let c = F16 + z * (-F18);
-    let c = F14 + z * (-c);
-    let c = F12 + z * (-c);
-    let c = F10 + z * (-c);
-    let c = F8 + z * (-c);
-    let c = F6 + z * (-c);
-    let c = F4 + z * (-c);
-    let c = F2 + z * (-c);
-    let cos = 1.0 - z * c;
+    let sin = x - x * z * alternating(z, ODD);
+    let cos = 1.0 - z * alternating(z, EVEN);
     (sin, cos)
 }
 
