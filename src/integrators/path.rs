@@ -457,4 +457,31 @@ mod tests {
         assert!((power_heuristic(1.0, 1.0) - 0.5).abs() < 1e-15);
         assert!((power_heuristic(2.0, 1.0) + power_heuristic(1.0, 2.0) - 1.0).abs() < 1e-15);
     }
+
+    #[test]
+    fn emission_cache_gives_each_lights_own_spectrum_beyond_its_slots_too() {
+        use crate::spectrum::{Outside, Spectrum};
+        // six lights with different tabulated spectra: four cached slots and two uncached
+        let lights: Vec<Light> = (0..6)
+            .map(|i| Light::Environment {
+                radiance: Spectrum::tabulated(
+                    vec![400.0, 700.0],
+                    vec![1.0 + i as f64, 0.5 * i as f64],
+                    Outside::Clamp,
+                    1.0,
+                )
+                .unwrap(),
+            })
+            .collect();
+        let wl = Wavelengths::sample_visible(0.37);
+        let mut cache = EmissionCache::default();
+        for _ in 0..2 {
+            for order in [[0, 5, 1, 4, 2, 3], [3, 2, 4, 1, 5, 0]] {
+                for li in order {
+                    let want = lights[li].spectrum().sample(&wl);
+                    assert_eq!(cache.get(li, &lights[li], &wl), want, "light {li}");
+                }
+            }
+        }
+    }
 }
