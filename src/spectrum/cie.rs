@@ -40,7 +40,8 @@ impl CieTables {
         if !(0.0..=(self.xyz.len() - 1) as f64).contains(&x) {
             return [0.0; 3];
         }
-        let i = (x as usize).min(self.xyz.len() - 2);
+        // (through i64: f64 → u64 has no single x86-64 instruction; x >= 0 here)
+        let i = (x as i64 as usize).min(self.xyz.len() - 2);
         let t = x - i as f64;
         let (a, b) = (self.xyz[i], self.xyz[i + 1]);
         [

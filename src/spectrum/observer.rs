@@ -105,7 +105,8 @@ impl Observer {
                 if !(0.0..=last as f64).contains(&x) {
                     return [0.0; 3];
                 }
-                let i = (x as usize).min(last - 1);
+                // (through i64, as in CieTables::cmf; x >= 0 here)
+                let i = (x as i64 as usize).min(last - 1);
                 let f = x - i as f64;
                 let (a, b) = (t.row(i * MITSUBA_STEP), t.row((i + 1) * MITSUBA_STEP));
                 std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
