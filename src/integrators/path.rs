@@ -133,7 +133,7 @@ impl PathTracer {
             return None;
         }
         let n_lights = scene.lights.len();
-        let li = ((u_light * n_lights as f64) as usize).min(n_lights - 1);
+        let li = ((u_light * n_lights as f64) as i64 as usize).min(n_lights - 1); // u >= 0
         let shapes = scene.aggregate.shapes();
         let light = &scene.lights[li];
         let le = emission.get(li, light, wl);
