@@ -189,7 +189,7 @@ impl LightTracer {
         {
             if let Some(c) = sensor.connect(es.point.p) {
                 let to_eye = -c.direction;
-                let le = area_radiance(radiance, *two_sided, es.point.n, to_eye, wl);
+                let le = area_radiance(*two_sided, es.point.n, to_eye, || radiance.sample(wl));
                 if !le.is_black() {
                     let (shadow, t_max) = ray::spawn_to(&es.point, &eye_point(&c));
                     if !scene.aggregate.occluded(&shadow, t_max) {

@@ -16,7 +16,7 @@
 //! a bounce.
 
 use crate::geometry::{ray, Ray, SurfacePoint};
-use crate::lights::{emits_towards, Light};
+use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
@@ -313,12 +313,9 @@ impl PathTracer {
             if let Some(li) = scene.shape_light[hit.shape as usize] {
                 let light = &scene.lights[li as usize];
                 if let Light::Area { two_sided, .. } = light {
-                    // the light's radiance towards wo (area_radiance, from the path's cache)
-                    let le = if emits_towards(*two_sided, sp.n, wo_world) {
+                    let le = area_radiance(*two_sided, sp.n, wo_world, || {
                         emission.get(li as usize, light, wl)
-                    } else {
-                        SampledSpectrum::ZERO
-                    };
+                    });
                     if !le.is_black() {
                         let w = self.emitted_weight(prev_bsdf_pdf, || {
                             select_pdf * light.pdf_area_hit(prev_p, &sp, shapes)

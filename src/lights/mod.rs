@@ -68,23 +68,18 @@ pub struct EmissionSample {
     pub delta_position: bool,
 }
 
-/// True when a surface with normal `n` emits towards `w`: always when two-sided, else only
-/// on the side the normal points to.
+/// Radiance leaving an area emitter's surface point with normal `n` in direction `w`: its
+/// radiance `le` at the path's wavelengths (evaluated only when needed) on the side the normal
+/// points to, or on both sides when two-sided; zero otherwise.
 #[inline]
-pub fn emits_towards(two_sided: bool, n: Vec3, w: Vec3) -> bool {
-    two_sided || n.dot(w) > 0.0
-}
-
-/// Radiance leaving an area emitter's surface point with normal `n` in direction `w`.
 pub fn area_radiance(
-    radiance: &Spectrum,
     two_sided: bool,
     n: Vec3,
     w: Vec3,
-    wl: &Wavelengths,
+    le: impl FnOnce() -> SampledSpectrum,
 ) -> SampledSpectrum {
-    if emits_towards(two_sided, n, w) {
-        radiance.sample(wl)
+    if two_sided || n.dot(w) > 0.0 {
+        le()
     } else {
         SampledSpectrum::ZERO
     }
@@ -139,11 +134,7 @@ impl Light {
                 }
                 // area pdf 1/A converted to solid angle: d²/(|cos θl| A)
                 let pdf = d2 / (cos_l * s.area());
-                let radiance = if emits_towards(*two_sided, sp.n, -wi) {
-                    *le
-                } else {
-                    SampledSpectrum::ZERO
-                };
+                let radiance = area_radiance(*two_sided, sp.n, -wi, || *le);
                 Some(LightSample {
                     wi,
                     radiance,
@@ -234,7 +225,7 @@ impl Light {
                 Some(EmissionSample {
                     point: sp,
                     direction,
-                    emitted: area_radiance(radiance, *two_sided, sp.n, direction, wl),
+                    emitted: area_radiance(*two_sided, sp.n, direction, || radiance.sample(wl)),
                     pdf_pos: 1.0 / s.area(),
                     pdf_dir,
                     cos_theta: local.z,

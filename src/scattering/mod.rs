@@ -136,7 +136,7 @@ impl Bsdf {
 pub struct SampledBsdf<'a> {
     bsdf: &'a Bsdf,
     wl: &'a Wavelengths,
-    /// A Lambertian's reflectance at `wl`.
+    /// A Lambertian's reflectance at `wl` (Some exactly when `bsdf` is a Lambertian).
     reflectance: Option<SampledSpectrum>,
 }
 
@@ -158,18 +158,18 @@ impl<'a> SampledBsdf<'a> {
     /// [`Bxdf::eval`] at the vertex's wavelengths.
     #[inline]
     pub fn eval(&self, wo: Vec3, wi: Vec3) -> SampledSpectrum {
-        match (self.bsdf, &self.reflectance) {
-            (Bsdf::Diffuse(_), Some(r)) => Lambertian::eval_with(wo, wi, r),
-            (b, _) => b.eval(wo, wi, self.wl),
+        match &self.reflectance {
+            Some(r) => Lambertian::eval_with(wo, wi, r),
+            None => self.bsdf.eval(wo, wi, self.wl),
         }
     }
 
     /// [`Bxdf::sample`] at the vertex's wavelengths.
     #[inline]
     pub fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64) -> Option<BsdfSample> {
-        match (self.bsdf, &self.reflectance) {
-            (Bsdf::Diffuse(_), Some(r)) => Lambertian::sample_with(wo, u, r),
-            (b, _) => b.sample(wo, u, uc, self.wl),
+        match &self.reflectance {
+            Some(r) => Lambertian::sample_with(wo, u, r),
+            None => self.bsdf.sample(wo, u, uc, self.wl),
         }
     }
 

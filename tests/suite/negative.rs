@@ -201,7 +201,7 @@ impl Direct {
             ..
         }) = scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize])
         {
-            l += area_radiance(radiance, *two_sided, hit.point.n, -r.d, wl);
+            l += area_radiance(*two_sided, hit.point.n, -r.d, || radiance.sample(wl));
         }
         let mut sp = hit.point;
         if self.0 == DirectBug::FixedEpsilon {
