@@ -249,11 +249,28 @@ impl Aggregate {
 
     /// True when something lies on the ray with 0 < t < t_max.
     pub fn occluded(&self, ray: &Ray, t_max: f64) -> bool {
+        self.occluded_skipping(ray, t_max, u32::MAX)
+    }
+
+    /// [`Aggregate::occluded`] ignoring the shape `skip` (a shadow ray towards a point on a
+    /// planar emitter, which that emitter cannot shadow: its primitives' boxes enclose the
+    /// ray's end, so the traversal would otherwise test them on every such ray).
+    pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Option<u32>) -> bool {
+        self.occluded_skipping(ray, t_max, skip.unwrap_or(u32::MAX))
+    }
+
+    #[inline]
+    fn occluded_skipping(&self, ray: &Ray, t_max: f64, skip: u32) -> bool {
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
         };
         let sheared = ShearedRay::new(*ray);
         !self.bvh.ray_traverse_miss(bray, |_, i| {
+            let (Candidate::Triangle { shape, .. } | Candidate::Other { shape, .. }) =
+                &self.candidates[i];
+            if *shape == skip {
+                return f32::INFINITY;
+            }
             // below any tmax the traversal can hold, so it stops
             match self.intersect_slot(i, &sheared, t_max) {
                 Some(_) => f32::NEG_INFINITY,
@@ -395,6 +412,28 @@ mod tests {
         let h = agg.intersect(&side, f64::INFINITY).unwrap();
         assert_eq!(h.shape, 0);
         assert!((h.t - 2.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn occlusion_except_ignores_only_the_named_shape() {
+        let wall = |z: f64| {
+            Shape::Quad(Quad {
+                corner: Vec3::new(-1.0, -1.0, z),
+                edge_u: Vec3::X * 2.0,
+                edge_v: Vec3::Y * 2.0,
+                flip_normals: false,
+            })
+        };
+        let agg = Aggregate::new(vec![wall(1.0), wall(2.0)]);
+        let r = Ray {
+            o: Vec3::ZERO,
+            d: Vec3::Z,
+        };
+        assert!(agg.occluded_except(&r, 3.0, None));
+        assert!(agg.occluded_except(&r, 3.0, Some(0)));
+        assert!(agg.occluded_except(&r, 3.0, Some(1)));
+        assert!(!agg.occluded_except(&r, 1.5, Some(0)));
+        assert!(agg.occluded_except(&r, 1.5, Some(1)));
     }
 
     /// Rays spawned from points on a closed room's walls never hit their own wall and never

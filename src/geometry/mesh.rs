@@ -20,6 +20,8 @@ pub struct TriangleMesh {
     corners: Vec<[Vec3; 3]>,
     /// Each triangle's oriented unit normal, computed once (light sampling and every hit use it).
     normals: Vec<Vec3>,
+    /// Every vertex on one plane (see [`TriangleMesh::is_planar`]).
+    planar: bool,
 }
 
 impl TriangleMesh {
@@ -37,10 +39,12 @@ impl TriangleMesh {
             area_cdf: Vec::new(),
             corners,
             normals: Vec::new(),
+            planar: false,
         };
         mesh.normals = (0..mesh.triangles.len())
             .map(|i| mesh.computed_normal(i))
             .collect();
+        mesh.planar = mesh.vertices_on_one_plane();
         let mut acc = 0.0;
         mesh.area_cdf = (0..mesh.triangles.len())
             .map(|i| {
@@ -85,6 +89,29 @@ impl TriangleMesh {
         }
     }
 
+    /// True when every vertex lies on the plane of the first triangle, to 1e-12 of the mesh's
+    /// extent (the rounding of its coordinates). A segment ending on such a mesh from a point
+    /// off its plane meets the plane only at that end, so the mesh cannot shadow it.
+    pub fn is_planar(&self) -> bool {
+        self.planar
+    }
+
+    fn vertices_on_one_plane(&self) -> bool {
+        let Some(&[p0, ..]) = self.corners.first() else {
+            return false;
+        };
+        let n = self.normals[0];
+        let (lo, hi) = self
+            .positions
+            .iter()
+            .fold((p0, p0), |(lo, hi), &p| (lo.min(p), hi.max(p)));
+        let tolerance = 1e-12 * (hi - lo).length();
+        self.corners
+            .iter()
+            .flatten()
+            .all(|&p| n.dot(p - p0).abs() <= tolerance)
+    }
+
     /// Bounds of triangle `i`.
     pub fn triangle_bounds(&self, i: usize) -> (Vec3, Vec3) {
         let [a, b, c] = self.vertices(i);
@@ -106,5 +133,35 @@ impl TriangleMesh {
             .min(self.triangles.len() - 1);
         let [b1, b2] = warp::uniform_triangle(u);
         self.surface_point(i, [1.0 - b1 - b2, b1, b2])
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad_mesh(lift: f64) -> TriangleMesh {
+        let p = vec![
+            Vec3::new(0.0, 5.0, 0.0),
+            Vec3::new(1.0, 5.0, 0.0),
+            Vec3::new(1.0, 5.0, 1.0),
+            Vec3::new(0.0, 5.0 + lift, 1.0),
+        ];
+        TriangleMesh::new(p, vec![[0, 1, 2], [0, 2, 3]], false)
+    }
+
+    #[test]
+    fn planar_only_when_every_vertex_is_on_one_plane() {
+        assert!(quad_mesh(0.0).is_planar());
+        // a fold far above coordinate rounding, and a ridge that could shadow itself
+        assert!(!quad_mesh(1e-6).is_planar());
+        assert!(!quad_mesh(0.5).is_planar());
+        let corner = TriangleMesh::new(
+            vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+            vec![[0, 1, 2], [0, 2, 3]],
+            false,
+        );
+        assert!(!corner.is_planar());
+        assert!(!TriangleMesh::new(vec![], vec![], false).is_planar());
     }
 }

@@ -52,6 +52,16 @@ impl Shape {
         }
     }
 
+    /// True for a flat shape (a quad, a mesh on one plane): it cannot shadow a segment that
+    /// ends on it from a point off its plane.
+    pub fn is_planar(&self) -> bool {
+        match self {
+            Shape::Sphere(_) => false,
+            Shape::Quad(_) => true,
+            Shape::Mesh(m) => m.is_planar(),
+        }
+    }
+
     /// Total surface area, scene units².
     pub fn area(&self) -> f64 {
         match self {

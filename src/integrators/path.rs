@@ -149,7 +149,14 @@ impl PathTracer {
             let occluded = match &ls.point {
                 Some(target) => {
                     let (shadow, t_max) = ray::spawn_to(at, target);
-                    scene.aggregate.occluded(&shadow, t_max)
+                    // a planar emitter cannot shadow a point on itself
+                    let skip = match light {
+                        Light::Area { shape, .. } if shapes[*shape as usize].is_planar() => {
+                            Some(*shape)
+                        }
+                        _ => None,
+                    };
+                    scene.aggregate.occluded_except(&shadow, t_max, skip)
                 }
                 None => scene
                     .aggregate
