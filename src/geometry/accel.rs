@@ -222,12 +222,20 @@ impl Aggregate {
 
     /// Nearest hit with 0 < t < t_max.
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<Hit> {
+        self.intersect_except(ray, t_max, Skip::NONE)
+    }
+
+    /// [`Aggregate::intersect`] ignoring the shapes in `skip`.
+    pub fn intersect_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<Hit> {
         let (bray, t0) = self.clip(ray, t_max)?;
         let sheared = ShearedRay::new(*ray);
         let mut best_t = t_max;
         let mut best: Option<Found> = None;
         let mut hit = obvhs::ray::RayHit::none();
         self.bvh.ray_traverse(bray, &mut hit, |_, i| {
+            if skip.contains(self.candidates[i].shape()) {
+                return f32::INFINITY;
+            }
             let Some((t, found)) = self.intersect_slot(i, &sheared, best_t) else {
                 return f32::INFINITY;
             };
@@ -249,26 +257,17 @@ impl Aggregate {
 
     /// True when something lies on the ray with 0 < t < t_max.
     pub fn occluded(&self, ray: &Ray, t_max: f64) -> bool {
-        self.occluded_skipping(ray, t_max, u32::MAX)
+        self.occluded_except(ray, t_max, Skip::NONE)
     }
 
-    /// [`Aggregate::occluded`] ignoring the shape `skip` (a shadow ray towards a point on a
-    /// planar emitter, which that emitter cannot shadow: its primitives' boxes enclose the
-    /// ray's end, so the traversal would otherwise test them on every such ray).
-    pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Option<u32>) -> bool {
-        self.occluded_skipping(ray, t_max, skip.unwrap_or(u32::MAX))
-    }
-
-    #[inline]
-    fn occluded_skipping(&self, ray: &Ray, t_max: f64, skip: u32) -> bool {
+    /// [`Aggregate::occluded`] ignoring the shapes in `skip`.
+    pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
         };
         let sheared = ShearedRay::new(*ray);
         !self.bvh.ray_traverse_miss(bray, |_, i| {
-            let (Candidate::Triangle { shape, .. } | Candidate::Other { shape, .. }) =
-                &self.candidates[i];
-            if *shape == skip {
+            if skip.contains(self.candidates[i].shape()) {
                 return f32::INFINITY;
             }
             // below any tmax the traversal can hold, so it stops
@@ -277,6 +276,39 @@ impl Aggregate {
                 None => f32::INFINITY,
             }
         })
+    }
+}
+
+/// Up to two shapes a query ignores, because the ray cannot meet them: the planar shape a
+/// spawned ray leaves (its origin is moved off the plane to the side the ray runs to, so it
+/// only moves away from that plane) and the planar emitter a shadow ray ends on (the segment
+/// meets its plane only at that end). Their primitives' boxes hold the ray's ends, so the
+/// traversal would otherwise test them on every such ray (the walls of a room: two
+/// triangles per ray).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Skip([u32; 2]);
+
+impl Skip {
+    /// Ignore nothing.
+    pub const NONE: Skip = Skip([u32::MAX; 2]);
+
+    /// Ignore `a` and `b` (either may be None).
+    pub fn shapes(a: Option<u32>, b: Option<u32>) -> Skip {
+        Skip([a.unwrap_or(u32::MAX), b.unwrap_or(u32::MAX)])
+    }
+
+    #[inline(always)]
+    fn contains(self, shape: u32) -> bool {
+        (shape == self.0[0]) | (shape == self.0[1])
+    }
+}
+
+impl Candidate {
+    #[inline(always)]
+    fn shape(&self) -> u32 {
+        match self {
+            Candidate::Triangle { shape, .. } | Candidate::Other { shape, .. } => *shape,
+        }
     }
 }
 
@@ -415,7 +447,7 @@ mod tests {
     }
 
     #[test]
-    fn occlusion_except_ignores_only_the_named_shape() {
+    fn queries_ignore_exactly_the_skipped_shapes() {
         let wall = |z: f64| {
             Shape::Quad(Quad {
                 corner: Vec3::new(-1.0, -1.0, z),
@@ -429,11 +461,29 @@ mod tests {
             o: Vec3::ZERO,
             d: Vec3::Z,
         };
-        assert!(agg.occluded_except(&r, 3.0, None));
-        assert!(agg.occluded_except(&r, 3.0, Some(0)));
-        assert!(agg.occluded_except(&r, 3.0, Some(1)));
-        assert!(!agg.occluded_except(&r, 1.5, Some(0)));
-        assert!(agg.occluded_except(&r, 1.5, Some(1)));
+        let skip = |a, b| Skip::shapes(a, b);
+        assert!(agg.occluded_except(&r, 3.0, Skip::NONE));
+        assert!(agg.occluded_except(&r, 3.0, skip(Some(0), None)));
+        assert!(agg.occluded_except(&r, 3.0, skip(None, Some(1))));
+        assert!(!agg.occluded_except(&r, 3.0, skip(Some(1), Some(0))));
+        assert!(!agg.occluded_except(&r, 1.5, skip(Some(0), None)));
+        assert!(agg.occluded_except(&r, 1.5, skip(Some(1), None)));
+        assert_eq!(agg.intersect_except(&r, 3.0, Skip::NONE).unwrap().shape, 0);
+        assert_eq!(
+            agg.intersect_except(&r, 3.0, skip(Some(0), None))
+                .unwrap()
+                .shape,
+            1
+        );
+        assert_eq!(
+            agg.intersect_except(&r, 3.0, skip(None, Some(0)))
+                .unwrap()
+                .shape,
+            1
+        );
+        assert!(agg
+            .intersect_except(&r, 3.0, skip(Some(0), Some(1)))
+            .is_none());
     }
 
     /// Rays spawned from points on a closed room's walls never hit their own wall and never

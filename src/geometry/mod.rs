@@ -16,7 +16,7 @@ pub mod shape;
 pub mod sphere;
 pub mod triangle;
 
-pub use accel::Aggregate;
+pub use accel::{Aggregate, Skip};
 pub use ray::Ray;
 pub use shape::Shape;
 

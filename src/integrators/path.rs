@@ -15,7 +15,7 @@
 //! media apply their transmittance analytically. Null boundaries are stepped through without
 //! a bounce.
 
-use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
@@ -113,12 +113,14 @@ impl PathTracer {
     /// None when zero), T is the shadow ray's transmittance (with `MEDIA`, starting in
     /// `medium_of(wi)` and stepping through null boundaries; otherwise its visibility) and w the
     /// power heuristic against the vertex's own sampling pdf `scatter_pdf(wi)`. Draws four
-    /// numbers whatever the strategy.
+    /// numbers whatever the strategy. `leaving`: the planar shape `at` lies on, which the
+    /// shadow ray cannot meet (see [`Skip`]).
     #[allow(clippy::too_many_arguments)]
     fn next_event<const MEDIA: bool>(
         &self,
         scene: &Scene,
         at: &SurfacePoint,
+        leaving: Option<u32>,
         medium_of: impl Fn(Vec3) -> Option<u32>,
         scatter: impl Fn(Vec3) -> Option<(SampledSpectrum, f64)>,
         scatter_pdf: impl Fn(Vec3) -> f64,
@@ -150,17 +152,20 @@ impl PathTracer {
                 Some(target) => {
                     let (shadow, t_max) = ray::spawn_to(at, target);
                     // a planar emitter cannot shadow a point on itself
-                    let skip = match light {
+                    let emitter = match light {
                         Light::Area { shape, .. } if shapes[*shape as usize].is_planar() => {
                             Some(*shape)
                         }
                         _ => None,
                     };
+                    let skip = Skip::shapes(leaving, emitter);
                     scene.aggregate.occluded_except(&shadow, t_max, skip)
                 }
-                None => scene
-                    .aggregate
-                    .occluded(&ray::spawn(at, ls.wi), f64::INFINITY),
+                None => scene.aggregate.occluded_except(
+                    &ray::spawn(at, ls.wi),
+                    f64::INFINITY,
+                    Skip::shapes(leaving, None),
+                ),
             };
             if occluded {
                 return None;
@@ -217,8 +222,14 @@ impl PathTracer {
         // Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
         let mut r = SampledSpectrum::ONE;
         let mut emission = EmissionCache::default();
+        // The planar shape `ray` leaves, which it cannot meet again (see [`Skip`]).
+        let mut leaving: Option<u32> = None;
         loop {
-            let hit = scene.aggregate.intersect(&ray, f64::INFINITY);
+            let hit =
+                scene
+                    .aggregate
+                    .intersect_except(&ray, f64::INFINITY, Skip::shapes(leaving, None));
+            leaving = None;
             if MEDIA && hit.is_none() {
                 // No surface ahead: the ray has left every medium (media are bounded by the
                 // scene's shapes; the scene loader refuses a camera in an unbounded medium).
@@ -270,6 +281,7 @@ impl PathTracer {
                             let nee = self.next_event::<true>(
                                 scene,
                                 &here,
+                                None,
                                 |_| Some(m),
                                 |wi| {
                                     let f = phase.eval(wo, wi);
@@ -358,6 +370,7 @@ impl PathTracer {
             }
             let wl = &*wl;
             let vertex_bsdf = SampledBsdf::new(bsdf, wl);
+            let on_plane = shapes[hit.shape as usize].is_planar().then_some(hit.shape);
             let frame = Frame::from_normal(sp.n);
             let wo = frame.to_local(wo_world);
 
@@ -365,6 +378,7 @@ impl PathTracer {
             let nee = self.next_event::<MEDIA>(
                 scene,
                 &sp,
+                on_plane,
                 |wi| scene.medium_after(hit.shape, sp.n, wi, medium),
                 |wi| {
                     let wi = frame.to_local(wi);
@@ -397,6 +411,7 @@ impl PathTracer {
                 medium = scene.medium_after(hit.shape, sp.n, wi_world, medium);
             }
             ray = ray::spawn(&sp, wi_world);
+            leaving = on_plane;
             depth += 1;
 
             // Russian roulette (see super::roulette).
