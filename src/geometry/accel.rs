@@ -18,7 +18,8 @@ use super::{
     Hit, Ray, Shape, SurfacePoint,
 };
 use crate::math::Vec3;
-use obvhs::{aabb::Aabb, cwbvh::CwBvh, ray::Ray as BvhRay, BvhBuildParams};
+use glam::{UVec2, Vec3A};
+use obvhs::{aabb::Aabb, cwbvh::CwBvh, faststack::FastStack, ray::Ray as BvhRay, BvhBuildParams};
 use std::time::Duration;
 
 /// Relative padding of BVH boxes (fraction of the scene extent).
@@ -56,6 +57,8 @@ pub struct Aggregate {
     /// The primitives in the BVH's leaf order (index = BVH primitive slot).
     candidates: Vec<Candidate>,
     bvh: CwBvh,
+    /// Levels of `bvh` (root = 1): the traversal stack holds at most one entry per level.
+    depth: usize,
     center: Vec3,
     /// Scene units to BVH-frame units.
     scale: f64,
@@ -133,10 +136,12 @@ impl Aggregate {
                 }
             })
             .collect();
+        let depth = cwbvh_depth(&bvh);
         Aggregate {
             shapes,
             candidates,
             bvh,
+            depth,
             center,
             scale,
             lo: lo - pad * 2.0,
@@ -231,8 +236,7 @@ impl Aggregate {
         let sheared = ShearedRay::new(*ray);
         let mut best_t = t_max;
         let mut best: Option<Found> = None;
-        let mut hit = obvhs::ray::RayHit::none();
-        self.bvh.ray_traverse(bray, &mut hit, |_, i| {
+        self.traverse(bray, false, |i| {
             if skip.contains(self.candidates[i].shape()) {
                 return f32::INFINITY;
             }
@@ -266,7 +270,7 @@ impl Aggregate {
             return false;
         };
         let sheared = ShearedRay::new(*ray);
-        !self.bvh.ray_traverse_miss(bray, |_, i| {
+        self.traverse(bray, true, |i| {
             if skip.contains(self.candidates[i].shape()) {
                 return f32::INFINITY;
             }
@@ -276,6 +280,69 @@ impl Aggregate {
                 None => f32::INFINITY,
             }
         })
+    }
+
+    /// Walks the BVH for `ray`, calling `visit` on each primitive slot whose box the ray
+    /// meets, nearest boxes first; `visit` returns the ray's new f32 end (a hit) or +inf.
+    /// With `any`, the walk stops at the first hit. Returns true when `visit` reported a hit.
+    ///
+    /// The walk is obvhs's (`obvhs::traverse!`) on a stack of one entry per BVH level: 32 in
+    /// place, or on the heap for a deeper tree, where obvhs's own stack (32 entries, the last
+    /// overwritten beyond that) would lose nodes. One stack type, so the primitive test is
+    /// inlined into a single walk.
+    #[inline(always)]
+    fn traverse(&self, ray: BvhRay, any: bool, visit: impl FnMut(usize) -> f32) -> bool {
+        let mut local = [UVec2::ZERO; WALK_LEVELS];
+        let mut deep = Vec::new();
+        let entries: &mut [UVec2] = if self.depth <= WALK_LEVELS {
+            &mut local
+        } else {
+            deep.resize(self.depth, UVec2::ZERO);
+            &mut deep
+        };
+        self.walk(SliceStack { entries, len: 0 }, ray, any, visit)
+    }
+
+    #[inline(always)]
+    fn walk<S: FastStack<UVec2>>(
+        &self,
+        stack: S,
+        mut ray: BvhRay,
+        any: bool,
+        mut visit: impl FnMut(usize) -> f32,
+    ) -> bool {
+        if self.bvh.nodes.is_empty() {
+            return false;
+        }
+        let mut state = Walk {
+            stack,
+            current_group: UVec2::new(0, 0x8000_0000),
+            primitive_group: UVec2::ZERO,
+            oct_inv4: octant_inv4(ray.direction),
+            primitive_id: 0,
+            hitmask: 0,
+        };
+        let mut node;
+        let mut found = false;
+        'walk: {
+            obvhs::traverse!(
+                self.bvh,
+                node,
+                state,
+                node.intersect_ray(&ray, state.oct_inv4),
+                {
+                    let t = visit(state.primitive_id as usize);
+                    if t < ray.tmax {
+                        found = true;
+                        if any {
+                            break 'walk;
+                        }
+                        ray.tmax = t;
+                    }
+                }
+            );
+        }
+        found
     }
 }
 
@@ -310,6 +377,89 @@ impl Candidate {
             Candidate::Triangle { shape, .. } | Candidate::Other { shape, .. } => *shape,
         }
     }
+}
+
+/// BVH levels whose traversal stack lives in place.
+const WALK_LEVELS: usize = 32;
+
+/// The traversal stack: node groups still to visit, at most one per BVH level, in storage
+/// sized for the tree.
+struct SliceStack<'a> {
+    entries: &'a mut [UVec2],
+    len: usize,
+}
+
+impl FastStack<UVec2> for SliceStack<'_> {
+    #[inline(always)]
+    fn push(&mut self, v: UVec2) {
+        self.entries[self.len] = v;
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop_fast(&mut self) -> UVec2 {
+        // the walk pops only a non-empty stack
+        self.len -= 1;
+        self.entries[self.len]
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<UVec2> {
+        (self.len > 0).then(|| self.pop_fast())
+    }
+
+    #[inline(always)]
+    fn len(&self) -> usize {
+        self.len
+    }
+
+    #[inline(always)]
+    fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    #[inline(always)]
+    fn clear(&mut self) {
+        self.len = 0;
+    }
+}
+
+/// The traversal state `obvhs::traverse!` works on (its fields are the macro's).
+struct Walk<S> {
+    stack: S,
+    current_group: UVec2,
+    primitive_group: UVec2,
+    oct_inv4: u32,
+    primitive_id: u32,
+    hitmask: u32,
+}
+
+/// The ray's octant as the CWBVH node test wants it: per byte, bit 2/1/0 set when x/y/z of
+/// the direction is >= 0 (Ylitie, Karras & Laine 2017, "Efficient Incoherent Ray Traversal on
+/// GPUs Through Compressed Wide BVHs", HPG 2017: child slots are ordered by octant).
+#[inline(always)]
+fn octant_inv4(d: Vec3A) -> u32 {
+    (if d.x < 0.0 { 0 } else { 0x0404_0404 })
+        | (if d.y < 0.0 { 0 } else { 0x0202_0202 })
+        | (if d.z < 0.0 { 0 } else { 0x0101_0101 })
+}
+
+/// Levels of a CWBVH (0 when empty): a node's internal children (`imask`) are stored
+/// contiguously from `child_base_idx`.
+fn cwbvh_depth(bvh: &CwBvh) -> usize {
+    if bvh.nodes.is_empty() {
+        return 0;
+    }
+    let mut deepest = 0;
+    let mut todo = vec![(0usize, 1usize)];
+    while let Some((i, level)) = todo.pop() {
+        deepest = deepest.max(level);
+        let n = &bvh.nodes[i];
+        for k in 0..n.imask.count_ones() as usize {
+            todo.push((n.child_base_idx as usize + k, level + 1));
+        }
+    }
+    deepest
 }
 
 fn to_f32_down(v: Vec3) -> glam::Vec3A {
@@ -484,6 +634,43 @@ mod tests {
         assert!(agg
             .intersect_except(&r, 3.0, skip(Some(0), Some(1)))
             .is_none());
+    }
+
+    #[test]
+    fn a_tree_deeper_than_the_in_place_stack_walks_the_same() {
+        // the heap stack, forced on a shallow tree, must give the same answers as the
+        // in-place one (a truly deep tree needs a pathological primitive distribution)
+        let shapes: Vec<Shape> = (0..40)
+            .map(|k| {
+                Shape::Sphere(Sphere {
+                    center: Vec3::new(1.5f64.powi(k), 0.3 * k as f64, 0.0),
+                    radius: 0.4,
+                    flip_normals: false,
+                })
+            })
+            .collect();
+        let shallow = Aggregate::new(shapes);
+        assert!(shallow.depth >= 2 && shallow.depth <= WALK_LEVELS);
+        let mut deep = shallow.clone();
+        deep.depth = WALK_LEVELS + 7;
+        let mut s = SampleStream::new(5, 0, 0);
+        let mut hits = 0;
+        for _ in 0..5_000 {
+            // towards a random sphere, give or take its radius
+            let k = (s.next_f64() * 40.0) as i32;
+            let aim = Vec3::new(1.5f64.powi(k), 0.3 * k as f64, 0.0)
+                + warp::uniform_sphere(s.next_2d()) * 0.5;
+            let o = Vec3::new(s.next_f64() * 30.0, s.next_f64() * 12.0 - 1.0, -3.0);
+            let r = Ray {
+                o,
+                d: (aim - o).normalize(),
+            };
+            let (a, b) = (shallow.intersect(&r, 1e3), deep.intersect(&r, 1e3));
+            assert_eq!(a.map(|h| (h.t, h.shape)), b.map(|h| (h.t, h.shape)));
+            assert_eq!(shallow.occluded(&r, 50.0), deep.occluded(&r, 50.0));
+            hits += a.is_some() as u32;
+        }
+        assert!(hits > 100, "{hits} hits");
     }
 
     /// Rays spawned from points on a closed room's walls never hit their own wall and never
