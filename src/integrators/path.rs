@@ -74,24 +74,37 @@ pub fn power_heuristic(a: f64, b: f64) -> f64 {
     a2 / (a2 + b2)
 }
 
-/// The spectra of the scene's first lights at one path's wavelengths, each evaluated on first
-/// use: the wavelengths are fixed for the path, so next-event estimation at every vertex and
-/// emitters hit along the way reuse them (later lights are evaluated each time).
-#[derive(Debug, Default)]
-struct EmissionCache {
-    values: [Option<SampledSpectrum>; 4],
+/// Spectra at one path's wavelengths, each evaluated on first use: the wavelengths are fixed
+/// for the path, so next-event estimation at every vertex, emitters hit along the way and
+/// every vertex on the same material reuse them. Keys below `N` are kept (a light's index,
+/// a material's); larger ones are evaluated each time.
+#[derive(Debug)]
+struct PathSpectra<const N: usize> {
+    values: [Option<SampledSpectrum>; N],
 }
 
-impl EmissionCache {
-    /// Light `li`'s spectrum at `wl`.
+impl<const N: usize> Default for PathSpectra<N> {
+    fn default() -> Self {
+        PathSpectra { values: [None; N] }
+    }
+}
+
+impl<const N: usize> PathSpectra<N> {
+    /// The spectrum under `key`, from `eval` the first time.
     #[inline]
-    fn get(&mut self, li: usize, light: &Light, wl: &Wavelengths) -> SampledSpectrum {
-        match self.values.get_mut(li) {
-            Some(slot) => *slot.get_or_insert_with(|| light.spectrum().sample(wl)),
-            None => light.spectrum().sample(wl),
+    fn get(&mut self, key: usize, eval: impl FnOnce() -> SampledSpectrum) -> SampledSpectrum {
+        match self.values.get_mut(key) {
+            Some(slot) => *slot.get_or_insert_with(eval),
+            None => eval(),
         }
     }
 }
+
+/// Light spectra along a path, by light index.
+type EmissionCache = PathSpectra<4>;
+
+/// Lambertian reflectances along a path, by material index ([`Scene::material_of`]).
+type ReflectanceCache = PathSpectra<8>;
 
 impl PathTracer {
     /// Weight of emission found by a BSDF-sampled ray (`prev_bsdf_pdf` None: camera ray or a
@@ -138,7 +151,7 @@ impl PathTracer {
         let li = ((u_light * n_lights as f64) as i64 as usize).min(n_lights - 1); // u >= 0
         let shapes = scene.aggregate.shapes();
         let light = &scene.lights[li];
-        let le = emission.get(li, light, wl);
+        let le = emission.get(li, || light.spectrum().sample(wl));
         let ls = light.sample_with(at.p, u_select, u_pos, shapes, &le)?;
         let usable = ls.pdf > 0.0 && !ls.radiance.is_black();
         if !usable {
@@ -222,6 +235,7 @@ impl PathTracer {
         // Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
         let mut r = SampledSpectrum::ONE;
         let mut emission = EmissionCache::default();
+        let mut reflectance = ReflectanceCache::default();
         // The planar shape `ray` leaves, which it cannot meet again (see [`Skip`]).
         let mut leaving: Option<u32> = None;
         loop {
@@ -318,7 +332,7 @@ impl PathTracer {
             let Some(hit) = hit else {
                 for (li, light) in scene.lights.iter().enumerate() {
                     if let Light::Environment { .. } = light {
-                        let le = emission.get(li, light, wl);
+                        let le = emission.get(li, || light.spectrum().sample(wl));
                         let w = self.emitted_weight(prev_bsdf_pdf, || {
                             select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF
                         });
@@ -333,7 +347,7 @@ impl PathTracer {
                 let light = &scene.lights[li as usize];
                 if let Light::Area { two_sided, .. } = light {
                     let le = area_radiance(*two_sided, sp.n, wo_world, || {
-                        emission.get(li as usize, light, wl)
+                        emission.get(li as usize, || light.spectrum().sample(wl))
                     });
                     if !le.is_black() {
                         let w = self.emitted_weight(prev_bsdf_pdf, || {
@@ -369,7 +383,10 @@ impl PathTracer {
                 r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
             }
             let wl = &*wl;
-            let vertex_bsdf = SampledBsdf::new(bsdf, wl);
+            let material = scene.material_of[hit.shape as usize] as usize;
+            let vertex_bsdf = SampledBsdf::with_reflectance(bsdf, wl, |r| {
+                reflectance.get(material, || r.sample(wl))
+            });
             let on_plane = shapes[hit.shape as usize].is_planar().then_some(hit.shape);
             let frame = Frame::from_normal(sp.n);
             let wo = frame.to_local(wo_world);
@@ -498,7 +515,11 @@ mod tests {
             for order in [[0, 5, 1, 4, 2, 3], [3, 2, 4, 1, 5, 0]] {
                 for li in order {
                     let want = lights[li].spectrum().sample(&wl);
-                    assert_eq!(cache.get(li, &lights[li], &wl), want, "light {li}");
+                    assert_eq!(
+                        cache.get(li, || lights[li].spectrum().sample(&wl)),
+                        want,
+                        "light {li}"
+                    );
                 }
             }
         }

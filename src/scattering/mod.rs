@@ -22,7 +22,7 @@ pub use null::NullInterface;
 pub use ward::Ward;
 
 use crate::math::Vec3;
-use crate::spectrum::{SampledSpectrum, Wavelengths};
+use crate::spectrum::{SampledSpectrum, Spectrum, Wavelengths};
 
 /// One sampled scattering direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -144,8 +144,19 @@ impl<'a> SampledBsdf<'a> {
     /// `bsdf` at the wavelengths `wl`.
     #[inline]
     pub fn new(bsdf: &'a Bsdf, wl: &'a Wavelengths) -> Self {
+        Self::with_reflectance(bsdf, wl, |r| r.sample(wl))
+    }
+
+    /// [`SampledBsdf::new`] with a Lambertian's reflectance at `wl` given by `sampled`
+    /// (which may return it from a cache).
+    #[inline]
+    pub fn with_reflectance(
+        bsdf: &'a Bsdf,
+        wl: &'a Wavelengths,
+        sampled: impl FnOnce(&Spectrum) -> SampledSpectrum,
+    ) -> Self {
         let reflectance = match bsdf {
-            Bsdf::Diffuse(l) => Some(l.reflectance.sample(wl)),
+            Bsdf::Diffuse(l) => Some(sampled(&l.reflectance)),
             _ => None,
         };
         SampledBsdf {

@@ -93,6 +93,9 @@ pub struct Scene {
     pub aggregate: Aggregate,
     /// BSDF of each shape.
     pub bsdfs: Vec<Bsdf>,
+    /// Per shape: its material's index among the scene's materials, shared by every shape of
+    /// that material (a path evaluates each material's spectra once).
+    pub material_of: Vec<u32>,
     /// Index into `lights` of each shape's area light, if it emits.
     pub shape_light: Vec<Option<u32>>,
     /// All lights (area lights first, in shape order, then `[[light]]` entries).
@@ -209,6 +212,7 @@ impl Scene {
         Scene {
             aggregate: Aggregate::new(shapes),
             bsdfs: self.bsdfs.clone(),
+            material_of: self.material_of.clone(),
             shape_light: self.shape_light.clone(),
             lights,
             camera,
@@ -320,6 +324,7 @@ impl Builder<'_> {
         }
         let mut shapes = Vec::new();
         let mut bsdfs = Vec::new();
+        let mut material_of = Vec::new();
         let mut shape_light = Vec::new();
         let mut lights = Vec::new();
         let mut shape_media = Vec::new();
@@ -360,6 +365,12 @@ impl Builder<'_> {
             }
             shapes.push(shape);
             bsdfs.push(material);
+            // (`self.shape` has checked that the material exists)
+            let index = d
+                .material
+                .as_ref()
+                .and_then(|m| materials.keys().position(|k| k == m.get_ref()));
+            material_of.push(index.map_or(u32::MAX, |i| i as u32));
         }
         let mut env_seen = false;
         for (i, l) in desc.light.iter().enumerate() {
@@ -386,6 +397,7 @@ impl Builder<'_> {
         let scene = Scene {
             aggregate: Aggregate::new(shapes),
             bsdfs,
+            material_of,
             shape_light,
             lights,
             camera,
