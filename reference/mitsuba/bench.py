@@ -22,6 +22,9 @@ use Mitsuba's colour pipeline.
         python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral \\
         --furnace-portable target/portable/release/furnace
 
+With `--reference none --size 256x256 --max-depth 5` it measures speed only (no error, so no
+time to equal error), at any size and depth: the issue's setting is 256x256, Mitsuba max_depth 6.
+
 Writes the results as JSON (--json) and prints a table.
 """
 
@@ -44,7 +47,10 @@ def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--scene", default=os.path.join(REPO, "scenes", "cornell-box.toml"))
     p.add_argument("--reference", default=os.path.join(HERE, "cornell-box.exr"),
-                   help="high-spp reference EXR with R, G, B and variance.R/G/B (sets the size)")
+                   help="high-spp reference EXR with R, G, B and variance.R/G/B (sets the size); "
+                        "'none' measures speed only, at --size")
+    p.add_argument("--size", default=None,
+                   help="WIDTHxHEIGHT, with --reference none (e.g. 256x256, the issue's setting)")
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--max-depth", type=int, default=-1,
                    help="bounces (furnace's convention), -1 unlimited; must match the reference's (default: -1)")
@@ -81,10 +87,19 @@ def main(argv=None):
     import numpy as np
 
     mi.set_variant("scalar_spectral")
-    ref_rgb, ref_var = read_rgb(mi, args.reference)
-    height, width = ref_rgb.shape[0], ref_rgb.shape[1]
-    # Mean variance of the reference's pixel means (its own noise).
-    ref_noise = float(ref_var.mean()) if ref_var is not None else 0.0
+    speed_only = args.reference == "none"
+    if speed_only:
+        if not args.size or not re.fullmatch(r"[0-9]+x[0-9]+", args.size):
+            sys.exit("--reference none needs --size WIDTHxHEIGHT (e.g. 256x256)")
+        width, height = (int(v) for v in args.size.split("x"))
+        ref_rgb, ref_var, ref_noise = None, None, 0.0
+    else:
+        if args.size:
+            sys.exit("--size is only for --reference none (a reference sets the size)")
+        ref_rgb, ref_var = read_rgb(mi, args.reference)
+        height, width = ref_rgb.shape[0], ref_rgb.shape[1]
+        # Mean variance of the reference's pixel means (its own noise).
+        ref_noise = float(ref_var.mean()) if ref_var is not None else 0.0
 
     tmp = tempfile.mkdtemp(prefix="furnace_bench_")
     xml_dir = os.path.join(tmp, "export")
@@ -112,10 +127,13 @@ def main(argv=None):
     # would otherwise dominate MSE with a few heavy-tailed values. The reference's own variance
     # enters the same way and is subtracted.
     eps = 1e-2
-    weight = 1.0 / (ref_rgb ** 2 + eps)
-    ref_term = float((ref_var * weight).mean()) if ref_var is not None else 0.0
+    if not speed_only:
+        weight = 1.0 / (ref_rgb ** 2 + eps)
+        ref_term = float((ref_var * weight).mean()) if ref_var is not None else 0.0
 
     def mse(img):
+        if speed_only:
+            return float("nan")
         d = np.asarray(img, dtype=np.float64)[..., :3] - ref_rgb
         return float((d * d * weight).mean()) - ref_term
 
@@ -128,9 +146,12 @@ def main(argv=None):
                                 "--observer", "mitsuba3", "--quiet", "--out", out] + depth,
                                check=True, capture_output=True, text=True)
             secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
-            mi.set_variant("scalar_spectral")
-            rgb, _ = read_rgb(mi, out)
-            rows[name].append((secs, mse(rgb)))
+            if speed_only:
+                rows[name].append((secs, mse(None)))
+            else:
+                mi.set_variant("scalar_spectral")
+                rgb, _ = read_rgb(mi, out)
+                rows[name].append((secs, mse(rgb)))
             print(f"rep {rep}: {name} {secs:.3f} s", file=sys.stderr)
         for v in variants:
             mi.set_variant(v)
@@ -140,27 +161,43 @@ def main(argv=None):
             dr.eval(img)
             dr.sync_thread()  # LLVM variants launch kernels asynchronously
             secs = time.perf_counter() - t0
-            rows[f"mitsuba3:{v}"].append((secs, mse(np.array(img))))
+            rows[f"mitsuba3:{v}"].append((secs, mse(None if speed_only else np.array(img))))
 
     result = {"scene": os.path.relpath(args.scene, REPO), "width": width, "height": height, "spp": args.spp,
               "max_depth_bounces": args.max_depth, "threads": args.threads, "reps": args.reps,
-              "reference": os.path.relpath(args.reference, REPO), "reference_mean_variance": ref_noise,
+              "reference": None if speed_only else os.path.relpath(args.reference, REPO),
+              "reference_mean_variance": None if speed_only else ref_noise,
               "mitsuba": mi.__version__, "platform": platform.platform(), "renderers": {}}
     base = None
     print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, {args.threads} threads, "
-          f"median of {args.reps} alternating runs; error against {result['reference']}")
-    print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'relMSE':>11} {'1/(relMSE t)':>12} {'time to equal error':>20}")
+          f"median of {args.reps} alternating runs; "
+          + ("speed only (no reference)" if speed_only else f"error against {result['reference']}"))
+    if speed_only:
+        print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'speed vs furnace':>17}")
+    else:
+        print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'relMSE':>11} {'1/(relMSE t)':>12} {'time to equal error':>20}")
     for name, runs in rows.items():
         t = statistics.median(x[0] for x in runs)
-        m = statistics.median(x[1] for x in runs)
-        eff = 1.0 / (m * t) if m > 0 else float("inf")
         if base is None:
-            base = (t, m)
-        rel = (m * t) / (base[1] * base[0])
-        result["renderers"][name] = {"median_seconds": t, "samples_per_second": samples / t, "median_rel_mse": m,
-                                     "efficiency": eff, "time_to_equal_error_vs_furnace": rel,
-                                     "runs": runs}
-        print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
+            base = (t, None)
+        if speed_only:
+            m = eff = rel = float("nan")
+            result["renderers"][name] = {"median_seconds": t, "samples_per_second": samples / t,
+                                         "samples_per_second_vs_furnace": base[0] / t,
+                                         "runs": [x[0] for x in runs]}
+        else:
+            m = statistics.median(x[1] for x in runs)
+            eff = 1.0 / (m * t) if m > 0 else float("inf")
+            if base[1] is None:
+                base = (t, m)
+            rel = (m * t) / (base[1] * base[0])
+            result["renderers"][name] = {"median_seconds": t, "samples_per_second": samples / t,
+                                         "median_rel_mse": m, "efficiency": eff,
+                                         "time_to_equal_error_vs_furnace": rel, "runs": runs}
+        if speed_only:
+            print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {base[0] / t:>16.3f}x")
+        else:
+            print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=2)
