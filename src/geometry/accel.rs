@@ -5,11 +5,10 @@
 //! relative to the scene centre, scaled so that the scene's extent is [`FRAME_EXTENT`], with
 //! boxes padded by 1e-5 of the extent — far more than the f32 rounding of boxes, ray origin and
 //! direction (≈ 1e-7 of the extent) — and rays clipped to the scene box in f64 before
-//! conversion, so the culling is conservative at any scale or offset. The normalisation also
-//! makes the CWBVH node test's absolute lower bound on t (1e-4) harmless: a ray that meets a
-//! primitive at any t ≥ 0 stays inside that primitive's padded box until at least t + pad,
-//! and pad (0.04 in the frame) is 400 times that bound, so no box holding a hittable primitive
-//! is ever skipped. Every candidate is then intersected exactly, in f64, from a flat list in
+//! conversion, so the culling is conservative at any scale or offset. obvhs builds the tree
+//! and `obvhs::traverse!` orders the walk; the node test is furnace's own, on child boxes
+//! decoded once per node and rounded outward, with t from 0 (obvhs's own test starts at 1e-4),
+//! in eight f32 lanes. Every candidate is then intersected exactly, in f64, from a flat list in
 //! BVH order (mesh triangles with their corners and normal inline), and the surface point is
 //! computed for the nearest hit only.
 
@@ -59,6 +58,8 @@ pub struct Aggregate {
     bvh: CwBvh,
     /// Levels of `bvh` (root = 1): the traversal stack holds at most one entry per level.
     depth: usize,
+    /// Each node's child boxes, decoded once (see [`ChildBoxes`]), indexed like `bvh.nodes`.
+    child_boxes: Vec<ChildBoxes>,
     center: Vec3,
     /// Scene units to BVH-frame units.
     scale: f64,
@@ -137,11 +138,13 @@ impl Aggregate {
             })
             .collect();
         let depth = cwbvh_depth(&bvh);
+        let child_boxes = bvh.nodes.iter().map(ChildBoxes::decode).collect();
         Aggregate {
             shapes,
             candidates,
             bvh,
             depth,
+            child_boxes,
             center,
             scale,
             lo: lo - pad * 2.0,
@@ -191,9 +194,9 @@ impl Aggregate {
         };
         let o = (ray.at(t_near) - self.center) * self.scale;
         let len = ((t_far - t_near) * self.scale * (1.0 + 1e-6)) as f32;
-        // + 0.0 turns −0.0 into +0.0: the CWBVH node test takes a component's sign from
-        // `d < 0` but its reciprocal from the sign bit, so a −0.0 component would cull every
-        // box (the mixed-shapes test below has such a ray).
+        // + 0.0 turns −0.0 into +0.0, so the octant (from `d < 0`) and the reciprocal (from
+        // the sign bit) agree on a zero component's sign (obvhs's own node test culled every
+        // box otherwise; the mixed-shapes test below has such a ray).
         let d = ray.d.as_vec3() + glam::Vec3::ZERO;
         let r = BvhRay::new(
             o.as_vec3().into(),
@@ -303,6 +306,39 @@ impl Aggregate {
         self.walk(SliceStack { entries, len: 0 }, ray, any, visit)
     }
 
+    /// The CWBVH hit mask of `node`'s children for `ray` (the layout `obvhs::traverse!` reads:
+    /// internal children in the top byte at their octant-ordered slots, leaf primitives in the
+    /// low 24 bits): slab tests of the eight decoded boxes in f32 lanes over [0, ray.tmax],
+    /// and the mask assembled without a branch per child.
+    #[inline(always)]
+    fn node_hits(&self, node: &obvhs::cwbvh::node::CwBvhNode, ray: &BvhRay, oct_inv4: u32) -> u32 {
+        // `node` is an element of `bvh.nodes` (the walk takes it from there)
+        let index = (node as *const _ as usize - self.bvh.nodes.as_ptr() as usize)
+            / std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>();
+        let b = &self.child_boxes[index];
+        let o = ray.origin.to_array();
+        let inv = ray.inv_direction.to_array();
+        let mut near = [0.0f32; 8];
+        let mut far = [ray.tmax; 8];
+        for a in 0..3 {
+            for c in 0..8 {
+                let t0 = (b.lo[a][c] - o[a]) * inv[a];
+                let t1 = (b.hi[a][c] - o[a]) * inv[a];
+                let (tn, tf) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+                near[c] = if near[c] > tn { near[c] } else { tn };
+                far[c] = if far[c] < tf { far[c] } else { tf };
+            }
+        }
+        let (child_bits8, bit_index8) = node.get_child_and_index_bits(oct_inv4);
+        let mut hits = 0u32;
+        for c in 0..8 {
+            let bits = ((child_bits8 >> (8 * c)) & 0xff) as u32;
+            let index = ((bit_index8 >> (8 * c)) & 0xff) as u32;
+            hits |= (bits * (near[c] <= far[c]) as u32) << index;
+        }
+        hits
+    }
+
     #[inline(always)]
     fn walk<S: FastStack<UVec2>>(
         &self,
@@ -329,7 +365,7 @@ impl Aggregate {
                 self.bvh,
                 node,
                 state,
-                node.intersect_ray(&ray, state.oct_inv4),
+                self.node_hits(node, &ray, state.oct_inv4),
                 {
                     let t = visit(state.primitive_id as usize);
                     if t < ray.tmax {
@@ -421,6 +457,39 @@ impl FastStack<UVec2> for SliceStack<'_> {
     #[inline(always)]
     fn clear(&mut self) {
         self.len = 0;
+    }
+}
+
+/// A CWBVH node's eight child boxes in the BVH frame, by axis (`lo[axis][child]`), decoded
+/// from the node's 8-bit quantisation (origin p, power-of-two scale 2^e: p + q·2^e) in f64
+/// and rounded outward to f32, so they enclose what obvhs's own test decodes. Empty children
+/// get empty boxes; their mask bits are zero anyway.
+#[derive(Debug, Clone, Copy)]
+struct ChildBoxes {
+    lo: [[f32; 8]; 3],
+    hi: [[f32; 8]; 3],
+}
+
+impl ChildBoxes {
+    fn decode(n: &obvhs::cwbvh::node::CwBvhNode) -> Self {
+        let p = [n.p.x as f64, n.p.y as f64, n.p.z as f64];
+        let scale = n.e.map(|e| f32::from_bits((e as u32) << 23) as f64);
+        let q_lo = [n.child_min_x, n.child_min_y, n.child_min_z];
+        let q_hi = [n.child_max_x, n.child_max_y, n.child_max_z];
+        let mut b = ChildBoxes {
+            lo: [[f32::INFINITY; 8]; 3],
+            hi: [[f32::NEG_INFINITY; 8]; 3],
+        };
+        for c in 0..8 {
+            if n.child_meta[c] == 0 {
+                continue;
+            }
+            for a in 0..3 {
+                b.lo[a][c] = down(p[a] + q_lo[a][c] as f64 * scale[a]);
+                b.hi[a][c] = up(p[a] + q_hi[a][c] as f64 * scale[a]);
+            }
+        }
+        b
     }
 }
 
@@ -671,6 +740,50 @@ mod tests {
             hits += a.is_some() as u32;
         }
         assert!(hits > 100, "{hits} hits");
+    }
+
+    /// The node test never culls a child that obvhs's own test (on the quantised boxes) keeps,
+    /// and keeps the same children apart from boundary cases.
+    #[test]
+    fn node_test_keeps_every_child_obvhs_keeps() {
+        let shapes: Vec<Shape> = (0..60)
+            .map(|k| {
+                let k = k as f64;
+                Shape::Sphere(Sphere {
+                    center: Vec3::new((k * 7.3) % 11.0, (k * 3.1) % 5.0, (k * 1.7) % 9.0),
+                    radius: 0.2 + (k % 4.0) * 0.15,
+                    flip_normals: false,
+                })
+            })
+            .collect();
+        let agg = Aggregate::new(shapes);
+        assert!(agg.bvh.nodes.len() > 3);
+        let mut s = SampleStream::new(9, 0, 0);
+        let (mut same, mut total) = (0, 0);
+        for _ in 0..20_000 {
+            let o = Vec3::new(s.next_f64() * 11.0, s.next_f64() * 5.0, s.next_f64() * 9.0);
+            let r = Ray {
+                o,
+                d: warp::uniform_sphere(s.next_2d()),
+            };
+            let Some((bray, _)) = agg.clip(&r, f64::INFINITY) else {
+                continue;
+            };
+            let oct = octant_inv4(bray.direction);
+            for node in &agg.bvh.nodes {
+                let theirs = node.intersect_ray(&bray, oct);
+                let ours = agg.node_hits(node, &bray, oct);
+                assert_eq!(
+                    theirs & !ours,
+                    0,
+                    "culled {:#x} of {theirs:#x}",
+                    theirs & !ours
+                );
+                same += (theirs == ours) as u32;
+                total += 1;
+            }
+        }
+        assert!(same as f64 > 0.99 * total as f64, "{same} of {total}");
     }
 
     /// Rays spawned from points on a closed room's walls never hit their own wall and never
