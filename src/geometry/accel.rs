@@ -171,7 +171,7 @@ impl Aggregate {
 
     /// Clips the ray to the padded scene box in f64; returns the BVH ray (normalised frame)
     /// and the f64 entry distance, or None when the ray misses the box before `t_max`.
-    #[inline]
+    #[inline(always)]
     fn clip(&self, ray: &Ray, t_max: f64) -> Option<(BvhRay, f64)> {
         if self.candidates.is_empty() {
             return None;
