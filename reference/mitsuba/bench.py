@@ -11,6 +11,9 @@ Mitsuba variant, alternating renderers within each repetition, and reports media
     error alone;
   * efficiency 1/(relMSE x time) and the time each renderer needs to reach the same error,
     proportional to relMSE x time (independent sampling: relMSE ~ 1/spp), as a ratio to furnace.
+  * for each renderer, its time and its relMSE x time as paired ratios to furnace's over the
+    repetitions (each repetition runs every renderer in turn), geometric means with 95 %
+    t intervals on the log ratios: the statement "ahead" needs the interval, not the median.
 Equal settings: same exported scene, box filter, max depth (furnace bounces; Mitsuba gets + 1),
 Russian roulette from depth 5 in both, 4 wavelengths per sample in both (Mitsuba's spectral
 variants trace 4 wavelengths per path), furnace rendered with --observer mitsuba3 so both images
@@ -64,6 +67,30 @@ def parse_args(argv=None):
                         "alternation and reported as 'furnace:portable'")
     p.add_argument("--json", default=None, help="write the results here")
     return p.parse_args(argv)
+
+
+def t_quantile_975(df):
+    """Student's t 0.975 quantile from the normal one by the Cornish-Fisher expansion
+    (Abramowitz & Stegun 1964, eq. 26.7.5, three terms); within 0.3 % for df >= 4."""
+    from statistics import NormalDist
+    z = NormalDist().inv_cdf(0.975)
+    return (z + (z ** 3 + z) / (4 * df) + (5 * z ** 5 + 16 * z ** 3 + 3 * z) / (96 * df ** 2)
+            + (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / (384 * df ** 3))
+
+
+def paired_ratio(base, other):
+    """Geometric mean of other/base over paired repetitions, with its 95 % confidence interval
+    (a t interval on the per-repetition log ratios; the repetitions alternate renderers, so
+    the pairs share the machine's state). None with fewer than 3 pairs."""
+    import math
+    logs = [math.log(o / b) for b, o in zip(base, other) if b > 0 and o > 0]
+    n = len(logs)
+    if n < 3:
+        return None
+    mean = sum(logs) / n
+    sd = math.sqrt(sum((x - mean) ** 2 for x in logs) / (n - 1))
+    half = t_quantile_975(n - 1) * sd / math.sqrt(n)
+    return {"ratio": math.exp(mean), "ci95": [math.exp(mean - half), math.exp(mean + half)], "pairs": n}
 
 
 def read_rgb(mi, path):
@@ -198,6 +225,25 @@ def main(argv=None):
             print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {base[0] / t:>16.3f}x")
         else:
             print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
+    # Paired comparisons with furnace (the first renderer): time per repetition, and for the
+    # time to equal error relMSE x time per repetition.
+    first = next(iter(rows))
+    print(f"paired over {args.reps} repetitions, 95 % confidence intervals (t on log ratios):")
+    for name, runs in rows.items():
+        if name == first:
+            continue
+        base = rows[first]
+        speed = paired_ratio([x[0] for x in base], [x[0] for x in runs])
+        entry = result["renderers"][name]
+        entry["paired_time_ratio_vs_furnace"] = speed
+        line = f"  {name:<26} time / furnace's "
+        line += "n/a" if speed is None else f"{speed['ratio']:.3f} [{speed['ci95'][0]:.3f}, {speed['ci95'][1]:.3f}]"
+        if not speed_only:
+            eq = paired_ratio([x[0] * x[1] for x in base], [x[0] * x[1] for x in runs])
+            entry["paired_time_to_equal_error_vs_furnace"] = eq
+            line += "; time to equal error / furnace's "
+            line += "n/a" if eq is None else f"{eq['ratio']:.3f} [{eq['ci95'][0]:.3f}, {eq['ci95'][1]:.3f}]"
+        print(line)
     if args.json:
         with open(args.json, "w") as f:
             json.dump(result, f, indent=2)

@@ -121,24 +121,14 @@ fn shapes_of_one_material_share_its_index_and_flat_shapes_are_planar() {
     let scene = Scene::parse(SMALL, Path::new("small.toml")).unwrap();
     // materials in name order: paint, white
     assert_eq!(scene.material_of, vec![1, 0, 1]);
-    let planar: Vec<bool> = scene
-        .aggregate
-        .shapes()
-        .iter()
-        .map(Shape::is_planar)
-        .collect();
-    assert_eq!(planar, vec![true, false, true]);
+    let planar =
+        |s: &Scene| -> Vec<bool> { s.aggregate.shapes().iter().map(Shape::is_planar).collect() };
+    assert_eq!(planar(&scene), vec![true, false, true]);
     let cornell = Scene::load(&root("scenes/cornell-box.toml")).unwrap();
-    let planar: Vec<bool> = cornell
-        .aggregate
-        .shapes()
-        .iter()
-        .map(Shape::is_planar)
-        .collect();
     // floor, ceiling, back wall, green wall, red wall (the measured wall is not flat: its
     // fourth corner lies 3.2 mm off the plane of the other three), light, two blocks
     assert_eq!(
-        planar,
+        planar(&cornell),
         vec![true, true, true, true, false, true, false, false]
     );
     let m = &cornell.material_of;
