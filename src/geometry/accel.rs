@@ -340,9 +340,9 @@ impl Aggregate {
     }
 
     #[inline(always)]
-    fn walk<S: FastStack<UVec2>>(
+    fn walk(
         &self,
-        stack: S,
+        stack: SliceStack<'_>,
         mut ray: BvhRay,
         any: bool,
         mut visit: impl FnMut(usize) -> f32,
@@ -473,7 +473,7 @@ struct ChildBoxes {
 impl ChildBoxes {
     fn decode(n: &obvhs::cwbvh::node::CwBvhNode) -> Self {
         let p = [n.p.x as f64, n.p.y as f64, n.p.z as f64];
-        let scale = n.e.map(|e| f32::from_bits((e as u32) << 23) as f64);
+        let scale = n.compute_extent().to_array().map(|e| e as f64);
         let q_lo = [n.child_min_x, n.child_min_y, n.child_min_z];
         let q_hi = [n.child_max_x, n.child_max_y, n.child_max_z];
         let mut b = ChildBoxes {
@@ -494,8 +494,8 @@ impl ChildBoxes {
 }
 
 /// The traversal state `obvhs::traverse!` works on (its fields are the macro's).
-struct Walk<S> {
-    stack: S,
+struct Walk<'a> {
+    stack: SliceStack<'a>,
     current_group: UVec2,
     primitive_group: UVec2,
     oct_inv4: u32,
