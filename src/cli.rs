@@ -725,7 +725,7 @@ fn converge_command(a: ConvergeArgs) -> Result<i32, Failure> {
             "samples per pixel",
             "RMSE / mean",
             &series,
-        ));
+        )?);
     }
     if let Some(p) = &a.report {
         let mut h = String::from("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>furnace converge</title><style>body{font-family:system-ui,sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:0.2em 0.5em;text-align:right}td.l{text-align:left}</style></head><body><h1>Convergence</h1>\n");
@@ -742,7 +742,7 @@ fn converge_command(a: ConvergeArgs) -> Result<i32, Failure> {
             "seconds per render",
             "RMSE / mean",
             &pareto,
-        ));
+        )?);
         h.push_str("</body></html>\n");
         write_file(p, &h)?;
         println!("wrote {}", p.display());

@@ -1,8 +1,7 @@
-//! Minimal SVG plots with logarithmic axes (convergence ladders, time–error trade-offs).
-//! Hand-written SVG: a few dozen points need no plotting dependency.
+//! SVG plots with logarithmic axes (convergence ladders, time–error trade-offs), drawn with
+//! the `plotters` crate's SVG backend into a string for the HTML reports.
 
-use super::html::escape;
-use std::fmt::Write as _;
+use plotters::prelude::*;
 
 /// One series: a name and its (x, y) points, both > 0.
 #[derive(Debug, Clone, PartialEq)]
@@ -13,88 +12,118 @@ pub struct Series {
     pub points: Vec<(f64, f64)>,
 }
 
-const COLOURS: [&str; 8] = [
-    "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#17becf", "#8c564b", "#e377c2",
+/// Why a plot could not be drawn.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("cannot draw the plot \"{title}\": {message}")]
+pub struct PlotError {
+    /// The plot's title.
+    pub title: String,
+    /// What the drawing backend reported.
+    pub message: String,
+}
+
+/// Plot width and height, px.
+const SIZE: (u32, u32) = (720, 380);
+
+/// Width of the legend column at the right, px.
+const LEGEND: u32 = 190;
+
+/// Matplotlib's "tab10" palette.
+const COLOURS: [RGBColor; 10] = [
+    RGBColor(0x1f, 0x77, 0xb4),
+    RGBColor(0xd6, 0x27, 0x28),
+    RGBColor(0x2c, 0xa0, 0x2c),
+    RGBColor(0x94, 0x67, 0xbd),
+    RGBColor(0xff, 0x7f, 0x0e),
+    RGBColor(0x17, 0xbe, 0xcf),
+    RGBColor(0x8c, 0x56, 0x4b),
+    RGBColor(0xe3, 0x77, 0xc2),
+    RGBColor(0x7f, 0x7f, 0x7f),
+    RGBColor(0xbc, 0xbd, 0x22),
 ];
 
-/// A log-log plot of `series` as an SVG element 560×360 px.
-pub fn loglog(title: &str, x_label: &str, y_label: &str, series: &[Series]) -> String {
-    let (w, h, l, r, t, b) = (560.0, 360.0, 70.0, 170.0, 30.0, 50.0);
-    let pts = series.iter().flat_map(|s| s.points.iter());
-    let (mut x0, mut x1, mut y0, mut y1) = (f64::MAX, f64::MIN, f64::MAX, f64::MIN);
-    for &(x, y) in pts.filter(|p| p.0 > 0.0 && p.1 > 0.0) {
-        x0 = x0.min(x.log10());
-        x1 = x1.max(x.log10());
-        y0 = y0.min(y.log10());
-        y1 = y1.max(y.log10());
+/// The whole decades enclosing the positive values of `v` (1 to 10 when there are none).
+fn decades(v: impl Iterator<Item = f64>) -> std::ops::Range<f64> {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for x in v.filter(|x| *x > 0.0 && x.is_finite()) {
+        lo = lo.min(x.log10());
+        hi = hi.max(x.log10());
     }
-    if x0 > x1 {
-        (x0, x1, y0, y1) = (0.0, 1.0, 0.0, 1.0);
+    if lo > hi {
+        return 1.0..10.0;
     }
-    let (x0, x1) = (x0.floor(), x1.ceil().max(x0.floor() + 1.0));
-    let (y0, y1) = (y0.floor(), y1.ceil().max(y0.floor() + 1.0));
-    let px = |x: f64| l + (x.log10() - x0) / (x1 - x0) * (w - l - r);
-    let py = |y: f64| t + (y1 - y.log10()) / (y1 - y0) * (h - t - b);
-    let mut s = String::new();
-    let _ = write!(
-        s,
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"11\">\
-         <rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\
-         <text x=\"{}\" y=\"18\" text-anchor=\"middle\" font-size=\"13\">{}</text>",
-        (l + w - r) / 2.0,
-        escape(title)
-    );
-    for e in x0 as i32..=x1 as i32 {
-        let x = px(10f64.powi(e));
-        let _ = write!(s, "<line x1=\"{x}\" y1=\"{t}\" x2=\"{x}\" y2=\"{}\" stroke=\"#ddd\"/><text x=\"{x}\" y=\"{}\" text-anchor=\"middle\">1e{e}</text>", h - b, h - b + 15.0);
-    }
-    for e in y0 as i32..=y1 as i32 {
-        let y = py(10f64.powi(e));
-        let _ = write!(s, "<line x1=\"{l}\" y1=\"{y}\" x2=\"{}\" y2=\"{y}\" stroke=\"#ddd\"/><text x=\"{}\" y=\"{}\" text-anchor=\"end\">1e{e}</text>", w - r, l - 5.0, y + 4.0);
-    }
-    let _ = write!(
-        s,
-        "<rect x=\"{l}\" y=\"{t}\" width=\"{}\" height=\"{}\" fill=\"none\" stroke=\"#333\"/>\
-         <text x=\"{}\" y=\"{}\" text-anchor=\"middle\">{}</text>\
-         <text transform=\"translate(15 {}) rotate(-90)\" text-anchor=\"middle\">{}</text>",
-        w - l - r,
-        h - t - b,
-        (l + w - r) / 2.0,
-        h - 10.0,
-        escape(x_label),
-        (t + h - b) / 2.0,
-        escape(y_label)
-    );
-    for (i, se) in series.iter().enumerate() {
-        let c = COLOURS[i % COLOURS.len()];
-        let path: Vec<String> = se
-            .points
-            .iter()
-            .filter(|p| p.0 > 0.0 && p.1 > 0.0)
-            .map(|&(x, y)| format!("{:.1},{:.1}", px(x), py(y)))
-            .collect();
-        let _ = write!(
-            s,
-            "<polyline fill=\"none\" stroke=\"{c}\" stroke-width=\"1.5\" points=\"{}\"/>",
-            path.join(" ")
-        );
-        for p in &path {
-            let (x, y) = p.split_once(',').unwrap_or(("0", "0"));
-            let _ = write!(s, "<circle cx=\"{x}\" cy=\"{y}\" r=\"2.5\" fill=\"{c}\"/>");
+    let (lo, hi) = (lo.floor(), hi.ceil().max(lo.floor() + 1.0));
+    10f64.powf(lo)..10f64.powf(hi)
+}
+
+/// A log-log plot of `series` (lines through the points, the points marked, a legend in a
+/// column at the right) as an SVG element; points with a coordinate <= 0 are left out.
+pub fn loglog(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[Series],
+) -> Result<String, PlotError> {
+    let fail = |e: &dyn std::fmt::Display| PlotError {
+        title: title.to_string(),
+        message: e.to_string(),
+    };
+    let kept: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|s| {
+            let ok = |v: f64| v > 0.0 && v.is_finite();
+            s.points
+                .iter()
+                .copied()
+                .filter(|&(x, y)| ok(x) && ok(y))
+                .collect()
+        })
+        .collect();
+    let xs = decades(kept.iter().flatten().map(|p| p.0));
+    let ys = decades(kept.iter().flatten().map(|p| p.1));
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+        root.fill(&WHITE).map_err(|e| fail(&e))?;
+        let (plot, legend) = root.split_horizontally(SIZE.0 - LEGEND);
+        let mut chart = ChartBuilder::on(&plot)
+            .caption(title, ("sans-serif", 16))
+            .margin(12)
+            .x_label_area_size(40)
+            .y_label_area_size(64)
+            .build_cartesian_2d(xs.log_scale(), ys.log_scale())
+            .map_err(|e| fail(&e))?;
+        chart
+            .configure_mesh()
+            .x_desc(x_label)
+            .y_desc(y_label)
+            .x_label_formatter(&|v| format!("{v:.0e}"))
+            .y_label_formatter(&|v| format!("{v:.0e}"))
+            .draw()
+            .map_err(|e| fail(&e))?;
+        for (i, (s, points)) in series.iter().zip(&kept).enumerate() {
+            let c = COLOURS[i % COLOURS.len()];
+            chart
+                .draw_series(LineSeries::new(points.iter().copied(), c.stroke_width(2)))
+                .map_err(|e| fail(&e))?;
+            chart
+                .draw_series(points.iter().map(|&p| Circle::new(p, 3, c.filled())))
+                .map_err(|e| fail(&e))?;
+            let y = 40 + 18 * i as i32;
+            legend
+                .draw(&PathElement::new(vec![(4, y), (24, y)], c.stroke_width(2)))
+                .map_err(|e| fail(&e))?;
+            legend
+                .draw(&Text::new(
+                    s.name.as_str(),
+                    (30, y - 7),
+                    ("sans-serif", 13).into_font(),
+                ))
+                .map_err(|e| fail(&e))?;
         }
-        let ly = t + 14.0 * i as f64 + 10.0;
-        let _ = write!(
-            s,
-            "<line x1=\"{}\" y1=\"{ly}\" x2=\"{}\" y2=\"{ly}\" stroke=\"{c}\" stroke-width=\"2\"/><text x=\"{}\" y=\"{}\">{}</text>",
-            w - r + 8.0,
-            w - r + 24.0,
-            w - r + 28.0,
-            ly + 4.0,
-            escape(&se.name)
-        );
+        root.present().map_err(|e| fail(&e))?;
     }
-    s.push_str("</svg>");
-    s
+    Ok(svg)
 }
 
 #[cfg(test)]
@@ -111,13 +140,23 @@ mod tests {
                 name: "a<b".into(),
                 points: vec![(1.0, 1.0), (100.0, 0.1), (0.0, 1.0)],
             }],
-        );
-        assert!(s.starts_with("<svg") && s.ends_with("</svg>"));
+        )
+        .unwrap();
+        assert!(s.starts_with("<svg") && s.trim_end().ends_with("</svg>"));
         assert_eq!(
             s.matches("<circle").count(),
             2,
             "non-positive points are left out"
         );
-        assert!(s.contains("a&lt;b") && s.contains("1e0") && s.contains("1e2"));
+        // the legend text is escaped; the axes carry decade labels and their names
+        assert!(s.contains("a&lt;b"), "{s}");
+        assert!(s.contains("1e0") && s.contains("1e2") && s.contains("samples"));
+        assert!(s.contains("<polyline"));
+    }
+
+    #[test]
+    fn empty_plot_is_still_drawn() {
+        let s = loglog("nothing", "x", "y", &[]).unwrap();
+        assert!(s.starts_with("<svg") && s.contains("nothing"));
     }
 }
