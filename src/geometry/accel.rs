@@ -10,9 +10,12 @@
 //! decoded once per node and rounded outward, with t from 0 (obvhs's own test starts at 1e-4),
 //! in eight f32 lanes. Every candidate is then intersected exactly, in f64, from a flat list in
 //! BVH order (mesh triangles with their corners and normal inline), and the surface point is
-//! computed for the nearest hit only.
+//! computed for the nearest hit only. Consecutive mesh triangles that form a quad (a shared
+//! edge, the same winding, about the same box) are one BVH primitive, tested together: half
+//! the visits and four corners sheared instead of six on a room's walls and boxes' faces.
 
 use super::{
+    mesh::TriangleMesh,
     triangle::{self, ShearedRay},
     Hit, Ray, Shape, SurfacePoint,
 };
@@ -33,9 +36,66 @@ enum Candidate {
     /// A mesh triangle: its corners and oriented unit normal (as [`super::mesh::TriangleMesh`]
     /// gives them), and its shape.
     Triangle { p: [Vec3; 3], n: Vec3, shape: u32 },
+    /// Two mesh triangles sharing an edge, with about the same box, as one primitive: an
+    /// index into [`Aggregate::pairs`].
+    Pair { pair: u32, shape: u32 },
     /// Any other primitive, intersected through its shape.
     Other { shape: u32, prim: u32 },
 }
+
+/// Two triangles of one mesh sharing an edge, (a, b, c) and (a, c, d) (see
+/// [`triangle::intersect_pair_sheared`]): the corners, each triangle's corners as
+/// `triangle::surface_point` takes them, and their oriented unit normals as the mesh gives
+/// them.
+#[derive(Debug, Clone, PartialEq)]
+struct Pair {
+    q: [Vec3; 4],
+    p: [[Vec3; 3]; 2],
+    n: [Vec3; 2],
+}
+
+impl Pair {
+    /// Triangles `i` and `i + 1` of `m` as a pair, when they share an edge (two vertex indices)
+    /// that they run along in opposite directions (the same winding, as a quad's halves) and
+    /// neither box is much smaller than the two together: surface area of the union at most
+    /// [`PAIR_SLACK`] times the larger box's, so that pairing never loosens the BVH much (a
+    /// rectangle's halves have the same box). Each triangle's corners are rotated cyclically
+    /// into the pair's order, which keeps every edge function's value (and the test
+    /// watertight); only the sums of the three (the determinant and t) may round differently.
+    fn of(m: &TriangleMesh, i: usize) -> Option<Pair> {
+        let (t0, t1) = (m.triangles[i], *m.triangles.get(i + 1)?);
+        // b: the first's corner the second lacks; (a, b, c) its rotation with b in the middle
+        let k0 = (0..3).find(|&k| !t1.contains(&t0[k]))?;
+        let (ia, ic) = ((k0 + 2) % 3, (k0 + 1) % 3);
+        // the second must be a rotation of (a, c, d) with d new
+        let k1 = (0..3).find(|&k| t1[k] == t0[ia])?;
+        let (kc, kd) = ((k1 + 1) % 3, (k1 + 2) % 3);
+        if t1[kc] != t0[ic] || t0.contains(&t1[kd]) {
+            return None;
+        }
+        let (v0, v1) = (m.vertices(i), m.vertices(i + 1));
+        let q = [v0[ia], v0[k0], v0[ic], v1[kd]];
+        let (a0, b0) = m.triangle_bounds(i);
+        let (a1, b1) = m.triangle_bounds(i + 1);
+        let area = |a: Vec3, b: Vec3| {
+            let e = b - a;
+            e.x * e.y + e.y * e.z + e.z * e.x
+        };
+        let union = area(a0.min(a1), b0.max(b1));
+        if union > PAIR_SLACK * area(a0, b0).max(area(a1, b1)) {
+            return None;
+        }
+        Some(Pair {
+            q,
+            p: [[q[0], q[1], q[2]], [q[0], q[2], q[3]]],
+            n: [m.normal(i), m.normal(i + 1)],
+        })
+    }
+}
+
+/// How much larger (surface area) the box of a pair of triangles may be than the larger of
+/// their own boxes.
+const PAIR_SLACK: f64 = 1.05;
 
 /// A hit found during traversal: a triangle with its barycentrics (the point is computed once,
 /// for the nearest), or another shape's index and point.
@@ -55,6 +115,8 @@ pub struct Aggregate {
     shapes: Vec<Shape>,
     /// The primitives in the BVH's leaf order (index = BVH primitive slot).
     candidates: Vec<Candidate>,
+    /// Paired triangles, indexed by [`Candidate::Pair`].
+    pairs: Vec<Pair>,
     bvh: CwBvh,
     /// Levels of `bvh` (root = 1): the traversal stack holds at most one entry per level.
     depth: usize,
@@ -72,6 +134,7 @@ impl std::fmt::Debug for Aggregate {
         f.debug_struct("Aggregate")
             .field("shapes", &self.shapes.len())
             .field("primitives", &self.candidates.len())
+            .field("pairs", &self.pairs.len())
             .field("bvh_nodes", &self.bvh.nodes.len())
             .finish()
     }
@@ -84,13 +147,28 @@ impl Aggregate {
         let mut lo = Vec3::INFINITY;
         let mut hi = Vec3::NEG_INFINITY;
         let mut boxes = Vec::new();
+        let mut pairs = Vec::new();
+        // (shape, primitive, pair index or u32::MAX); a pair stands for primitives p and p + 1
         for (si, s) in shapes.iter().enumerate() {
-            for p in 0..s.primitive_count() {
-                let (a, b) = s.primitive_bounds(p);
+            let mut p = 0;
+            while p < s.primitive_count() {
+                let pair = match s {
+                    Shape::Mesh(m) => Pair::of(m, p),
+                    _ => None,
+                };
+                let (mut a, mut b) = s.primitive_bounds(p);
+                let mut slot = u32::MAX;
+                if let Some(pair) = pair {
+                    let (a1, b1) = s.primitive_bounds(p + 1);
+                    (a, b) = (a.min(a1), b.max(b1));
+                    slot = pairs.len() as u32;
+                    pairs.push(pair);
+                }
                 lo = lo.min(a);
                 hi = hi.max(b);
                 boxes.push((a, b));
-                prims.push((si as u32, p as u32));
+                prims.push((si as u32, p as u32, slot));
+                p += if slot == u32::MAX { 1 } else { 2 };
             }
         }
         let (center, pad, scale) = if prims.is_empty() {
@@ -126,8 +204,9 @@ impl Aggregate {
             .primitive_indices
             .iter()
             .map(|&i| {
-                let (si, p) = prims[i as usize];
+                let (si, p, pair) = prims[i as usize];
                 match &shapes[si as usize] {
+                    _ if pair != u32::MAX => Candidate::Pair { pair, shape: si },
                     Shape::Mesh(m) => Candidate::Triangle {
                         p: m.vertices(p as usize),
                         n: m.normal(p as usize),
@@ -142,6 +221,7 @@ impl Aggregate {
         Aggregate {
             shapes,
             candidates,
+            pairs,
             bvh,
             depth,
             child_boxes,
@@ -217,6 +297,18 @@ impl Aggregate {
                         p,
                         n,
                         shape: *shape,
+                        bary,
+                    };
+                    (t, found)
+                })
+            }
+            &Candidate::Pair { pair, shape } => {
+                let q = &self.pairs[pair as usize];
+                triangle::intersect_pair_sheared(ray, &q.q, t_max).map(|(t, k, bary)| {
+                    let found = Found::Triangle {
+                        p: &q.p[k],
+                        n: &q.n[k],
+                        shape,
                         bary,
                     };
                     (t, found)
@@ -410,7 +502,9 @@ impl Candidate {
     #[inline(always)]
     fn shape(&self) -> u32 {
         match self {
-            Candidate::Triangle { shape, .. } | Candidate::Other { shape, .. } => *shape,
+            Candidate::Triangle { shape, .. }
+            | Candidate::Pair { shape, .. }
+            | Candidate::Other { shape, .. } => *shape,
         }
     }
 }
@@ -788,6 +882,67 @@ mod tests {
 
     /// Rays spawned from points on a closed room's walls never hit their own wall and never
     /// escape; walls on the coordinate planes (error bound exactly 0) are the hard case.
+    #[test]
+    fn a_quads_halves_pair_and_nothing_else_does() {
+        let c = cube(1.0, Vec3::ZERO);
+        // each face's two halves, (a, b, c) and (a, c, d)
+        for f in 0..6 {
+            let pair = Pair::of(&c, 2 * f).expect("a face's halves pair");
+            let [a, b, cc, d] = pair.q;
+            assert_eq!(pair.p, [[a, b, cc], [a, cc, d]]);
+            assert_eq!(pair.n, [c.normal(2 * f), c.normal(2 * f + 1)]);
+        }
+        // halves of different faces: their boxes differ (or they share no edge)
+        for f in 0..5 {
+            assert_eq!(Pair::of(&c, 2 * f + 1), None);
+        }
+        let agg = Aggregate::new(vec![Shape::Mesh(c.clone())]);
+        assert_eq!((agg.pairs.len(), agg.candidates.len()), (6, 6));
+        // the second half wound the other way, a rotated first half, no shared edge
+        let p = c.positions.clone();
+        let flipped = TriangleMesh::new(p.clone(), vec![[0, 2, 3], [0, 3, 2]], false);
+        assert_eq!(Pair::of(&flipped, 0), None);
+        let rotated = TriangleMesh::new(p.clone(), vec![[3, 0, 2], [0, 3, 1]], false);
+        assert!(Pair::of(&rotated, 0).is_some());
+        let apart = TriangleMesh::new(p, vec![[0, 2, 3], [4, 5, 7]], false);
+        assert_eq!(Pair::of(&apart, 0), None);
+    }
+
+    #[test]
+    fn paired_triangles_give_the_hits_of_single_triangles() {
+        // the same cube with every triangle its own shape (so nothing pairs)
+        let c = cube(3.0, Vec3::new(-1.0, 0.5, 2.0));
+        let paired = Aggregate::new(vec![Shape::Mesh(c.clone())]);
+        let single = Aggregate::new(
+            c.triangles
+                .iter()
+                .map(|&t| Shape::Mesh(TriangleMesh::new(c.positions.clone(), vec![t], false)))
+                .collect(),
+        );
+        assert_eq!(single.pairs.len(), 0);
+        let mut s = SampleStream::new(7, 0, 0);
+        let mut hits = 0;
+        for _ in 0..20_000 {
+            let o = Vec3::new(s.next_f64(), s.next_f64(), s.next_f64()) * 8.0 - 2.0;
+            let d = warp::uniform_sphere(s.next_2d());
+            let r = Ray { o, d };
+            let (a, b) = (
+                paired.intersect(&r, f64::INFINITY),
+                single.intersect(&r, f64::INFINITY),
+            );
+            assert_eq!(a.is_some(), b.is_some(), "{r:?}");
+            if let (Some(a), Some(b)) = (a, b) {
+                hits += 1;
+                // the rotated corners may round the determinant and t differently (1 ulp)
+                assert!((a.t - b.t).abs() <= 1e-12 * b.t, "{} vs {}", a.t, b.t);
+                assert!((a.point.p - b.point.p).length() <= 1e-12 * (1.0 + b.t));
+                assert_eq!(a.point.n, b.point.n);
+            }
+            assert_eq!(paired.occluded(&r, 4.0), single.occluded(&r, 4.0), "{r:?}");
+        }
+        assert!(hits > 2_000, "{hits}");
+    }
+
     #[test]
     fn spawned_rays_never_self_intersect_on_coordinate_planes() {
         use crate::geometry::ray::spawn;
