@@ -381,15 +381,20 @@ impl Aggregate {
     /// meets, nearest boxes first; `visit` returns the ray's new f32 end (a hit) or +inf.
     /// With `any`, the walk stops at the first hit. Returns true when `visit` reported a hit.
     ///
-    /// The walk is obvhs's (`obvhs::traverse!`) on a stack of one entry per BVH level: 32 in
-    /// place, or on the heap for a deeper tree, where obvhs's own stack (32 entries, the last
-    /// overwritten beyond that) would lose nodes. One stack type, so the primitive test is
-    /// inlined into a single walk.
+    /// The walk is obvhs's (`obvhs::traverse!`) on a stack of one entry per BVH level: 8 or 32
+    /// in place, or on the heap for a deeper tree, where obvhs's own stack (32 entries, the
+    /// last overwritten beyond that) would lose nodes. One stack type, so the primitive test
+    /// is inlined into a single walk.
     #[inline(always)]
     fn traverse(&self, ray: BvhRay, any: bool, visit: impl FnMut(usize) -> f32) -> bool {
-        let mut local = [UVec2::ZERO; WALK_LEVELS];
+        // (zeroing the stack is part of every query's set-up: a shallow tree gets a short one)
+        let mut shallow = [UVec2::ZERO; SHALLOW_LEVELS];
+        let mut local;
         let mut deep = Vec::new();
-        let entries: &mut [UVec2] = if self.depth <= WALK_LEVELS {
+        let entries: &mut [UVec2] = if self.depth <= SHALLOW_LEVELS {
+            &mut shallow
+        } else if self.depth <= WALK_LEVELS {
+            local = [UVec2::ZERO; WALK_LEVELS];
             &mut local
         } else {
             deep.resize(self.depth, UVec2::ZERO);
@@ -511,6 +516,9 @@ impl Candidate {
 
 /// BVH levels whose traversal stack lives in place.
 const WALK_LEVELS: usize = 32;
+
+/// BVH levels of a tree that gets the shorter in-place stack.
+const SHALLOW_LEVELS: usize = 8;
 
 /// The traversal stack: node groups still to visit, at most one per BVH level, in storage
 /// sized for the tree.
@@ -801,8 +809,9 @@ mod tests {
 
     #[test]
     fn a_tree_deeper_than_the_in_place_stack_walks_the_same() {
-        // the heap stack, forced on a shallow tree, must give the same answers as the
-        // in-place one (a truly deep tree needs a pathological primitive distribution)
+        // the longer in-place stack and the heap stack, forced on a shallow tree, must give
+        // the same answers as the short one (a truly deep tree needs a pathological primitive
+        // distribution)
         let shapes: Vec<Shape> = (0..40)
             .map(|k| {
                 Shape::Sphere(Sphere {
@@ -813,7 +822,9 @@ mod tests {
             })
             .collect();
         let shallow = Aggregate::new(shapes);
-        assert!(shallow.depth >= 2 && shallow.depth <= WALK_LEVELS);
+        assert!(shallow.depth >= 2 && shallow.depth <= SHALLOW_LEVELS);
+        let mut middle = shallow.clone();
+        middle.depth = SHALLOW_LEVELS + 3;
         let mut deep = shallow.clone();
         deep.depth = WALK_LEVELS + 7;
         let mut s = SampleStream::new(5, 0, 0);
@@ -828,9 +839,11 @@ mod tests {
                 o,
                 d: (aim - o).normalize(),
             };
-            let (a, b) = (shallow.intersect(&r, 1e3), deep.intersect(&r, 1e3));
-            assert_eq!(a.map(|h| (h.t, h.shape)), b.map(|h| (h.t, h.shape)));
-            assert_eq!(shallow.occluded(&r, 50.0), deep.occluded(&r, 50.0));
+            let a = shallow.intersect(&r, 1e3).map(|h| (h.t, h.shape));
+            for other in [&middle, &deep] {
+                assert_eq!(a, other.intersect(&r, 1e3).map(|h| (h.t, h.shape)));
+                assert_eq!(shallow.occluded(&r, 50.0), other.occluded(&r, 50.0));
+            }
             hits += a.is_some() as u32;
         }
         assert!(hits > 100, "{hits} hits");
