@@ -341,11 +341,8 @@ fn medium(x: &mut String, name: &str, m: &Medium) {
             t.push(a + sc);
             al.push(if a + sc > 0.0 { sc / (a + sc) } else { 0.0 });
         }
-        let table = |values| Spectrum::Tabulated {
-            wavelengths: wavelengths.clone(),
-            values,
-            outside: crate::spectrum::Outside::Clamp,
-        };
+        let table =
+            |values| Spectrum::table(wavelengths.clone(), values, crate::spectrum::Outside::Clamp);
         spectrum(x, 4, "sigma_t", &table(t));
         spectrum(x, 4, "albedo", &table(al));
     }
@@ -414,6 +411,7 @@ fn spectrum(x: &mut String, indent: usize, name: &str, s: &Spectrum) {
             wavelengths,
             values,
             outside,
+            ..
         } => {
             let pairs = super::table_pairs(wavelengths, values, *outside);
             let _ = writeln!(

@@ -237,6 +237,7 @@ fn spectrum(name: &str, s: &Spectrum) -> String {
             wavelengths,
             values,
             outside,
+            ..
         } => {
             let mut p = super::table_pairs(wavelengths, values, *outside);
             if p.len() == 1 {

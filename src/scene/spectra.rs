@@ -301,11 +301,7 @@ fn power_law(exponent: f64, reference: f64, scale: f64) -> Spectrum {
         .iter()
         .map(|l| scale * (l / reference).powf(exponent))
         .collect();
-    Spectrum::Tabulated {
-        wavelengths,
-        values,
-        outside: Outside::Clamp,
-    }
+    Spectrum::table(wavelengths, values, Outside::Clamp)
 }
 
 fn number(v: &Value) -> Option<f64> {

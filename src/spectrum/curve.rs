@@ -2,6 +2,7 @@
 //! wavelengths in nm.
 
 use super::{SampledSpectrum, Wavelengths, LAMBDA_MAX, LAMBDA_MIN, N_WAVELENGTHS};
+use std::sync::Arc;
 
 /// What a table returns outside its first and last wavelength.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -26,6 +27,9 @@ pub enum Spectrum {
         values: Vec<f64>,
         /// Behaviour outside the table.
         outside: Outside,
+        /// The curve at every whole nm, for fast sampling, when that is exact (see [`Grid`]);
+        /// derived from the fields above.
+        grid: Grid,
     },
     /// Planck's spectral radiance at `kelvin`, times `scale`, in W·sr⁻¹·m⁻²·nm⁻¹.
     Blackbody {
@@ -34,6 +38,73 @@ pub enum Spectrum {
         /// Multiplier.
         scale: f64,
     },
+}
+
+/// A table's curve at every whole nm from [`LAMBDA_MIN`] to [`LAMBDA_MAX`], kept when every
+/// table wavelength is a whole nm in that range: then linear interpolation between the
+/// whole-nm values is the table's own piecewise-linear curve between its first and last
+/// wavelength (up to rounding, ~1e-16 relative), and a lookup needs neither a search nor a
+/// division. Derived from the table, so it never makes two spectra unequal.
+#[derive(Clone, Default)]
+pub struct Grid(Option<Arc<[f64]>>);
+
+impl std::fmt::Debug for Grid {
+    /// Whether there is one, not its 471 values.
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self.0 {
+            Some(_) => "Grid(every whole nm)",
+            None => "Grid(none)",
+        })
+    }
+}
+
+impl PartialEq for Grid {
+    fn eq(&self, _: &Grid) -> bool {
+        true
+    }
+}
+
+impl Grid {
+    /// The grid of a valid table (strictly increasing finite wavelengths, as many values), or
+    /// none when a wavelength is not a whole nm in range or the table has fewer than 2 rows.
+    pub fn of(wavelengths: &[f64], values: &[f64], outside: Outside) -> Grid {
+        let n = wavelengths.len();
+        let whole = |w: &f64| w.fract() == 0.0 && (LAMBDA_MIN..=LAMBDA_MAX).contains(w);
+        if n < 2 || values.len() != n || !wavelengths.iter().all(whole) {
+            return Grid(None);
+        }
+        let (first, last) = (wavelengths[0], wavelengths[n - 1]);
+        let scale = (n - 1) as f64 / (last - first);
+        let count = (LAMBDA_MAX - LAMBDA_MIN) as usize + 1;
+        let grid = (0..count)
+            .map(|k| {
+                let l = LAMBDA_MIN + k as f64;
+                if l >= first && l < last {
+                    interpolate(wavelengths, values, l, scale)
+                } else {
+                    // read only at `last` (the right end of the last interval); elsewhere
+                    // outside the table sampling takes `eval`
+                    match (outside, l < first) {
+                        (Outside::Clamp, true) => values[0],
+                        (Outside::Zero, _) if l != last => 0.0,
+                        _ => values[n - 1],
+                    }
+                }
+            })
+            .collect();
+        Grid(Some(grid))
+    }
+
+    /// The curve at `lambda` nm (LAMBDA_MIN <= lambda < LAMBDA_MAX) from grid `g`.
+    #[inline(always)]
+    fn lerp(g: &[f64], lambda: f64) -> f64 {
+        let x = lambda - LAMBDA_MIN;
+        // (through i64, as in `interpolate`; x >= 0)
+        let i = x as i64 as usize;
+        let t = x - i as f64;
+        let ab = &g[i..i + 2];
+        ab[0] + t * (ab[1] - ab[0])
+    }
 }
 
 /// Linear interpolation of a table (n >= 2, strictly increasing wavelengths, as many values)
@@ -118,11 +189,19 @@ impl Spectrum {
             return Err(SpectrumError::NotFinite { index: i, value: v });
         }
         let values = values.into_iter().map(|v| v * scale).collect();
-        Ok(Spectrum::Tabulated {
+        Ok(Spectrum::table(wavelengths, values, outside))
+    }
+
+    /// A table from already-validated parts (strictly increasing finite wavelengths, as many
+    /// finite values), with its [`Grid`].
+    pub fn table(wavelengths: Vec<f64>, values: Vec<f64>, outside: Outside) -> Self {
+        let grid = Grid::of(&wavelengths, &values, outside);
+        Spectrum::Tabulated {
             wavelengths,
             values,
             outside,
-        })
+            grid,
+        }
     }
 
     /// A validated blackbody.
@@ -141,11 +220,12 @@ impl Spectrum {
                 wavelengths,
                 values,
                 outside,
-            } => Spectrum::Tabulated {
-                wavelengths: wavelengths.clone(),
-                values: values.iter().map(|v| v * f).collect(),
-                outside: *outside,
-            },
+                ..
+            } => Spectrum::table(
+                wavelengths.clone(),
+                values.iter().map(|v| v * f).collect(),
+                *outside,
+            ),
             Spectrum::Blackbody { kelvin, scale } => Spectrum::Blackbody {
                 kelvin: *kelvin,
                 scale: scale * f,
@@ -161,6 +241,7 @@ impl Spectrum {
                 wavelengths,
                 values,
                 outside,
+                ..
             } => {
                 let n = wavelengths.len();
                 let (first, last) = (wavelengths[0], wavelengths[n - 1]);
@@ -190,20 +271,31 @@ impl Spectrum {
             Spectrum::Tabulated {
                 wavelengths,
                 values,
+                grid,
                 ..
             } if wavelengths.len() >= 2 => {
                 let n = wavelengths.len();
                 let (first, last) = (wavelengths[0], wavelengths[n - 1]);
-                let scale = (n - 1) as f64 / (last - first);
-                // (an index loop: `[T; N]::map` compiled to a call per lane through its
+                // (index loops: `[T; N]::map` compiled to a call per lane through its
                 // try-fold machinery here)
                 let mut out = [0.0; N_WAVELENGTHS];
-                for (o, &l) in out.iter_mut().zip(&wl.lambda) {
-                    *o = if l >= first && l < last {
-                        interpolate(wavelengths, values, l, scale)
-                    } else {
-                        self.eval(l)
-                    };
+                if let Some(g) = &grid.0 {
+                    for (o, &l) in out.iter_mut().zip(&wl.lambda) {
+                        *o = if l >= first && l < last {
+                            Grid::lerp(g, l)
+                        } else {
+                            self.eval(l)
+                        };
+                    }
+                } else {
+                    let scale = (n - 1) as f64 / (last - first);
+                    for (o, &l) in out.iter_mut().zip(&wl.lambda) {
+                        *o = if l >= first && l < last {
+                            interpolate(wavelengths, values, l, scale)
+                        } else {
+                            self.eval(l)
+                        };
+                    }
                 }
                 SampledSpectrum(out)
             }
@@ -304,6 +396,41 @@ mod tests {
             }
             for &x in &w {
                 assert_eq!(s.eval(x), v[w.iter().position(|y| *y == x).unwrap()]);
+            }
+        }
+    }
+
+    #[test]
+    fn grid_sampling_is_the_table_curve_and_only_for_whole_nm_tables() {
+        let whole = (0..76)
+            .map(|i| 400.0 + 4.0 * i as f64)
+            .collect::<Vec<f64>>();
+        let uneven = vec![360.0, 361.0, 400.0, 556.0, 700.0, 829.0, 830.0];
+        let fractional = vec![400.0, 555.5, 700.0];
+        for (w, gridded) in [(whole, true), (uneven, true), (fractional, false)] {
+            for outside in [Outside::Zero, Outside::Clamp] {
+                let v: Vec<f64> = w.iter().map(|x| 1.5 + (x * 0.37).sin()).collect();
+                let s = Spectrum::tabulated(w.clone(), v, outside, 1.0).unwrap();
+                let Spectrum::Tabulated { grid, .. } = &s else {
+                    unreachable!()
+                };
+                assert_eq!(grid.0.is_some(), gridded, "{w:?}");
+                // every wavelength from 360 to 830 nm, the table's ends and their
+                // neighbourhoods included: sample (which takes the grid) against eval
+                let mut lambda = LAMBDA_MIN;
+                while lambda < LAMBDA_MAX {
+                    let wl = Wavelengths {
+                        lambda: [lambda; N_WAVELENGTHS],
+                        pdf: [1.0; N_WAVELENGTHS],
+                        secondary_terminated: false,
+                    };
+                    let (got, want) = (s.sample(&wl).0[0], s.eval(lambda));
+                    assert!(
+                        (got - want).abs() <= 1e-15 * want.abs(),
+                        "{lambda}: {got} vs {want}"
+                    );
+                    lambda += 0.0731;
+                }
             }
         }
     }

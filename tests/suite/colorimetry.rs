@@ -96,6 +96,7 @@ fn the_colorimetry_check_rejects_a_one_percent_error() {
         wavelengths,
         values,
         outside,
+        ..
     } = &refl[0]
     else {
         panic!("tabulated")
