@@ -114,11 +114,16 @@ impl<'a> FilmResponse<'a> {
         // (dispersion) the integrator scales the hero by the lane count instead, so what the
         // path gathered before keeps its 1/lanes weight (integrators::path).
         let mut xyz = [0.0; 3];
+        // every lane's radiance over pdf at once (four divisions in one instruction); lanes
+        // past `lanes` are left out of the sum
+        let mut k = [0.0; N_WAVELENGTHS];
+        for i in 0..N_WAVELENGTHS {
+            k[i] = l.0[i] / wl.pdf[i];
+        }
         for i in 0..self.lanes {
             let c = self.observer.cmf(wl.lambda[i]);
-            let k = l.0[i] / wl.pdf[i];
             for j in 0..3 {
-                xyz[j] += k * c[j];
+                xyz[j] += k[i] * c[j];
             }
         }
         xyz.map(|v| v * self.y_norm / self.lanes as f64)
