@@ -117,13 +117,13 @@ impl<'a> FilmResponse<'a> {
         // every lane's radiance over pdf at once (four divisions in one instruction); lanes
         // past `lanes` are left out of the sum
         let mut k = [0.0; N_WAVELENGTHS];
-        for i in 0..N_WAVELENGTHS {
-            k[i] = l.0[i] / wl.pdf[i];
+        for (k, (l, pdf)) in k.iter_mut().zip(l.0.iter().zip(&wl.pdf)) {
+            *k = l / pdf;
         }
-        for i in 0..self.lanes {
-            let c = self.observer.cmf(wl.lambda[i]);
+        for (&k, &lambda) in k.iter().zip(&wl.lambda).take(self.lanes) {
+            let c = self.observer.cmf(lambda);
             for j in 0..3 {
-                xyz[j] += k[i] * c[j];
+                xyz[j] += k * c[j];
             }
         }
         xyz.map(|v| v * self.y_norm / self.lanes as f64)
