@@ -3,6 +3,7 @@
 mod adapter;
 mod cli;
 mod colorimetry;
+mod digests;
 mod export;
 mod layering;
 mod manifest_errors;

@@ -25,6 +25,11 @@ fn default_manifests_pass() {
         vec![],
         &mut |_| {},
     );
+    // Regression baseline (not validation): the suite's numbers at seed 1, bit for bit.
+    crate::digests::compare_with_baseline(
+        "tests/digests/default-suite-seed1.txt",
+        &crate::digests::report_digest(&report),
+    );
     let lines: Vec<String> = report.outcomes.iter().map(text::line).collect();
     assert!(
         report.outcomes.iter().all(|o| !o.is_failure()),
