@@ -136,14 +136,14 @@ fn shapes_of_one_material_share_its_index_and_flat_shapes_are_planar() {
     assert!(m[3] != m[0] && m[4] != m[0] && m[3] != m[4] && m[5] != m[0]);
 }
 
-/// The README's complete scene example is a valid scene (parsed as if it lived in scenes/).
+/// The complete example of docs/scenes.md is a valid scene (parsed as if it lived in scenes/).
 #[test]
 fn readme_scene_example_is_valid() {
-    let readme = std::fs::read_to_string(root("README.md")).unwrap();
+    let readme = std::fs::read_to_string(root("docs/scenes.md")).unwrap();
     let section = readme
-        .split("### Scene format")
+        .split("## A complete example")
         .nth(1)
-        .expect("README has a scene format section");
+        .expect("docs/scenes.md has a complete-example section");
     let block = section
         .split("```toml")
         .nth(1)
