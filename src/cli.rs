@@ -4,11 +4,11 @@
 
 use anyhow::{Context, Result};
 use clap::{Args, Parser, Subcommand};
-use furnace::film::io;
 use furnace::harness::compare::{self, RgbImage};
 use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
 use furnace::integrators::{PathTracer, Strategy};
+use furnace::io::image as io;
 use furnace::math::rng::Sampler;
 use furnace::render::{render, render_light_paths, RenderSettings};
 use furnace::report::{html, json, junit, text};
@@ -530,7 +530,7 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
                 eprintln!("renderer {label} is not available, its checks are skipped: {why}");
                 let mut r = harness::run(&[], &opts, renderer, names.clone(), &mut |_| {});
                 for s in &specs {
-                    let mut o = Outcome::new(&s.name, &s.kind);
+                    let mut o = Outcome::new(&s.name, s.kind_name());
                     o.verdict = Verdict::Skipped;
                     o.message = format!("renderer {label} is not available: {why}");
                     r.outcomes.push(o);
@@ -559,7 +559,7 @@ fn check_command(a: CheckArgs) -> Result<i32, Failure> {
         }
         // checks excluded by --filter are reported as skipped
         for s in &skipped {
-            let mut o = Outcome::new(&s.name, &s.kind);
+            let mut o = Outcome::new(&s.name, s.kind_name());
             o.verdict = Verdict::Skipped;
             o.message = "not matching --filter".into();
             report.outcomes.push(o);
@@ -670,14 +670,17 @@ fn converge_command(a: ConvergeArgs) -> Result<i32, Failure> {
         let specs =
             manifest::load(f).with_context(|| format!("invalid manifest {}", f.display()))?;
         let mut series = Vec::new();
-        for spec in specs.iter().filter(|s| s.kind == "convergence") {
+        for (spec, params) in specs
+            .iter()
+            .filter_map(|s| s.params_as::<convergence::Params>().map(|p| (s, p)))
+        {
             let ctx = harness::Context {
                 renderer: &BuiltIn,
-                seed: harness::check_seed(spec, a.seed),
+                seed: harness::check_seed(spec.seed, &spec.name, a.seed),
                 threads: a.threads,
                 alpha: 0.01,
             };
-            let l = convergence::ladder(spec, &ctx)
+            let l = convergence::ladder(spec, params, &ctx)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", spec.name))?;
             let last = l.rungs.last().expect("a ladder has rungs");
             let per_sample = last.seconds / last.samples.max(1) as f64;

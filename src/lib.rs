@@ -2,7 +2,7 @@
 //! renderer.
 //!
 //! Module chain (a module uses only those to its left; `tests/suite/layering.rs` enforces it):
-//! `math ← stats ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
+//! `math ← stats ← io ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
 //! {integrators, export} ← render ← harness ← report`, with the `furnace` binary (`cli.rs`) on top.
 
 pub mod camera;
@@ -11,6 +11,7 @@ pub mod film;
 pub mod geometry;
 pub mod harness;
 pub mod integrators;
+pub mod io;
 pub mod lights;
 pub mod math;
 pub mod media;

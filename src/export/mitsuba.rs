@@ -372,32 +372,13 @@ fn ply_shape(
     triangles: &[[u32; 3]],
 ) {
     let rel = format!("meshes/shape-{i:03}.ply");
-    meshes.push((rel.clone(), ply(positions, triangles)));
+    meshes.push((
+        rel.clone(),
+        crate::io::mesh::ply_binary_f32(positions, triangles),
+    ));
     let _ = writeln!(x, "  <shape type=\"ply\" id=\"shape-{i:03}\">");
     let _ = writeln!(x, "    <string name=\"filename\" value=\"{rel}\"/>");
     boolean(x, "face_normals", true);
-}
-
-/// Binary little-endian PLY: float32 positions (Mitsuba stores f32), int32 indices.
-pub fn ply(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<u8> {
-    let mut b = format!(
-        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
-        positions.len(),
-        triangles.len()
-    )
-    .into_bytes();
-    for p in positions {
-        for c in [p.x, p.y, p.z] {
-            b.extend_from_slice(&(c as f32).to_le_bytes());
-        }
-    }
-    for t in triangles {
-        b.push(3);
-        for &k in t {
-            b.extend_from_slice(&(k as i32).to_le_bytes());
-        }
-    }
-    b
 }
 
 /// One `<spectrum>` element named `name`, indented by `indent` spaces.

@@ -14,8 +14,6 @@
 //! radiance of 1 W·sr⁻¹·m⁻²·nm⁻¹ reads Y = 1; `variance.R` … `variance.Z`: the estimated
 //! variance of each pixel mean (s²/n); header attributes `furnace.spp`, `furnace.seed` etc.
 
-pub mod io;
-
 use crate::stats::MeanVar;
 
 /// Channel names in storage order: X, Y, Z, then linear sRGB R, G, B.
@@ -108,7 +106,7 @@ impl Film {
     }
 
     /// The EXR layers (see the module doc for channel names), with string attributes.
-    pub fn to_layers(&self, attributes: Vec<(String, String)>) -> io::Layers {
+    pub fn to_layers(&self, attributes: Vec<(String, String)>) -> crate::io::image::Layers {
         let mut channels = Vec::with_capacity(12);
         for (c, name) in CHANNELS.iter().enumerate() {
             channels.push((
@@ -123,7 +121,7 @@ impl Film {
                     .collect(),
             ));
         }
-        io::Layers {
+        crate::io::image::Layers {
             width: self.width,
             height: self.height,
             channels,

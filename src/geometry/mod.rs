@@ -9,7 +9,6 @@
 
 pub mod accel;
 pub mod mesh;
-pub mod meshio;
 pub mod quad;
 pub mod ray;
 pub mod shape;

@@ -31,10 +31,11 @@
 //! forms apply exactly to grey scenes. When a check asks for another pipeline's RGB, the RGB
 //! is converted through XYZ (exact for flat spectra only).
 
-use super::Renderer;
+use super::renderer::{Renderer, RendererError};
 use crate::export;
-use crate::film::{io, Film};
+use crate::film::Film;
 use crate::integrators::Strategy;
+use crate::io::image as io;
 use crate::render::RenderSettings;
 use crate::scene::{Scene, Source};
 use crate::spectrum::Observer;
@@ -98,13 +99,9 @@ pub const PLACEHOLDERS: [&str; 9] = [
 
 /// Reads a renderers file; errors give file:line:column or name the renderer and key.
 pub fn load_renderers(path: &Path) -> Result<BTreeMap<String, RendererDesc>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let src = Source { path, text: &text };
-    let f: RenderersFile = toml::from_str(&text).map_err(|e| {
-        src.error(e.span().unwrap_or(0..0), "", e.message().trim_end())
-            .to_string()
-    })?;
+    let text = crate::io::read_text(path, "the renderers file").map_err(|e| e.to_string())?;
+    let f: RenderersFile =
+        crate::io::parse_toml(&Source { path, text: &text }).map_err(|e| e.to_string())?;
     for (name, d) in &f.renderer {
         let at = |k: &str, m: String| format!("{}: renderer.{name}.{k}: {m}", path.display());
         if d.exporter != "mitsuba3" {
@@ -255,7 +252,14 @@ impl Renderer for External {
         false
     }
 
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, RendererError> {
+        self.render_batches(scene, s).map_err(RendererError)
+    }
+}
+
+impl External {
+    /// Renders the image as `batches` independent runs of the command.
+    fn render_batches(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
         if s.integrator.strategy != Strategy::Mis {
             return Err(format!(
                 "{} runs its own estimator; checks that select BSDF-only or light-only sampling do not apply",

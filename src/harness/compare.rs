@@ -11,11 +11,13 @@
 //! rendering literature: RMSE, relMSE with ε (Rousselle et al. 2011, "Adaptive sampling and
 //! reconstruction using greedy error minimization", eq. 9 form (x − y)²/(y² + ε)), SMAPE.
 
-use super::checks::z_with_tolerance;
-use crate::film::io::{read_exr, Layers};
+use super::error::CheckError;
+use super::measurement::{fmt_sig, Measurement};
+use super::outcome::Statistic;
 use crate::film::Film;
+use crate::io::image::{read_exr, Layers};
 use crate::scene::{SceneError, Source};
-use crate::stats::{multiple, welch_test};
+use crate::stats::{multiple, welch_test, z_with_tolerance};
 use serde::Deserialize;
 
 /// Colour channels compared.
@@ -158,10 +160,30 @@ pub struct Regions {
 
 /// Parses a regions file (`[[region]]` tables); a TOML error names the file, line and column.
 pub fn parse_regions(text: &str, path: &std::path::Path) -> Result<Vec<Region>, SceneError> {
-    let r: Regions = toml::from_str(text).map_err(|e| {
-        Source { path, text }.error(e.span().unwrap_or(0..0), "", e.message().trim_end())
-    })?;
+    let r: Regions = crate::io::parse_toml(&Source { path, text })?;
     Ok(r.region)
+}
+
+/// The named regions of a regions file given by manifest key `key` (relative to the manifest),
+/// read and validated when the manifest is loaded, so that a bad regions file is an invalid
+/// manifest (exit 2), located in the regions file. Empty when the key is absent.
+pub fn regions_key(k: &super::keys::Keys, key: &str) -> Result<Vec<Region>, SceneError> {
+    let Some(r) = k.get::<String>(key)? else {
+        return Ok(Vec::new());
+    };
+    let p = k.base.join(r.get_ref());
+    let text = std::fs::read_to_string(&p)
+        .map_err(|e| k.error(r.span(), key, format!("cannot read {}: {e}", p.display())))?;
+    let regions = parse_regions(&text, &p)?;
+    let rsrc = Source {
+        path: &p,
+        text: &text,
+    };
+    for reg in &regions {
+        reg.pixels(1, 1)
+            .map_err(|m| rsrc.error(0..0, "region", m))?;
+    }
+    Ok(regions)
 }
 
 impl Region {
@@ -378,7 +400,7 @@ pub fn compare(
                     zmax[i] = zmax[i].max(t.abs().min(1e6));
                 }
             }
-            let k = benjamini_hochberg(&ps.iter().map(|x| x.1).collect::<Vec<_>>(), q);
+            let k = multiple::benjamini_hochberg(&ps.iter().map(|x| x.1).collect::<Vec<_>>(), q);
             let mut sorted: Vec<(usize, f64)> = ps.clone();
             sorted.sort_by(|a, b| a.1.total_cmp(&b.1));
             let mut px = std::collections::BTreeSet::new();
@@ -399,19 +421,63 @@ pub fn compare(
     })
 }
 
-/// Number of hypotheses rejected by the Benjamini–Hochberg step-up procedure at FDR `q`:
-/// the largest k with p₍ₖ₎ ≤ k·q/m (Benjamini & Hochberg 1995, §3). NaN p-values count as 0.
-pub fn benjamini_hochberg(p: &[f64], q: f64) -> usize {
-    let m = p.len();
-    let mut s: Vec<f64> = p
+/// The measurement of a set of region × channel z tests: p is the Šidák combination of the
+/// smallest p over the m tests, 1 − (1 − p_min)^m (Šidák 1967); the worst region's numbers are
+/// shown, with the three smallest p. `what` describes the comparison for the message.
+pub fn regions_measurement(
+    regions: &[RegionResult],
+    samples: u64,
+    what: &str,
+) -> Result<Measurement, CheckError> {
+    if let Some(r) = regions.iter().find(|r| r.p.is_nan()) {
+        return Err(CheckError::Setup(format!(
+            "region {:?} channel {} has a non-finite mean or standard error (test {} ± {}, reference {} ± {})",
+            r.region, r.channel, r.test.0, r.test.1, r.reference.0, r.reference.1
+        )));
+    }
+    let m = regions.len();
+    let worst = regions
         .iter()
-        .map(|x| if x.is_nan() { 0.0 } else { *x })
+        .min_by(|a, b| a.p.total_cmp(&b.p))
+        .ok_or("no region to compare")?;
+    let p_min = worst.p;
+    // Šidák: P(min of m independent uniform p ≤ p_min) = 1 − (1 − p_min)^m.
+    let p = -((-p_min).ln_1p() * m as f64).exp_m1();
+    let se = (worst.test.1.powi(2) + worst.reference.1.powi(2)).sqrt();
+    let rel = |r: &RegionResult| {
+        if r.reference.0 != 0.0 {
+            format!("{:+.3}%", 100.0 * (r.test.0 / r.reference.0 - 1.0))
+        } else {
+            "n/a".into()
+        }
+    };
+    let mut listed: Vec<&RegionResult> = regions.iter().collect();
+    listed.sort_by(|a, b| a.p.total_cmp(&b.p));
+    let top: Vec<String> = listed
+        .iter()
+        .take(3)
+        .map(|r| format!("{} {} {} (z {:.2})", r.region, r.channel, rel(r), r.z))
         .collect();
-    s.sort_by(f64::total_cmp);
-    (1..=m)
-        .rev()
-        .find(|&k| s[k - 1] <= k as f64 * q / m as f64)
-        .unwrap_or(0)
+    Ok(Measurement {
+        estimate: Some(worst.test.0),
+        std_error: Some(se),
+        expected: Some(worst.reference.0),
+        statistic: Some(Statistic::Z { z: worst.z }),
+        p_value: Some(p.min(1.0)),
+        samples,
+        message: format!(
+            "{m} region x channel z tests ({what}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
+            worst.region,
+            worst.channel,
+            fmt_sig(worst.test.0),
+            fmt_sig(worst.test.1),
+            fmt_sig(worst.reference.0),
+            fmt_sig(worst.reference.1),
+            top.join("; ")
+        ),
+        variants: m,
+        ..Default::default()
+    })
 }
 
 #[cfg(test)]
@@ -570,17 +636,6 @@ mod tests {
         assert!((m.smape - 0.2 / 2.1).abs() < 1e-12);
         // exact images: zero se on both sides, any difference rejects
         assert!(c.differ && !c.reference_has_variance && c.flagged_pixels.is_none());
-    }
-
-    #[test]
-    fn bh_textbook() {
-        // Benjamini & Hochberg 1995, §4 example with 15 p-values: 4 rejected at q = 0.05.
-        let p = [
-            0.0001, 0.0004, 0.0019, 0.0095, 0.0201, 0.0278, 0.0298, 0.0344, 0.0459, 0.3240, 0.4262,
-            0.5719, 0.6528, 0.7590, 1.0,
-        ];
-        assert_eq!(benjamini_hochberg(&p, 0.05), 4);
-        assert_eq!(benjamini_hochberg(&[], 0.05), 0);
     }
 
     #[test]

@@ -1,394 +1,43 @@
-//! The models the BSDF-level checks iterate over: every BSDF configuration, phase function
-//! and sampling routine furnace ships is enrolled here once, so a new model is covered by
-//! reciprocity, energy, chi-square and sample-weight checks without new check code.
+//! Every check kind, one line each: adding a kind is a file in `checks/` and a line here.
+//! The order is the order error messages list them in.
 
-use crate::geometry::{
-    mesh::TriangleMesh, quad::Quad, sphere::Sphere, triangle::ShearedRay, Ray, Shape,
+use super::checks::{
+    albedo, chi2, convergence, energy, estimators, furnace, half_space, hg, image, lambert,
+    measured, phase, radiance, reciprocity, reciprocity_image, scale, smooth_limit, transmittance,
+    weights,
 };
-use crate::lights::Light;
-use crate::math::{warp, Vec3};
-use crate::media::{HenyeyGreenstein, Phase, PhaseFunction};
-use crate::scattering::microfacet::Ggx;
-use crate::scattering::{
-    Bsdf, Bxdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward,
-};
-use crate::spectrum::{Outside, Spectrum, Wavelengths};
+use super::kind::{DynKind, Registered};
+use std::marker::PhantomData;
 
-/// Wavelengths (nm) at which BSDF-level checks evaluate spectral models.
-pub fn check_wavelengths() -> Wavelengths {
-    Wavelengths::fixed([380.0, 480.0, 580.0, 780.0], [1.0; 4])
+/// The kinds a manifest may name.
+pub static KINDS: &[&dyn DynKind] = &[
+    &Registered::<half_space::HalfSpace>(PhantomData),
+    &Registered::<transmittance::Transmittance>(PhantomData),
+    &Registered::<furnace::Furnace>(PhantomData),
+    &Registered::<lambert::Lambert>(PhantomData),
+    &Registered::<reciprocity::Reciprocity>(PhantomData),
+    &Registered::<energy::Energy>(PhantomData),
+    &Registered::<albedo::Albedo>(PhantomData),
+    &Registered::<smooth_limit::SmoothLimit>(PhantomData),
+    &Registered::<hg::Hg>(PhantomData),
+    &Registered::<phase::PhaseKind>(PhantomData),
+    &Registered::<chi2::Chi2>(PhantomData),
+    &Registered::<radiance::RadianceInvariance>(PhantomData),
+    &Registered::<estimators::EstimatorAgreement>(PhantomData),
+    &Registered::<weights::SampleWeights>(PhantomData),
+    &Registered::<scale::ScaleInvariance>(PhantomData),
+    &Registered::<image::ImageCompare>(PhantomData),
+    &Registered::<measured::Measured>(PhantomData),
+    &Registered::<reciprocity_image::ReciprocityImage>(PhantomData),
+    &Registered::<convergence::Convergence>(PhantomData),
+];
+
+/// The kind named `name`.
+pub fn find(name: &str) -> Option<&'static dyn DynKind> {
+    KINDS.iter().copied().find(|k| k.name() == name)
 }
 
-/// Lobes narrower than this (GGX/Ward α) are not integrated on the fixed quadrature grids of
-/// the energy and sample-weight checks (the grid cannot resolve them; Monte Carlo still runs).
-pub const QUADRATURE_MIN_ROUGHNESS: f64 = 0.2;
-
-/// Lobes narrower than this are not chi-square tested on the default sphere binning; the
-/// `smooth_limit` check covers them against the smooth model instead.
-pub const CHI2_MIN_ROUGHNESS: f64 = 0.05;
-
-fn conductor(n: f64, k: f64, ax: f64, ay: f64) -> Bsdf {
-    Bsdf::Conductor(Conductor {
-        fresnel: ConductorFresnel::Complex {
-            eta: Spectrum::Constant(n),
-            k: Spectrum::Constant(k),
-        },
-        microfacet: Ggx::rough(ax, ay),
-    })
-}
-
-fn perfect(alpha: f64) -> Bsdf {
-    Bsdf::Conductor(Conductor {
-        fresnel: ConductorFresnel::Perfect,
-        microfacet: Ggx::rough(alpha, alpha),
-    })
-}
-
-fn dielectric(ior: Ior, alpha: f64) -> Bsdf {
-    Bsdf::Dielectric(Dielectric {
-        ior,
-        microfacet: Ggx::rough(alpha, alpha),
-    })
-}
-
-/// Every BSDF configuration, by name: each model at ordinary settings, the lossless and
-/// white limits used by the albedo check, and the extremes (roughness 1e-4, index 1.0001).
-pub fn bsdfs() -> Vec<(String, Bsdf)> {
-    let ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![0.05, 0.95], Outside::Clamp, 1.0)
-        .expect("valid ramp");
-    let n_ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![1.2, 0.2], Outside::Clamp, 1.0)
-        .expect("valid ramp");
-    let k_ramp = Spectrum::tabulated(vec![360.0, 830.0], vec![2.0, 4.0], Outside::Clamp, 1.0)
-        .expect("valid ramp");
-    let diffuse = |r: Spectrum| Bsdf::Diffuse(Lambertian { reflectance: r });
-    let ward = |d: f64, s: f64, ax: f64, ay: f64| {
-        Bsdf::Ward(Ward {
-            diffuse: Spectrum::Constant(d),
-            specular: Spectrum::Constant(s),
-            alpha_x: ax,
-            alpha_y: ay,
-        })
-    };
-    vec![
-        ("diffuse/0.5".into(), diffuse(Spectrum::Constant(0.5))),
-        ("diffuse/1".into(), diffuse(Spectrum::Constant(1.0))),
-        ("diffuse/0".into(), diffuse(Spectrum::Constant(0.0))),
-        ("diffuse/spectral-ramp".into(), diffuse(ramp)),
-        (
-            "conductor/smooth n=0.2 k=3".into(),
-            conductor(0.2, 3.0, 0.0, 0.0),
-        ),
-        ("conductor/smooth perfect".into(), perfect(0.0)),
-        (
-            "conductor/ggx α=0.3 spectral n,k".into(),
-            Bsdf::Conductor(Conductor {
-                fresnel: ConductorFresnel::Complex {
-                    eta: n_ramp,
-                    k: k_ramp,
-                },
-                microfacet: Ggx::rough(0.3, 0.3),
-            }),
-        ),
-        (
-            "conductor/ggx αx=0.1 αy=0.5".into(),
-            conductor(1.5, 2.0, 0.1, 0.5),
-        ),
-        ("conductor/ggx α=0.05 perfect".into(), perfect(0.05)),
-        ("conductor/ggx α=0.3 perfect".into(), perfect(0.3)),
-        ("conductor/ggx α=1 perfect".into(), perfect(1.0)),
-        (
-            "conductor/ggx α=1e-4".into(),
-            conductor(0.2, 3.0, 1e-4, 1e-4),
-        ),
-        (
-            "dielectric/smooth η=1.5".into(),
-            dielectric(Ior::Constant(1.5), 0.0),
-        ),
-        ("dielectric/smooth bk7".into(), dielectric(Ior::BK7, 0.0)),
-        (
-            "dielectric/smooth η=1.0001".into(),
-            dielectric(Ior::Constant(1.0001), 0.0),
-        ),
-        (
-            "dielectric/ggx α=0.1 η=1.5".into(),
-            dielectric(Ior::Constant(1.5), 0.1),
-        ),
-        (
-            "dielectric/ggx α=0.5 η=1.5".into(),
-            dielectric(Ior::Constant(1.5), 0.5),
-        ),
-        ("dielectric/ggx α=0.3 bk7".into(), dielectric(Ior::BK7, 0.3)),
-        (
-            "dielectric/ggx α=0.3 η=1.0001".into(),
-            dielectric(Ior::Constant(1.0001), 0.3),
-        ),
-        (
-            "dielectric/ggx α=1e-4 η=1.5".into(),
-            dielectric(Ior::Constant(1.5), 1e-4),
-        ),
-        ("ward/ρd=0.3 ρs=0.6 α=0.2".into(), ward(0.3, 0.6, 0.2, 0.2)),
-        (
-            "ward/ρd=0 ρs=1 αx=0.1 αy=0.4".into(),
-            ward(0.0, 1.0, 0.1, 0.4),
-        ),
-    ]
-}
-
-/// What a BSDF's directional albedo (with the η² factor of [`crate::scattering::Bxdf::eta`],
-/// i.e. the fraction of power scattered) must be, for the models where it is known.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub enum AlbedoExpectation {
-    /// Exactly 1 at the hero wavelength and every angle (smooth dielectric, perfect mirror).
-    Lossless,
-    /// A white microfacet model (F = 1 or a lossless interface): 1 minus the single-scattering
-    /// loss, which must lie in [min_loss, max_loss] at every tested angle (measured bounds;
-    /// README, "Energy loss of the rough models").
-    SingleScatteringLoss {
-        /// Smallest loss allowed.
-        min_loss: f64,
-        /// Largest loss allowed.
-        max_loss: f64,
-    },
-}
-
-/// The albedo expectation of a registered model (`name` from [`bsdfs`]): lossless models are
-/// recognised from the model itself, the loss bands of the white GGX models by name.
-pub fn albedo_expectation(name: &str, bsdf: &Bsdf) -> Option<AlbedoExpectation> {
-    use AlbedoExpectation::*;
-    if bsdf.is_lossless() {
-        return Some(Lossless);
-    }
-    let loss = |min_loss, max_loss| Some(SingleScatteringLoss { min_loss, max_loss });
-    match name {
-        "conductor/ggx α=0.05 perfect" => loss(0.0, 0.12),
-        "conductor/ggx α=0.3 perfect" => loss(0.10, 0.20),
-        "conductor/ggx α=1 perfect" => loss(0.37, 0.71),
-        "dielectric/ggx α=0.1 η=1.5" => loss(0.0, 0.09),
-        "dielectric/ggx α=0.5 η=1.5" => loss(0.02, 0.40),
-        _ => None,
-    }
-}
-
-/// Borrows named BSDFs as trait objects, the form the model-level checks take (so that
-/// negative controls can pass their own types).
-pub fn as_bxdfs(models: &[(String, Bsdf)]) -> Vec<(String, &dyn Bxdf)> {
-    models
-        .iter()
-        .map(|(n, b)| (n.clone(), b as &dyn Bxdf))
-        .collect()
-}
-
-/// A routine that samples directions, with the pdf it claims (per steradian).
-pub trait DirectionSampler {
-    /// A direction from uniform numbers, or None when the routine produces no sample.
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3>;
-    /// The claimed pdf of `w`, per steradian.
-    fn pdf(&self, w: Vec3) -> f64;
-}
-
-/// A BSDF's sampling routine for a fixed `wo` (local frame).
-pub struct BsdfSampler {
-    /// The BSDF.
-    pub bsdf: Bsdf,
-    /// Outgoing direction.
-    pub wo: Vec3,
-}
-
-impl DirectionSampler for BsdfSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        self.bsdf
-            .sample(self.wo, u, uc, &check_wavelengths())
-            .filter(|s| !s.delta)
-            .map(|s| s.wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        self.bsdf.pdf(self.wo, w, &check_wavelengths())
-    }
-}
-
-/// Every phase function a medium can use, with its known mean scattering cosine: isotropic,
-/// Henyey–Greenstein from g = −0.9999 to 0.9999, and Rayleigh (mean cosine 0 by symmetry).
-pub fn phases() -> Vec<(String, PhaseFunction, f64)> {
-    let mut v = vec![("isotropic".to_string(), PhaseFunction::Isotropic, 0.0)];
-    for g in [-0.9999, -0.9, -0.3, 0.0, 0.5, 0.9, 0.9999] {
-        v.push((
-            format!("hg g={g}"),
-            PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g }),
-            g,
-        ));
-    }
-    v.push(("rayleigh".to_string(), PhaseFunction::Rayleigh, 0.0));
-    v
-}
-
-/// A phase function's sampling routine for a fixed `wo`.
-pub struct PhaseSampler {
-    /// The phase function.
-    pub phase: PhaseFunction,
-    /// Outgoing direction.
-    pub wo: Vec3,
-}
-
-impl DirectionSampler for PhaseSampler {
-    fn sample(&self, u: [f64; 2], _uc: f64) -> Option<Vec3> {
-        Some(self.phase.sample(self.wo, u).wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        self.phase.pdf(self.wo, w)
-    }
-}
-
-/// A light's sampling routine as seen from point `p`, with the pdf obtained independently by
-/// intersecting the light's shape (d²/(|cos θl| A) summed over the hits along the direction).
-pub struct LightSampler {
-    /// The light (area lights refer to `shapes`).
-    pub light: Light,
-    /// Shapes of the scene the light belongs to.
-    pub shapes: Vec<Shape>,
-    /// The receiving point.
-    pub p: Vec3,
-}
-
-impl DirectionSampler for LightSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        self.light
-            .sample(self.p, uc, u, &self.shapes, &check_wavelengths())
-            .map(|s| s.wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        match &self.light {
-            Light::Area { shape, .. } => {
-                let s = &self.shapes[*shape as usize];
-                let mut pdf = 0.0;
-                for prim in 0..s.primitive_count() {
-                    // Every crossing of the surface along w is a point the sampler can pick:
-                    // a sphere is crossed at most twice, a planar primitive once.
-                    let mut start = 0.0;
-                    for _ in 0..2 {
-                        let ray = ShearedRay::new(Ray {
-                            o: self.p + w * start,
-                            d: w,
-                        });
-                        let Some((t, sp)) = s.intersect_primitive(prim, &ray, f64::INFINITY) else {
-                            break;
-                        };
-                        let d = start + t;
-                        let cos = sp.n.dot(w).abs();
-                        if cos > 0.0 {
-                            pdf += d * d / (cos * s.area());
-                        }
-                        start = d * (1.0 + 1e-9);
-                    }
-                }
-                pdf
-            }
-            Light::Environment { .. } => warp::UNIFORM_SPHERE_PDF,
-            Light::Point { .. } => 0.0,
-        }
-    }
-}
-
-/// Builds a sampler on demand (samplers own their models).
-pub type MakeSampler = Box<dyn Fn() -> Box<dyn DirectionSampler>>;
-
-/// Every direction-sampling routine, by name: BSDFs at several outgoing angles, HG phase
-/// functions, area lights of each shape type seen from a point, and the environment.
-pub fn samplers() -> Vec<(String, MakeSampler)> {
-    let mut v: Vec<(String, MakeSampler)> = Vec::new();
-    for (name, bsdf) in bsdfs() {
-        if bsdf.roughness() < CHI2_MIN_ROUGHNESS {
-            continue;
-        }
-        for theta in [0.0f64, 45.0, 80.0, 89.0] {
-            let wo = Vec3::new(theta.to_radians().sin(), 0.0, theta.to_radians().cos());
-            let b = bsdf.clone();
-            v.push((
-                format!("bsdf {name} θo={theta}°"),
-                Box::new(move || {
-                    Box::new(BsdfSampler {
-                        bsdf: b.clone(),
-                        wo,
-                    })
-                }),
-            ));
-        }
-    }
-    // |g| = 0.9999 concentrates the lobe in ~1e-4 sr, below what the direction bins resolve;
-    // the phase kind tests those in the scattering cosine with graded bins instead.
-    for (name, phase, g) in phases() {
-        if g.abs() > 0.95 {
-            continue;
-        }
-        let wo = Vec3::new(0.3, -0.2, 0.9).normalize();
-        v.push((
-            format!("phase {name}"),
-            Box::new(move || Box::new(PhaseSampler { phase, wo })),
-        ));
-    }
-    let radiance = Spectrum::Constant(1.0);
-    let lights: Vec<(&str, Shape)> = vec![
-        // Seen from inside (the furnace-sphere case). From outside, the uniform-area pdf in solid
-        // angle, d²/(|cos θl| A), has an integrable 1/cos singularity at the silhouette that
-        // per-bin midpoint quadrature cannot integrate; cone sampling would remove it.
-        (
-            "sphere",
-            Shape::Sphere(Sphere {
-                center: Vec3::new(0.3, 0.2, 0.4),
-                radius: 1.2,
-                flip_normals: true,
-            }),
-        ),
-        (
-            "quad",
-            Shape::Quad(Quad {
-                corner: Vec3::new(-1.0, -0.7, 0.8),
-                edge_u: Vec3::new(2.0, 0.0, 0.3),
-                edge_v: Vec3::new(0.0, 1.6, 0.2),
-                flip_normals: true,
-            }),
-        ),
-        (
-            "triangles",
-            Shape::Mesh(TriangleMesh::new(
-                vec![
-                    Vec3::new(-1.0, -1.0, 0.6),
-                    Vec3::new(1.5, -0.5, 1.0),
-                    Vec3::new(0.0, 1.2, 0.7),
-                    Vec3::new(-1.2, 0.8, 1.5),
-                ],
-                vec![[0, 1, 2], [0, 2, 3]],
-                true,
-            )),
-        ),
-    ];
-    for (name, shape) in lights {
-        let light = Light::Area {
-            shape: 0,
-            radiance: radiance.clone(),
-            two_sided: true,
-        };
-        v.push((
-            format!("light {name}"),
-            Box::new(move || {
-                Box::new(LightSampler {
-                    light: light.clone(),
-                    shapes: vec![shape.clone()],
-                    p: Vec3::ZERO,
-                })
-            }),
-        ));
-    }
-    v.push((
-        "light environment".into(),
-        Box::new(|| {
-            Box::new(LightSampler {
-                light: Light::Environment {
-                    radiance: Spectrum::Constant(1.0),
-                },
-                shapes: vec![],
-                p: Vec3::ZERO,
-            })
-        }),
-    ));
-    v
+/// Every kind's name, in registry order.
+pub fn names() -> Vec<&'static str> {
+    KINDS.iter().map(|k| k.name()).collect()
 }

@@ -5,8 +5,8 @@
 //! `serde_json::Value`, so a report can gather results from several runs or renderers.
 //! Comparisons carry their images: test, reference, a |z| map and a relative-error map.
 
-use crate::film::io::encode_png_srgb;
 use crate::harness::compare::{Comparison, RgbImage, CHANNELS};
+use crate::io::image::encode_png_srgb;
 use serde_json::Value;
 use std::fmt::Write as _;
 

@@ -5,13 +5,12 @@
 //! irradiance I/d² is per scene unit²). Radiance in W·sr⁻¹·m⁻²·nm⁻¹, wavelengths in nm.
 
 pub mod desc;
-pub mod error;
 mod spectra;
 
-pub use error::{SceneError, Source};
+pub use crate::io::located::{SceneError, Source};
 
 use crate::camera::{fov_from_film, Camera};
-use crate::geometry::{mesh::TriangleMesh, meshio, quad::Quad, sphere::Sphere, Aggregate, Shape};
+use crate::geometry::{mesh::TriangleMesh, quad::Quad, sphere::Sphere, Aggregate, Shape};
 use crate::lights::Light;
 use crate::math::Vec3;
 use crate::media::{HenyeyGreenstein, Medium, PhaseFunction};
@@ -225,23 +224,14 @@ impl Scene {
 
     /// Reads and validates a scene file.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| SceneError {
-            file: path.to_path_buf(),
-            line: 0,
-            column: 0,
-            key: String::new(),
-            message: format!("cannot read the scene file: {e}"),
-        })?;
+        let text = crate::io::read_text(path, "the scene file")?;
         Scene::parse(&text, path)
     }
 
     /// Validates scene text; `path` names it in errors and its folder resolves relative files.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         let src = Source { path, text };
-        let desc: SceneDesc = toml::from_str(text).map_err(|e| {
-            let span = e.span().unwrap_or(0..0);
-            src.error(span, "", e.message().trim_end().to_string())
-        })?;
+        let desc: SceneDesc = crate::io::parse_toml(&src)?;
         Builder {
             src,
             base: path.parent().map(Path::to_path_buf).unwrap_or_default(),
@@ -1093,7 +1083,7 @@ impl Builder<'_> {
             _ => {
                 let f = self.required(&d.file, s.span(), &format!("{key}.file"), &need("file"))?;
                 let path = self.base.join(f.get_ref());
-                let data = meshio::load_mesh(&path)
+                let data = crate::io::mesh::load_mesh(&path)
                     .map_err(|e| self.err(f.span(), format!("{key}.file"), e.to_string()))?;
                 let positions = data
                     .positions

@@ -2,7 +2,7 @@
 //! (`wavelengths`+`values`, `csv`+`column`, `blackbody`, or `power_law`+`reference`) with
 //! optional `scale` and `outside`. Validated for the role they play (reflectance in [0, 1], emission ≥ 0).
 
-use super::error::{SceneError, Source};
+use crate::io::located::{SceneError, Source};
 use crate::spectrum::{curve::SpectrumError, Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -242,51 +242,13 @@ impl<'a> SpectrumParser<'a> {
                 format!("cannot read {}: {e}", path.display()),
             )
         })?;
-        let at = |line: usize, msg: String| SceneError {
+        crate::io::csv::column(&text, column).map_err(|e| SceneError {
             file: path.clone(),
-            line,
+            line: e.line,
             column: 1,
             key: key.to_string(),
-            message: format!("{msg} {from}"),
-        };
-        let mut lines = text.lines().enumerate();
-        let header: Vec<&str> = match lines.next() {
-            Some((_, h)) => h.split(',').map(str::trim).collect(),
-            None => return Err(at(1, "empty CSV; expected a header row".into())),
-        };
-        let Some(ci) = header.iter().position(|h| *h == column).filter(|&i| i > 0) else {
-            return Err(at(
-                1,
-                format!(
-                    "no column {column:?}; the value columns are: {}",
-                    header.get(1..).unwrap_or(&[]).join(", ")
-                ),
-            ));
-        };
-        let (mut ws, mut vs) = (Vec::new(), Vec::new());
-        for (i, l) in lines {
-            if l.trim().is_empty() {
-                continue;
-            }
-            let cells: Vec<&str> = l.split(',').map(str::trim).collect();
-            let cell = |k: usize| -> Result<f64, SceneError> {
-                let c = cells.get(k).ok_or_else(|| {
-                    at(
-                        i + 1,
-                        format!(
-                            "row has {} cells; column {column:?} is cell {}",
-                            cells.len(),
-                            k + 1
-                        ),
-                    )
-                })?;
-                c.parse::<f64>()
-                    .map_err(|_| at(i + 1, format!("{c:?} is not a number")))
-            };
-            ws.push(cell(0)?);
-            vs.push(cell(ci)?);
-        }
-        Ok((ws, vs))
+            message: format!("{} {from}", e.message),
+        })
     }
 }
 

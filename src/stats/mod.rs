@@ -145,6 +145,54 @@ pub fn welch_test(diff: f64, parts: &[(f64, f64)]) -> (f64, f64, f64) {
     (z.z, (2.0 * t.sf(z.z.abs())).min(1.0), nu)
 }
 
+/// Relative allowance for f64 rounding in the comparison of an estimate with its closed form
+/// (accumulation and quadrature of a zero-variance estimator differ from the closed form by
+/// ~1e-15 relative; 1e-12 is far above that and far below any physical effect).
+pub const ROUNDING: f64 = 1e-12;
+
+/// Two-sided z test of `estimate` ± `se` against `expected`, after allowing a stated relative
+/// model tolerance and the f64 rounding allowance [`ROUNDING`]:
+/// z = sign(est − exp)·max(0, |est − exp| − tol·|exp| − 1e-12·max(|exp|, |est|))/se.
+/// Returns (z, p).
+pub fn z_with_tolerance(estimate: f64, se: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
+    // A NaN or infinite input must never turn into p = 1: it propagates as NaN, which the
+    // runner reports as ERROR and comparisons as a difference.
+    if !(estimate.is_finite() && se.is_finite() && expected.is_finite()) {
+        return (f64::NAN, f64::NAN);
+    }
+    let allowance = rel_tolerance * expected.abs() + ROUNDING * expected.abs().max(estimate.abs());
+    let d = (estimate - expected).abs();
+    let excess = (d - allowance).max(0.0);
+    let z = z_test(excess, se, 0.0).z;
+    // p of H0: |bias| ≤ allowance, taken at the boundary bias = allowance:
+    // P(|D| ≥ d) = Φ̄((d − a)/se) + Φ̄((d + a)/se); for a = 0 it is the two-sided 2Φ̄(d/se).
+    let p = if se > 0.0 {
+        normal_sf((d - allowance) / se) + normal_sf((d + allowance) / se)
+    } else if excess > 0.0 {
+        0.0
+    } else {
+        1.0
+    };
+    (z.copysign(estimate - expected), p.min(1.0))
+}
+
+#[cfg(test)]
+mod z_tolerance_tests {
+    use super::z_with_tolerance;
+
+    #[test]
+    fn non_finite_inputs_never_pass() {
+        for (e, se, x) in [
+            (f64::NAN, 1.0, 1.0),
+            (1.0, f64::NAN, 1.0),
+            (f64::INFINITY, 1.0, 1.0),
+        ] {
+            let (z, p) = z_with_tolerance(e, se, x, 0.0);
+            assert!(z.is_nan() && p.is_nan());
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

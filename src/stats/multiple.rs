@@ -79,6 +79,21 @@ fn clean_p(p: f64) -> f64 {
     }
 }
 
+/// Number of hypotheses rejected by the Benjamini–Hochberg step-up procedure at FDR `q`:
+/// the largest k with p₍ₖ₎ ≤ k·q/m (Benjamini & Hochberg 1995, §3). NaN p-values count as 0.
+pub fn benjamini_hochberg(p: &[f64], q: f64) -> usize {
+    let m = p.len();
+    let mut s: Vec<f64> = p
+        .iter()
+        .map(|x| if x.is_nan() { 0.0 } else { *x })
+        .collect();
+    s.sort_by(f64::total_cmp);
+    (1..=m)
+        .rev()
+        .find(|&k| s[k - 1] <= k as f64 * q / m as f64)
+        .unwrap_or(0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -182,5 +197,16 @@ mod tests {
         assert!(holm(&[f64::NAN, 0.9], 0.05)[0].0, "NaN counts as failure");
         assert!(holm(&[0.0, 0.0], f64::NAN).iter().all(|&(rej, _)| !rej));
         assert!(holm(&[0.0, 0.0], 0.0).iter().all(|&(rej, _)| !rej));
+    }
+
+    #[test]
+    fn bh_textbook() {
+        // Benjamini & Hochberg 1995, §4 example with 15 p-values: 4 rejected at q = 0.05.
+        let p = [
+            0.0001, 0.0004, 0.0019, 0.0095, 0.0201, 0.0278, 0.0298, 0.0344, 0.0459, 0.3240, 0.4262,
+            0.5719, 0.6528, 0.7590, 1.0,
+        ];
+        assert_eq!(super::benjamini_hochberg(&p, 0.05), 4);
+        assert_eq!(super::benjamini_hochberg(&[], 0.05), 0);
     }
 }

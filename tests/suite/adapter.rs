@@ -130,20 +130,23 @@ fn external_renderers_skip_checks_that_state_furnace_internals() {
     let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
     let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
     for s in &specs {
-        let why = harness::not_applicable(s, &ext);
-        let own = s.params.sampler == furnace::math::rng::Sampler::Independent
-            && s.params.strategy == furnace::integrators::Strategy::Mis;
+        let why = s.kind.not_applicable(s, &ext);
+        let p = s
+            .params_as::<furnace::harness::checks::convergence::Params>()
+            .unwrap();
+        let own = p.sampler == furnace::math::rng::Sampler::Independent
+            && p.strategy == furnace::integrators::Strategy::Mis;
         assert_eq!(why.is_none(), own, "{}: {why:?}", s.name);
-        assert!(harness::not_applicable(s, &harness::BuiltIn).is_none());
+        assert!(s.kind.not_applicable(s, &harness::BuiltIn).is_none());
     }
     let bsdf = manifest::load(&root("tests/manifests/bsdf.toml")).unwrap();
     assert!(bsdf
         .iter()
-        .all(|s| harness::not_applicable(s, &ext).is_some()));
+        .all(|s| s.kind.not_applicable(s, &ext).is_some()));
     // furnace's light tracer cannot be run on an external renderer
     for s in manifest::load(&root("tests/manifests/light.toml")).unwrap() {
-        let why = harness::not_applicable(&s, &ext).unwrap();
+        let why = s.kind.not_applicable(&s, &ext).unwrap();
         assert!(why.contains("light tracer"), "{why}");
-        assert!(harness::not_applicable(&s, &harness::BuiltIn).is_none());
+        assert!(s.kind.not_applicable(&s, &harness::BuiltIn).is_none());
     }
 }

@@ -57,7 +57,7 @@ fn render_writes_exr_and_png_and_reports_speed() {
     );
     assert!(stdout.contains("16x16 px, 2 spp"), "{stdout}");
     assert!(stdout.contains("samples/s"), "{stdout}");
-    let layers = furnace::film::io::read_exr(&exr).unwrap();
+    let layers = furnace::io::image::read_exr(&exr).unwrap();
     for ch in ["R", "G", "B", "X", "Y", "Z", "variance.Y", "variance.R"] {
         let v = layers
             .channel(ch)
@@ -99,7 +99,7 @@ fn missing_scene_file_exits_2() {
 
 #[test]
 fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
-    use furnace::film::io::{read_exr, write_exr};
+    use furnace::io::image::{read_exr, write_exr};
     let dir = std::env::temp_dir().join(format!("furnace-compare-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let reference = root("reference/mitsuba/cornell-box.exr");

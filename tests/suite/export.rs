@@ -5,7 +5,8 @@
 
 use crate::root;
 use furnace::export::mitsuba;
-use furnace::geometry::{meshio, Shape};
+use furnace::geometry::Shape;
+use furnace::io::mesh as meshio;
 use furnace::scene::Scene;
 use quick_xml::events::{BytesStart, Event};
 use quick_xml::{Reader, XmlVersion};

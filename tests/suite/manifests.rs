@@ -12,10 +12,10 @@ fn default_manifests_pass() {
     for f in &files {
         specs.extend(manifest::load(f).unwrap_or_else(|e| panic!("{e}")));
     }
-    let kinds: std::collections::BTreeSet<&str> = specs.iter().map(|s| s.kind.as_str()).collect();
+    let kinds: std::collections::BTreeSet<&str> = specs.iter().map(|s| s.kind_name()).collect();
     assert_eq!(
         kinds.len(),
-        manifest::KINDS.len(),
+        furnace::harness::registry::KINDS.len(),
         "every kind is covered: {kinds:?}"
     );
     let report = harness::run(

@@ -5,12 +5,13 @@
 //! uncertainty) and must reject the same measurement with a 3 % error in one band.
 
 use crate::root;
-use furnace::film::io::{write_exr, Layers};
 use furnace::harness::checks::measured;
-use furnace::harness::manifest::{self, CheckSpec};
+use furnace::harness::manifest;
 use furnace::harness::outcome::Verdict;
+use furnace::harness::Check as CheckSpec;
 use furnace::harness::{judge, BuiltIn, Context};
 use furnace::integrators::PathTracer;
+use furnace::io::image::{write_exr, Layers};
 use furnace::render::{render, RenderSettings};
 use furnace::scene::Scene;
 use furnace::spectrum::observer::Responses;
@@ -99,7 +100,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
     };
     synthesize(&dir);
     let s = spec(&dir.join("measurement.toml"));
-    let m = measured::run(&s, &ctx).unwrap();
+    let m = s.kind.run(&s, &ctx).unwrap();
     eprintln!("clean: {}", m.message);
     assert_eq!(judge(&m, 0.01), Verdict::Pass, "{}", m.message);
     assert!(
@@ -112,12 +113,12 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
 
     // The same measurement with the 540 nm band 3 % high.
     let band = dir.join("band-540.exr");
-    let mut l = furnace::film::io::read_exr(&band).unwrap();
+    let mut l = furnace::io::image::read_exr(&band).unwrap();
     for v in l.channels[0].1.iter_mut() {
         *v *= 1.03;
     }
     write_exr(&band, &l).unwrap();
-    let m = measured::run(&s, &ctx).unwrap();
+    let m = s.kind.run(&s, &ctx).unwrap();
     eprintln!("control: {}", m.message);
     assert_eq!(judge(&m, 1e-4), Verdict::Fail, "{}", m.message);
     assert!(m.message.contains("band 540 nm"), "{}", m.message);

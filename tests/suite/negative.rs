@@ -6,10 +6,11 @@
 use crate::root;
 use furnace::film::Film;
 use furnace::geometry::{ray, Ray};
-use furnace::harness::checks::{chi2, energy, hg, reciprocity, weights};
-use furnace::harness::manifest::{self, CheckSpec};
+use furnace::harness::checks::{chi2, energy, reciprocity, weights};
+use furnace::harness::manifest;
+use furnace::harness::model::catalogue::DirectionSampler;
 use furnace::harness::outcome::Verdict;
-use furnace::harness::registry::DirectionSampler;
+use furnace::harness::Check as CheckSpec;
 use furnace::harness::{self, judge, BuiltIn, Renderer, RunOptions};
 use furnace::integrators::Strategy;
 use furnace::lights::{area_radiance, Light};
@@ -82,7 +83,11 @@ impl Renderer for OffByOneDepth {
     fn name(&self) -> String {
         "off-by-one depth".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         let mut s = s.clone();
         s.integrator.max_depth = s.integrator.max_depth.map(|d| d.saturating_sub(1));
         BuiltIn.render(scene, &s)
@@ -95,7 +100,11 @@ impl Renderer for InverseSquareCamera {
     fn name(&self) -> String {
         "inverse-square camera".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         let d2 = (scene.camera.position - scene.camera.look_at).length_squared();
         let mut scene = scene.clone();
         for l in &mut scene.lights {
@@ -126,7 +135,11 @@ impl Renderer for Direct {
     fn name(&self) -> String {
         "buggy direct".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         if self.0 == DirectBug::AreaPdfAsSolidAngle && s.integrator.strategy != Strategy::LightOnly
         {
             return BuiltIn.render(scene, s);
@@ -148,7 +161,7 @@ fn film_of(
         &Wavelengths,
         &mut SampleStream,
     ) -> Result<SampledSpectrum, String>,
-) -> Result<Film, String> {
+) -> Result<Film, furnace::harness::RendererError> {
     let camera = scene.camera.build(s.width, s.height)?;
     let cmf = cie::tables();
     let mut film = Film::new(s.width, s.height);
@@ -438,10 +451,26 @@ fn sample_weights_reject_a_weight_inconsistent_with_eval() {
 
 #[test]
 fn hg_rejects_a_sign_error() {
-    let m = hg::measure_phase(&HgSignError(0.5), 0.5, 1e-6, 50_000, 40, 16, 1);
+    let m = furnace::harness::model::phase::measure_phase(
+        &HgSignError(0.5),
+        0.5,
+        1e-6,
+        50_000,
+        40,
+        16,
+        1,
+    );
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
     // and the true HG passes the same measurement
-    let ok = hg::measure_phase(&HenyeyGreenstein { g: 0.5 }, 0.5, 1e-6, 50_000, 40, 16, 1);
+    let ok = furnace::harness::model::phase::measure_phase(
+        &HenyeyGreenstein { g: 0.5 },
+        0.5,
+        1e-6,
+        50_000,
+        40,
+        16,
+        1,
+    );
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }
 
@@ -459,14 +488,18 @@ fn convergence_rejects_a_sampler_regression() {
         "tests/manifests/convergence.toml",
         "convergence/stratified-smooth",
     );
-    s[0].params.sampler = furnace::math::rng::Sampler::Independent;
+    assert!(
+        s[0].edit_params(|p: &mut furnace::harness::checks::convergence::Params| {
+            p.sampler = furnace::math::rng::Sampler::Independent
+        })
+    );
     let ctx = harness::Context {
         renderer: &BuiltIn,
         seed: 3,
         threads: 0,
         alpha: ALPHA,
     };
-    let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
+    let m = s[0].kind.run(&s[0], &ctx).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -476,7 +509,11 @@ impl Renderer for OnePercentBright {
     fn name(&self) -> String {
         "1 % bright".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         let mut film = BuiltIn.render(scene, s)?;
         for p in &mut film.pixels {
             let xyz = [0, 1, 2].map(|c| p.channels[c].mean() * 1.01);
@@ -503,7 +540,7 @@ fn convergence_rejects_an_error_floor() {
         threads: 0,
         alpha: ALPHA,
     };
-    let m = furnace::harness::checks::convergence::run(&s[0], &ctx).unwrap();
+    let m = s[0].kind.run(&s[0], &ctx).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -518,7 +555,7 @@ struct BrokenConductor {
 
 impl BrokenConductor {
     fn of(registry_name: &str, no_masking: bool, no_fresnel: bool) -> Self {
-        let inner = furnace::harness::registry::bsdfs()
+        let inner = furnace::harness::model::catalogue::bsdfs()
             .into_iter()
             .find(|(n, _)| n == registry_name)
             .unwrap()
@@ -572,9 +609,9 @@ impl Bxdf for BrokenConductor {
 #[test]
 fn albedo_rejects_a_microfacet_model_missing_its_masking_term() {
     use furnace::harness::checks::albedo;
-    use furnace::harness::registry::{albedo_expectation, AlbedoExpectation};
+    use furnace::harness::model::catalogue::{albedo_expectation, AlbedoExpectation};
     let name = "conductor/ggx α=0.3 perfect";
-    let model = furnace::harness::registry::bsdfs()
+    let model = furnace::harness::model::catalogue::bsdfs()
         .into_iter()
         .find(|(n, _)| n == name)
         .unwrap()
@@ -632,7 +669,7 @@ impl Bxdf for GlassWithoutEtaScaling {
 #[test]
 fn albedo_rejects_glass_without_radiance_scaling() {
     use furnace::harness::checks::albedo;
-    use furnace::harness::registry::AlbedoExpectation;
+    use furnace::harness::model::catalogue::AlbedoExpectation;
     use furnace::scattering::{Dielectric, Ior};
     let glass = Dielectric {
         ior: Ior::Constant(1.5),
@@ -704,7 +741,7 @@ fn reciprocity_rejects_a_btdf_with_swapped_indices() {
 fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
     use furnace::harness::checks::smooth_limit;
     let (rough, smooth) = smooth_limit::PAIRS[0];
-    let smooth_model = furnace::harness::registry::bsdfs()
+    let smooth_model = furnace::harness::model::catalogue::bsdfs()
         .into_iter()
         .find(|(n, _)| n == smooth)
         .unwrap()
@@ -776,7 +813,11 @@ impl Renderer for WrongLightTracer {
     fn name(&self) -> String {
         "light tracer with a wrong importance".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         BuiltIn.render(scene, s)
     }
     fn render_light_paths(
@@ -785,7 +826,7 @@ impl Renderer for WrongLightTracer {
         s: &RenderSettings,
         n_paths: u64,
         regions: &[[usize; 4]],
-    ) -> Result<furnace::render::LightImage, String> {
+    ) -> Result<furnace::render::LightImage, furnace::harness::RendererError> {
         let sensor = WrongSensor {
             inner: furnace::integrators::light::PinholeSensor {
                 camera: scene.camera.build(s.width, s.height)?,
@@ -795,7 +836,7 @@ impl Renderer for WrongLightTracer {
             bug: self.0,
         };
         furnace::render::light::trace_light_image(scene, s, n_paths, regions, &sensor, &|_| {})
-            .map_err(|e| e.to_string())
+            .map_err(|e| furnace::harness::RendererError(e.to_string()))
     }
 }
 
@@ -850,7 +891,11 @@ impl Renderer for Volumetric {
     fn name(&self) -> String {
         "small volumetric tracer".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         film_of(scene, s, &mut |r, wl, rng| self.radiance(scene, r, wl, rng))
     }
 }
@@ -952,7 +997,11 @@ impl Renderer for GreyAbsorber {
     fn name(&self) -> String {
         "absorption taken at 550 nm".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         let mut scene = scene.clone();
         for m in &mut scene.media {
             m.sigma_a = Spectrum::Constant(m.sigma_a.eval(550.0));
@@ -1026,9 +1075,17 @@ fn phase_rejects_a_non_reciprocal_phase_function_and_a_wrong_sampler() {
         rec_ok <= 1e-12 && pdf_ok <= phase_check::PDF_REL_TOL,
         "{rec_ok} {pdf_ok}"
     );
-    let m = hg::measure_phase(&RayleighUniformDraw, 0.0, 1e-6, 50_000, 40, 16, 1);
+    let m = furnace::harness::model::phase::measure_phase(
+        &RayleighUniformDraw,
+        0.0,
+        1e-6,
+        50_000,
+        40,
+        16,
+        1,
+    );
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
-    let ok = hg::measure_phase(&Rayleigh, 0.0, 1e-6, 50_000, 40, 16, 1);
+    let ok = furnace::harness::model::phase::measure_phase(&Rayleigh, 0.0, 1e-6, 50_000, 40, 16, 1);
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }
 
@@ -1038,7 +1095,11 @@ impl Renderer for SingleScattering {
     fn name(&self) -> String {
         "single scattering only".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
         let mut s = s.clone();
         s.integrator.max_depth = Some(1);
         BuiltIn.render(scene, &s)

@@ -11,7 +11,8 @@
 use crate::root;
 use furnace::harness::checks::image;
 use furnace::harness::compare::{Region, Regions, RgbImage};
-use furnace::harness::manifest::{self, CheckSpec};
+use furnace::harness::manifest;
+use furnace::harness::Check as CheckSpec;
 use furnace::harness::{BuiltIn, Context, Renderer};
 use furnace::integrators::PathTracer;
 use furnace::render::{render, RenderSettings};
@@ -88,17 +89,18 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
     let mut s = spec("mitsuba/cornell-box");
     s.name = "sphere".into();
     s.scene = Some(Scene::load(&root("scenes/furnace-sphere.toml")).unwrap());
-    s.params.regions.clear();
+    let mut p = s.params_as::<image::Params>().unwrap().clone();
+    p.regions.clear();
     s.render.spp = Some(64);
     let reference = RgbImage::load(&root("reference/mitsuba/furnace-sphere.exr")).unwrap();
-    let m = image::run_against(&s, &ctx(&BuiltIn), &reference).unwrap();
+    let m = image::run_against(&s, &p, &ctx(&BuiltIn), &reference).unwrap();
     assert!(m.p_value.unwrap() < 1e-4, "{}", m.message);
 
     // Negative control: the Cornell reference with the red wall 2 % brighter in R, G and B.
     let s = spec("mitsuba/cornell-box");
     let reference = RgbImage::load(&root("reference/mitsuba/cornell-box.exr")).unwrap();
-    let wall = s
-        .params
+    let p = s.params_as::<image::Params>().unwrap();
+    let wall = p
         .regions
         .iter()
         .find(|r| r.name == "red wall")
@@ -106,7 +108,7 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
         .pixels(reference.width, reference.height)
         .unwrap();
     let tinted = reference.tinted(wall, [1.02; 3]);
-    let m = image::run_against(&s, &ctx(&BuiltIn), &tinted).unwrap();
+    let m = image::run_against(&s, p, &ctx(&BuiltIn), &tinted).unwrap();
     assert!(
         m.p_value.unwrap() < 1e-4 && m.message.contains("worst: red wall"),
         "{}",
@@ -120,7 +122,11 @@ impl Renderer for FlippedHg {
     fn name(&self) -> String {
         "HG sign flipped".into()
     }
-    fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<furnace::film::Film, String> {
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<furnace::film::Film, furnace::harness::RendererError> {
         let mut scene = scene.clone();
         for m in &mut scene.media {
             if let furnace::media::PhaseFunction::HenyeyGreenstein(hg) = &mut m.phase {
@@ -134,10 +140,11 @@ impl Renderer for FlippedHg {
 #[test]
 fn image_compare_rejects_a_flipped_scattering_angle_and_passes_the_fog() {
     let s = spec("mitsuba/hg-fog");
+    let p = s.params_as::<image::Params>().unwrap();
     let reference = RgbImage::load(&root("reference/mitsuba/hg-fog.exr")).unwrap();
-    let ok = image::run_against(&s, &ctx(&BuiltIn), &reference).unwrap();
+    let ok = image::run_against(&s, p, &ctx(&BuiltIn), &reference).unwrap();
     assert!(ok.p_value.unwrap() > 1e-4, "{}", ok.message);
-    let bad = image::run_against(&s, &ctx(&FlippedHg), &reference).unwrap();
+    let bad = image::run_against(&s, p, &ctx(&FlippedHg), &reference).unwrap();
     assert!(bad.p_value.unwrap() < 1e-12, "{}", bad.message);
 }
 

@@ -3,12 +3,12 @@
 
 use crate::root;
 use furnace::film::Film;
-use furnace::harness::checks::z_with_tolerance;
 use furnace::integrators::PathTracer;
 use furnace::render::{render, RenderSettings};
 use furnace::scene::Scene;
 use furnace::spectrum::{cie, Spectrum};
 use furnace::stats::z_test;
+use furnace::stats::z_with_tolerance;
 use std::path::Path;
 
 fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSettings {

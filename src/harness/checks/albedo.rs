@@ -5,12 +5,13 @@
 //! fraction within their stated single-scattering band (z tests against the band's edges,
 //! Šidák-combined). Non-finite weights fail the check.
 
-use super::energy::{albedo_mc, outgoing};
-use super::{combine, fmt_sig};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::model::albedo::{albedo_mc, outgoing};
+use crate::harness::model::catalogue::{self, AlbedoExpectation};
 use crate::harness::outcome::Statistic;
-use crate::harness::registry::{self, AlbedoExpectation};
-use crate::harness::{Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
 use crate::scattering::Bxdf;
 use crate::stats::normal_sf;
@@ -86,29 +87,6 @@ pub fn measure(
     combine(parts)
 }
 
-/// Runs the albedo check over every registered BSDF that states an expectation.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p = &spec.params;
-    let samples = p.samples.unwrap_or(20_000);
-    let theta = p.theta_max_deg.unwrap_or(89.99);
-    let rel_tol = p.rel_tol.unwrap_or(1e-12);
-    let mut parts = Vec::new();
-    for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
-        if let Some(e) = registry::albedo_expectation(name, b) {
-            parts.push((
-                name.clone(),
-                measure(b, e, theta, samples, rel_tol, mix64(ctx.seed ^ i as u64)),
-            ));
-        }
-    }
-    let mut m = combine(parts);
-    m.message = format!(
-        "power albedo at the hero wavelength vs the model's stated value; {}",
-        m.message
-    );
-    Ok(m)
-}
-
 /// The albedo table of the README ("Energy loss of the rough models"): power albedo at the
 /// hero wavelength of the white rough models, by θo, from `samples` samples each.
 pub fn loss_table(samples: u64) -> String {
@@ -120,9 +98,9 @@ pub fn loss_table(samples: u64) -> String {
     out.push_str("\n| --- |");
     out.push_str(&" ---: |".repeat(angles.len()));
     out.push('\n');
-    for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
+    for (i, (name, b)) in catalogue::bsdfs().iter().enumerate() {
         let Some(AlbedoExpectation::SingleScatteringLoss { .. }) =
-            registry::albedo_expectation(name, b)
+            catalogue::albedo_expectation(name, b)
         else {
             continue;
         };
@@ -149,5 +127,59 @@ mod tests {
     #[ignore]
     fn print_loss_table() {
         println!("{}", loss_table(1_000_000));
+    }
+}
+
+/// Parameters of an albedo check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Samples per model and angle.
+    pub samples: u64,
+    /// Largest polar angle, degrees.
+    pub theta_max_deg: f64,
+    /// Tolerance of a lossless model's albedo.
+    pub rel_tol: f64,
+}
+
+/// The `albedo` kind.
+pub struct Albedo;
+
+impl Kind for Albedo {
+    type Params = Params;
+    const NAME: &'static str = "albedo";
+    const KEYS: &'static [Key] = &[
+        model::samples("20000"),
+        model::theta_max_deg("89.99"),
+        model::rel_tol("1e-12"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            samples: k.samples()?.unwrap_or(20_000),
+            theta_max_deg: k.theta_max_deg()?.unwrap_or(89.99),
+            rel_tol: k.non_negative("rel_tol")?.unwrap_or(1e-12),
+        })
+    }
+
+    /// Runs the albedo check over every registered BSDF that states an expectation.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let (samples, theta, rel_tol) = (p.samples, p.theta_max_deg, p.rel_tol);
+        let mut parts = Vec::new();
+        for (i, (name, b)) in catalogue::bsdfs().iter().enumerate() {
+            if let Some(e) = catalogue::albedo_expectation(name, b) {
+                parts.push((
+                    name.clone(),
+                    measure(b, e, theta, samples, rel_tol, mix64(ctx.seed ^ i as u64)),
+                ));
+            }
+        }
+        let mut m = combine(parts);
+        m.message = format!(
+            "power albedo at the hero wavelength vs the model's stated value; {}",
+            m.message
+        );
+        Ok(m)
     }
 }

@@ -3,11 +3,12 @@
 //! the claimed pdf over each bin, low-count bins pooled; a sample where the pdf is zero fails.
 //! One Pearson test per routine, Šidák-combined into the check's p-value.
 
-use super::{combine, fmt_sig};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::model::catalogue::{self, DirectionSampler};
 use crate::harness::outcome::Statistic;
-use crate::harness::registry::{self, DirectionSampler};
-use crate::harness::{Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
 use crate::stats::{chi2::chi2_gof, sphere::SphereBinning};
 
@@ -81,23 +82,6 @@ pub fn measure_sampler(
     }
 }
 
-/// Runs the chi-square check over every registered sampling routine.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let samples = spec.params.samples.unwrap_or(200_000);
-    let bins = spec.params.bins.unwrap_or([24, 48]);
-    let parts = registry::samplers()
-        .into_iter()
-        .enumerate()
-        .map(|(i, (name, make))| {
-            (
-                name,
-                measure_sampler(make().as_ref(), samples, bins, mix64(ctx.seed ^ i as u64)),
-            )
-        })
-        .collect();
-    Ok(combine(parts))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -105,12 +89,58 @@ mod tests {
     #[test]
     fn every_registered_sampler_passes_alone() {
         let mut bad = Vec::new();
-        for (i, (name, make)) in registry::samplers().into_iter().enumerate() {
+        for (i, (name, make)) in catalogue::samplers().into_iter().enumerate() {
             let m = measure_sampler(make().as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64));
             if m.p_value.unwrap_or(0.0) < 1e-4 {
                 bad.push(format!("{name}: {} p {:?}", m.message, m.p_value));
             }
         }
         assert!(bad.is_empty(), "{}", bad.join("\n"));
+    }
+}
+
+/// Parameters of a chi-square check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Samples per routine.
+    pub samples: u64,
+    /// Sphere bins [theta, phi].
+    pub bins: [usize; 2],
+}
+
+/// The `chi2` kind.
+pub struct Chi2;
+
+impl Kind for Chi2 {
+    type Params = Params;
+    const NAME: &'static str = "chi2";
+    const KEYS: &'static [Key] = &[
+        model::samples("200000"),
+        model::bins("[24, 48]"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            samples: k.samples()?.unwrap_or(200_000),
+            bins: k.bins()?.unwrap_or([24, 48]),
+        })
+    }
+
+    /// Runs the chi-square check over every registered sampling routine.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let (samples, bins) = (p.samples, p.bins);
+        let parts = catalogue::samplers()
+            .into_iter()
+            .enumerate()
+            .map(|(i, (name, make))| {
+                (
+                    name,
+                    measure_sampler(make().as_ref(), samples, bins, mix64(ctx.seed ^ i as u64)),
+                )
+            })
+            .collect();
+        Ok(combine(parts))
     }
 }

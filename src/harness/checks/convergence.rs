@@ -21,12 +21,18 @@
 //! renders a uniform enclosure (with `max_depth` and `roulette` as given) and compares with
 //! E/(1 − R) or its depth-capped form, for estimator ladders of multi-bounce transport.
 
-use super::lambert::{per_pixel_k, reflected};
-use super::radiance::emitted_along_k;
-use super::{region_of, settings_for};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::closed_form::emission::emitted_along_k;
+use crate::harness::closed_form::footprint::per_pixel_k;
+use crate::harness::closed_form::furnace::expectation as furnace_expectation;
+use crate::harness::closed_form::lambert::reflected;
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::kind::scope_rule;
 use crate::harness::outcome::Statistic;
-use crate::harness::{Context, Measurement};
+use crate::harness::region::{region_of, settings_for};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Renderer, Scope};
+use crate::integrators::Strategy;
+use crate::io::LocatedError;
+use crate::math::rng::Sampler;
 use crate::stats::normal_sf;
 use crate::stats::regression::{fit_line, fit_line_weighted, t_sf, t_two_sided_quantile, LineFit};
 use std::time::Instant;
@@ -66,14 +72,12 @@ pub struct Ladder {
 }
 
 /// Renders the ladder of a convergence check.
-pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
-    let scene = spec.scene.as_ref().ok_or("convergence needs a scene")?;
-    let p = &spec.params;
-    let of = p.of.as_deref().unwrap_or("lambert");
-    let depth = match of {
-        "emission" => Some(0),
-        "furnace" => spec.render.max_depth,
-        _ => Some(1),
+pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckError> {
+    let scene = check.scene()?;
+    let depth = match p.of {
+        Of::Emission => Some(0),
+        Of::Furnace => check.render.max_depth,
+        Of::Lambert => Some(1),
     };
     let mut rungs = Vec::new();
     let mut reference: Option<(Vec<f64>, f64)> = None;
@@ -83,16 +87,16 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
         let mut samples = 0;
         for k in 0..p.seeds {
             let seed = crate::math::rng::mix64(ctx.seed ^ ((r as u64) << 32) ^ k);
-            let mut s = settings_for(spec, scene, ctx, seed, depth, p.strategy);
+            let mut s = settings_for(check, scene, ctx, seed, depth, p.strategy);
             s.spp = spp;
             s.sampler = p.sampler;
-            let region = region_of(spec, &s)?;
+            let region = region_of(check, &s)?;
             if reference.is_none() {
-                let px = if of == "emission" {
+                let px = if p.of == Of::Emission {
                     emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)?
-                } else if of == "furnace" {
+                } else if p.of == Of::Furnace {
                     // A uniform enclosure: every pixel reads the closed form.
-                    let (v, _) = super::furnace::expectation(scene, depth)?;
+                    let (v, _) = furnace_expectation(scene, depth)?;
                     vec![v; (region[2] - region[0]) * (region[3] - region[1])]
                 } else {
                     per_pixel_k(
@@ -143,7 +147,8 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
         return Err(format!(
             "an RMSE is 0 or not finite ({:?}): the region has no Monte Carlo error to converge",
             rungs.iter().map(|r| r.rmse).collect::<Vec<_>>()
-        ));
+        )
+        .into());
     }
     let x: Vec<f64> = rungs.iter().map(|r| (r.spp as f64).ln()).collect();
     let y: Vec<f64> = rungs.iter().map(|r| r.rmse.ln()).collect();
@@ -178,80 +183,274 @@ pub fn ladder(spec: &CheckSpec, ctx: &Context) -> Result<Ladder, String> {
     })
 }
 
-/// Runs a convergence check.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let l = ladder(spec, ctx)?;
-    let [lo, hi] = spec
-        .params
-        .slope
-        .ok_or("convergence needs `slope = [min, max]`")?;
-    let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
-    let f = l.fit;
-    let d = (f.slope - mid).abs();
-    // p of H0: |slope − mid| ≤ half, at the boundary (as z_with_tolerance, with t tails).
-    let tail = |t: f64| {
-        if f.dof.is_finite() {
-            t_sf(t, f.dof)
-        } else {
-            normal_sf(t)
+/// The closed form a convergence ladder measures its error against.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Of {
+    /// Lambert's law, direct light only.
+    Lambert,
+    /// Emitted radiance, emission only.
+    Emission,
+    /// A uniform furnace enclosure.
+    Furnace,
+}
+
+/// Parameters of a convergence check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// The closed form.
+    pub of: Of,
+    /// Sample pattern.
+    pub sampler: Sampler,
+    /// How emitters are found.
+    pub strategy: Strategy,
+    /// Sample counts, increasing.
+    pub ladder: Vec<u64>,
+    /// Independent seeds per rung.
+    pub seeds: u64,
+    /// Allowed slope range [min, max].
+    pub slope: [f64; 2],
+}
+
+/// The `convergence` kind.
+pub struct Convergence;
+
+impl Kind for Convergence {
+    type Params = Params;
+    const NAME: &'static str = "convergence";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        Key {
+            name: "of",
+            ty: "\"lambert\", \"emission\" or \"furnace\"",
+            default: "required",
+            doc: "the closed form each pixel's error is measured against",
+        },
+        Key {
+            name: "sampler",
+            ty: "\"independent\", \"stratified\" or \"sobol\"",
+            default: "\"independent\"",
+            doc: "sample pattern per pixel",
+        },
+        Key {
+            name: "strategy",
+            ty: "\"mis\", \"bsdf\" or \"light\"",
+            default: "\"mis\"",
+            doc: "how emitters are found",
+        },
+        Key {
+            name: "ladder",
+            ty: "at least 3 increasing integers in 1..=2^20",
+            default: "required",
+            doc: "samples per pixel of each rung",
+        },
+        Key {
+            name: "seeds",
+            ty: "integer 2..=1024",
+            default: "8",
+            doc: "independent seeds per rung",
+        },
+        Key {
+            name: "slope",
+            ty: "[min, max], min < max < 0",
+            default: "required",
+            doc: "allowed range of the fitted RMSE slope (RMSE ∝ N^slope)",
+        },
+        common::WIDTH,
+        common::HEIGHT,
+        common::REGION,
+        common::SEED,
+        common::MAX_DEPTH,
+        common::ROULETTE,
+    ];
+    const SCOPE: Scope = Scope::Image;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let of_list = "\"lambert\", \"emission\", \"furnace\"";
+        let of = match k.get::<String>("of")? {
+            None => return Err(k.error_at("of", format!("missing; allowed: {of_list}"))),
+            Some(o) => match o.get_ref().as_str() {
+                "lambert" => Of::Lambert,
+                "emission" => Of::Emission,
+                "furnace" => Of::Furnace,
+                other => {
+                    return Err(k.error(o.span(), "of", format!("{other:?}: allowed {of_list}")))
+                }
+            },
+        };
+        let sampler = match k.get::<String>("sampler")? {
+            None => Sampler::default(),
+            Some(v) => Sampler::from_name(v.get_ref()).ok_or_else(|| {
+                k.error(
+                    v.span(),
+                    "sampler",
+                    format!(
+                        "unknown sampler {:?}; allowed: independent, stratified, sobol",
+                        v.get_ref()
+                    ),
+                )
+            })?,
+        };
+        let strategy = match k.get::<String>("strategy")? {
+            None => Strategy::Mis,
+            Some(v) => match v.get_ref().as_str() {
+                "mis" => Strategy::Mis,
+                "bsdf" => Strategy::BsdfOnly,
+                "light" => Strategy::LightOnly,
+                other => {
+                    return Err(k.error(
+                        v.span(),
+                        "strategy",
+                        format!("unknown strategy {other:?}; allowed: mis, bsdf, light"),
+                    ))
+                }
+            },
+        };
+        let ladder = match k.get::<Vec<i64>>("ladder")? {
+            None => {
+                return Err(k.error_at(
+                    "ladder",
+                    "missing; give at least three increasing sample counts, e.g. [4, 16, 64, 256]"
+                        .into(),
+                ))
+            }
+            Some(v) => {
+                let l = v.get_ref();
+                let ok = l.len() >= 3
+                    && l.iter().all(|n| (1..=1 << 20).contains(n))
+                    && l.windows(2).all(|w| w[0] < w[1]);
+                if !ok {
+                    return Err(k.error(
+                        v.span(),
+                        "ladder",
+                        format!("{l:?}: need at least three strictly increasing sample counts in 1..=1048576"),
+                    ));
+                }
+                l.iter().map(|n| *n as u64).collect()
+            }
+        };
+        let slope = match k.get::<[f64; 2]>("slope")? {
+            None => {
+                return Err(k.error_at(
+                    "slope",
+                    "missing; give the allowed range of the RMSE slope, e.g. [-0.55, -0.45]".into(),
+                ))
+            }
+            Some(v) => {
+                let [a, b] = *v.get_ref();
+                if !(a.is_finite() && b.is_finite() && a < b && b < 0.0) {
+                    return Err(k.error(
+                        v.span(),
+                        "slope",
+                        format!(
+                            "[{a}, {b}] must be [min, max] with min < max < 0 (errors fall as N^slope)"
+                        ),
+                    ));
+                }
+                [a, b]
+            }
+        };
+        Ok(Params {
+            of,
+            sampler,
+            strategy,
+            ladder,
+            seeds: k.int("seeds", 2, 1024)?.unwrap_or(8),
+            slope,
+        })
+    }
+
+    /// An external renderer's sampler and estimator are its own: only a check stating the
+    /// independent-sampling, MIS rate applies to it.
+    fn not_applicable(check: &Check, p: &Params, renderer: &dyn Renderer) -> Option<String> {
+        if let Some(why) = scope_rule(Self::NAME, Self::SCOPE, renderer) {
+            return Some(why);
         }
-    };
-    let p = if f.se_slope > 0.0 {
-        tail((d - half) / f.se_slope) + tail((d + half) / f.se_slope)
-    } else if d > half {
-        0.0
-    } else {
-        1.0
-    };
-    // Two tests: the slope range, and whether a power law describes the ladder at all
-    // (lack of fit). Šidák-combined; a failing rate or a bent ladder both fail the check.
-    let p = match l.lack_of_fit {
-        Some((_, p_lof)) if p_lof.is_finite() => {
-            let p_min = p.min(p_lof);
-            -((-p_min).ln_1p() * 2.0).exp_m1()
+        if renderer.is_reference() {
+            return None;
         }
-        _ => p,
-    };
-    let ci = if f.dof.is_finite() {
-        t_two_sided_quantile(0.05, f.dof)
-    } else {
-        1.959_963_984_540_054
-    } * f.se_slope;
-    let rungs: Vec<String> = l
-        .rungs
-        .iter()
-        .map(|r| {
+        let _ = check;
+        (p.sampler != Sampler::Independent || p.strategy != Strategy::Mis).then(|| {
             format!(
-                "N={} RMSE {:.3e} ({:.3}% of mean) {:.3} us/sample",
-                r.spp,
-                r.rmse,
-                100.0 * r.rmse / r.reference_mean.abs().max(f64::MIN_POSITIVE),
-                1e6 * r.seconds / r.samples.max(1) as f64
+                "this convergence check states the rate of furnace's {} sampler with {:?}; {} uses its own sampler and estimator",
+                p.sampler.name(),
+                p.strategy,
+                renderer.name()
             )
         })
-        .collect();
-    Ok(Measurement {
-        estimate: Some(f.slope),
-        std_error: Some(f.se_slope),
-        expected: Some(mid),
-        statistic: Some(Statistic::Z {
-            z: (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE),
-        }),
-        p_value: Some(p.min(1.0)),
-        samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * spec.params.seeds,
-        message: format!(
-            "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, {} dof; weighted by each rung's seed spread), constant {:.3e}; allowed slope [{lo}, {hi}]; lack of fit {}; {} seeds per rung; {}",
-            l.sampler,
-            spec.params.strategy,
-            f.slope,
-            ci,
-            f.dof,
-            f.intercept.exp(),
-            l.lack_of_fit
-                .map_or("not tested".into(), |(c, p)| format!("chi2 {c:.2} on {} dof, p {p:.3}", f.dof)),
-            spec.params.seeds,
-            rungs.join("; ")
-        ),
-        ..Default::default()
-    })
+    }
+
+    /// Runs a convergence check.
+    fn run(check: &Check, params: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let l = ladder(check, params, ctx)?;
+        let [lo, hi] = params.slope;
+        let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+        let f = l.fit;
+        let d = (f.slope - mid).abs();
+        // p of H0: |slope − mid| ≤ half, at the boundary (as z_with_tolerance, with t tails).
+        let tail = |t: f64| {
+            if f.dof.is_finite() {
+                t_sf(t, f.dof)
+            } else {
+                normal_sf(t)
+            }
+        };
+        let p = if f.se_slope > 0.0 {
+            tail((d - half) / f.se_slope) + tail((d + half) / f.se_slope)
+        } else if d > half {
+            0.0
+        } else {
+            1.0
+        };
+        // Two tests: the slope range, and whether a power law describes the ladder at all
+        // (lack of fit). Šidák-combined; a failing rate or a bent ladder both fail the check.
+        let p = match l.lack_of_fit {
+            Some((_, p_lof)) if p_lof.is_finite() => {
+                let p_min = p.min(p_lof);
+                -((-p_min).ln_1p() * 2.0).exp_m1()
+            }
+            _ => p,
+        };
+        let ci = if f.dof.is_finite() {
+            t_two_sided_quantile(0.05, f.dof)
+        } else {
+            1.959_963_984_540_054
+        } * f.se_slope;
+        let rungs: Vec<String> = l
+            .rungs
+            .iter()
+            .map(|r| {
+                format!(
+                    "N={} RMSE {:.3e} ({:.3}% of mean) {:.3} us/sample",
+                    r.spp,
+                    r.rmse,
+                    100.0 * r.rmse / r.reference_mean.abs().max(f64::MIN_POSITIVE),
+                    1e6 * r.seconds / r.samples.max(1) as f64
+                )
+            })
+            .collect();
+        Ok(Measurement {
+            estimate: Some(f.slope),
+            std_error: Some(f.se_slope),
+            expected: Some(mid),
+            statistic: Some(Statistic::Z {
+                z: (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE),
+            }),
+            p_value: Some(p.min(1.0)),
+            samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * params.seeds,
+            message: format!(
+                "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, {} dof; weighted by each rung's seed spread), constant {:.3e}; allowed slope [{lo}, {hi}]; lack of fit {}; {} seeds per rung; {}",
+                l.sampler,
+                params.strategy,
+                f.slope,
+                ci,
+                f.dof,
+                f.intercept.exp(),
+                l.lack_of_fit
+                    .map_or("not tested".into(), |(c, p)| format!("chi2 {c:.2} on {} dof, p {p:.3}", f.dof)),
+                params.seeds,
+                rungs.join("; ")
+            ),
+            ..Default::default()
+        })
+    }
 }

@@ -2,108 +2,24 @@
 //! ≤ 1 for every BSDF and outgoing direction (Veach 1997, §6.2, eq. 6.6; the η² ratio turns the
 //! radiance-carrying BTDF into the power it scatters, §5.2). Deterministic part: tensor-product
 //! midpoint quadrature in (cos θi, φi) over the whole sphere, max over wo ≤ 1 + abs_tol, for
-//! the models and angles the grid resolves (roughness ≥ registry::QUADRATURE_MIN_ROUGHNESS,
+//! the models and angles the grid resolves (roughness ≥ catalogue::QUADRATURE_MIN_ROUGHNESS,
 //! θo ≤ 60° for microfacet lobes, which the grid cannot follow towards the horizon).
 //! Stochastic part: Monte Carlo estimates of a(wo) from BSDF sampling weights for every model
 //! and angle (delta lobes included), and a fresh estimate at the largest, one-sided z test of
 //! H0: a ≤ 1.
 
-use super::fmt_sig;
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::fmt_sig;
+use crate::harness::model::albedo::{
+    albedo_mc, outgoing, power_albedo_quadrature, quadrature_resolves,
+};
+use crate::harness::model::catalogue;
 use crate::harness::outcome::Statistic;
-use crate::harness::{registry, Context, Measurement};
-use crate::math::{rng::SampleStream, Vec3, PI};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
+use crate::math::{rng::SampleStream, Vec3};
 use crate::scattering::Bxdf;
-use crate::stats::{normal_sf, z_test, MeanVar};
-
-/// Directional albedo per wavelength component by midpoint quadrature: `n_mu` × `n_phi` cells
-/// in (cos θi ∈ [−1, 1], φ), where dω = d(cos θ) dφ makes the cell weights exact.
-pub fn albedo_quadrature(b: &dyn Bxdf, wo: Vec3, n_mu: usize, n_phi: usize) -> [f64; 4] {
-    quadrature(b, wo, n_mu, n_phi, |_| [1.0; 4])
-}
-
-/// The same quadrature of the power albedo: each cell weighted by [`power_factor`].
-pub fn power_albedo_quadrature(b: &dyn Bxdf, wo: Vec3, n_mu: usize, n_phi: usize) -> [f64; 4] {
-    quadrature(b, wo, n_mu, n_phi, |wi| power_factor(b, wo, wi))
-}
-
-/// ∫ f(wo, wi)·factor(wi)·|cos θi| dωi per wavelength by the midpoint rule described above.
-fn quadrature(
-    b: &dyn Bxdf,
-    wo: Vec3,
-    n_mu: usize,
-    n_phi: usize,
-    factor: impl Fn(Vec3) -> [f64; 4],
-) -> [f64; 4] {
-    let wl = registry::check_wavelengths();
-    let mut acc = [0.0; 4];
-    let cell = (2.0 / n_mu as f64) * (2.0 * PI / n_phi as f64);
-    for i in 0..n_mu {
-        let mu = -1.0 + (i as f64 + 0.5) * 2.0 / n_mu as f64;
-        let r = (1.0 - mu * mu).max(0.0).sqrt();
-        for j in 0..n_phi {
-            let phi = (j as f64 + 0.5) * 2.0 * PI / n_phi as f64;
-            let wi = Vec3::new(r * phi.cos(), r * phi.sin(), mu);
-            let f = b.eval(wo, wi, &wl);
-            let k = factor(wi);
-            for c in 0..4 {
-                acc[c] += f.0[c] * k[c] * mu.abs() * cell;
-            }
-        }
-    }
-    acc
-}
-
-/// Outgoing directions tested: θo ∈ {0, 30, 60, 80, 89, θmax}°.
-pub fn outgoing(theta_max_deg: f64) -> Vec<Vec3> {
-    [0.0, 30.0, 60.0, 80.0, 89.0, theta_max_deg]
-        .iter()
-        .map(|t: &f64| Vec3::new(t.to_radians().sin(), 0.0, t.to_radians().cos()))
-        .collect()
-}
-
-/// The ratio η(wi)²/η(wo)² per wavelength that turns scattered radiance into power.
-pub fn power_factor(b: &dyn Bxdf, wo: Vec3, wi: Vec3) -> [f64; 4] {
-    let wl = registry::check_wavelengths();
-    let (eo, ei) = (b.eta(wo, &wl), b.eta(wi, &wl));
-    std::array::from_fn(|k| (ei.0[k] / eo.0[k]).powi(2))
-}
-
-/// Monte Carlo estimate of the power albedo per wavelength from `samples` BSDF samples:
-/// (mean, standard error, non-finite weights).
-pub fn albedo_mc(
-    b: &dyn Bxdf,
-    wo: Vec3,
-    samples: u64,
-    rng: &mut SampleStream,
-) -> ([f64; 4], [f64; 4], u64) {
-    let wl = registry::check_wavelengths();
-    let mut mv = [MeanVar::default(); 4];
-    let mut bad = 0;
-    for _ in 0..samples {
-        let s = b.sample(wo, rng.next_2d(), rng.next_f64(), &wl);
-        let (w, k) = match s {
-            Some(s) => (s.weight.0, power_factor(b, wo, s.wi)),
-            None => ([0.0; 4], [1.0; 4]),
-        };
-        for i in 0..4 {
-            let v = w[i] * k[i];
-            if v.is_finite() {
-                mv[i].push(v);
-            } else {
-                bad += 1;
-                mv[i].push(0.0);
-            }
-        }
-    }
-    (mv.map(|m| m.mean()), mv.map(|m| m.std_error()), bad)
-}
-
-/// True when the quadrature grid resolves the model at outgoing direction `wo`.
-pub fn quadrature_resolves(b: &dyn Bxdf, wo: Vec3) -> bool {
-    let r = b.roughness();
-    r.is_infinite() || (r >= registry::QUADRATURE_MIN_ROUGHNESS && wo.z >= 0.5)
-}
+use crate::stats::{normal_sf, z_test, ROUNDING};
 
 /// Measures energy conservation of each named model.
 pub fn measure(
@@ -113,7 +29,7 @@ pub fn measure(
     samples: u64,
     seed: u64,
 ) -> Measurement {
-    let wl = registry::check_wavelengths();
+    let wl = catalogue::check_wavelengths();
     let mut quad_max = (0.0f64, String::from("no model resolved by the grid"));
     let mut worst: Option<(f64, &dyn Bxdf, Vec3, usize, String)> = None;
     let mut rng = SampleStream::new(seed, 2, 0);
@@ -158,7 +74,7 @@ pub fn measure(
     let (mean, se) = (mean[k], se[k]);
     let t = z_test(mean, se, 1.0);
     // One-sided: only an albedo above 1 (beyond f64 rounding) is a violation.
-    let excess = mean - 1.0 - super::ROUNDING;
+    let excess = mean - 1.0 - ROUNDING;
     let p = if non_finite > 0 {
         0.0
     } else if se > 0.0 {
@@ -191,16 +107,49 @@ pub fn measure(
     }
 }
 
-/// Runs the energy check over every registered BSDF.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let models = registry::bsdfs();
-    let refs = registry::as_bxdfs(&models);
-    let p = &spec.params;
-    Ok(measure(
-        &refs,
-        p.theta_max_deg.unwrap_or(89.9),
-        p.abs_tol.unwrap_or(1e-6),
-        p.samples.unwrap_or(100_000),
-        ctx.seed,
-    ))
+/// Parameters of an energy check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Largest polar angle, degrees.
+    pub theta_max_deg: f64,
+    /// Absolute tolerance of the quadrature albedo above 1.
+    pub abs_tol: f64,
+    /// Monte Carlo samples of the final test.
+    pub samples: u64,
+}
+
+/// The `energy` kind.
+pub struct Energy;
+
+impl Kind for Energy {
+    type Params = Params;
+    const NAME: &'static str = "energy";
+    const KEYS: &'static [Key] = &[
+        model::samples("100000"),
+        model::theta_max_deg("89.9"),
+        model::abs_tol("1e-6"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            theta_max_deg: k.theta_max_deg()?.unwrap_or(89.9),
+            abs_tol: k.non_negative("abs_tol")?.unwrap_or(1e-6),
+            samples: k.samples()?.unwrap_or(100_000),
+        })
+    }
+
+    /// Runs the energy check over every registered BSDF.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let models = catalogue::bsdfs();
+        let refs = catalogue::as_bxdfs(&models);
+        Ok(measure(
+            &refs,
+            p.theta_max_deg,
+            p.abs_tol,
+            p.samples,
+            ctx.seed,
+        ))
+    }
 }

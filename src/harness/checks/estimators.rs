@@ -4,113 +4,134 @@
 //! their standard errors: three pairwise two-sided z tests of the region means (independent
 //! seeds), Šidák-combined.
 
-use super::{
-    diagnosis_alpha, fmt_sig, region_of, region_pixels, region_stats, residual_stability,
-    settings_for,
-};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::fmt_sig;
 use crate::harness::outcome::Statistic;
-use crate::harness::{Context, Measurement};
+use crate::harness::region::{
+    diagnosis_alpha, region_of, region_pixels, region_stats, residual_stability, settings_for,
+};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
+use crate::io::LocatedError;
 use crate::lights::Light;
 use crate::math::rng::mix64;
 use crate::stats::{multiple::sidak_combine, z_test};
 
-/// Runs an estimator-agreement check.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let scene = spec
-        .scene
-        .as_ref()
-        .ok_or("estimator_agreement needs a scene")?;
-    if scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Point { .. }))
-    {
-        return Err(
-            "BSDF sampling cannot find point lights; use area or environment lights".into(),
-        );
-    }
-    let strategies = [
-        ("light", Strategy::LightOnly),
-        ("bsdf", Strategy::BsdfOnly),
-        ("mis", Strategy::Mis),
+/// The `estimator_agreement` kind.
+pub struct EstimatorAgreement;
+
+impl Kind for EstimatorAgreement {
+    type Params = ();
+    const NAME: &'static str = "estimator_agreement";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        common::VARY,
+        common::SPP,
+        common::WIDTH,
+        common::HEIGHT,
+        common::REGION,
+        common::SEED,
     ];
-    let mut stats = Vec::new();
-    let mut films = Vec::new();
-    for (i, (name, st)) in strategies.iter().enumerate() {
-        let s = settings_for(
-            spec,
-            scene,
-            ctx,
-            mix64(ctx.seed.wrapping_add(i as u64)),
-            Some(1),
-            *st,
-        );
-        let region = region_of(spec, &s)?;
-        let film = ctx.renderer.render(scene, &s)?;
-        stats.push((*name, region_stats(&film, region, s.spp, ctx.alpha, None)));
-        films.push((film, region, s.spp));
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(_: &mut Keys) -> Result<(), LocatedError> {
+        Ok(())
     }
-    // Each pair is compared through its per-pixel differences dᵢ (zero mean under H0, so image
-    // structure neither inflates the standard error nor passes for a heavy tail):
-    // se = max(√(se_a² + se_b²) from within-pixel variances, sd(d)/√N).
-    let mut unstable = Vec::new();
-    let mut ps = Vec::new();
-    let mut worst = (0.0f64, 1.0f64, String::new(), 0.0f64, 0.0f64);
-    let mut lines = Vec::new();
-    for (a, b) in [(0, 1), (0, 2), (1, 2)] {
-        let (fa, region, _) = &films[a];
-        let (fb, _, _) = &films[b];
-        let (pa, va) = region_pixels(fa, *region);
-        let (pb, vb) = region_pixels(fb, *region);
-        let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
-        let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
-        let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
-        let (stable, why, se_between) = residual_stability(&d, &v, scale, diagnosis_alpha(ctx, 3));
-        let (na, ra) = &stats[a];
-        let (nb, rb) = &stats[b];
-        if !stable {
-            unstable.push(format!("{na} − {nb}: {why}"));
+
+    /// Runs an estimator-agreement check.
+    fn run(check: &Check, _: &(), ctx: &Context) -> Result<Measurement, CheckError> {
+        let scene = check.scene()?;
+        if scene
+            .lights
+            .iter()
+            .any(|l| matches!(l, Light::Point { .. }))
+        {
+            return Err(
+                "BSDF sampling cannot find point lights; use area or environment lights".into(),
+            );
         }
-        let diff = ra.mean - rb.mean;
-        let se = (ra.se_within.powi(2) + rb.se_within.powi(2))
-            .sqrt()
-            .max(se_between);
-        let t = z_test(diff, se, 0.0);
-        ps.push(t.p);
-        lines.push(format!(
-            "{na} − {nb} = {} ± {} (z {:.2})",
-            fmt_sig(diff),
-            fmt_sig(se),
-            t.z
-        ));
-        if worst.2.is_empty() || t.p < worst.1 {
-            worst = (t.z, t.p, format!("{na} vs {nb}"), diff, se);
+        let strategies = [
+            ("light", Strategy::LightOnly),
+            ("bsdf", Strategy::BsdfOnly),
+            ("mis", Strategy::Mis),
+        ];
+        let mut stats = Vec::new();
+        let mut films = Vec::new();
+        for (i, (name, st)) in strategies.iter().enumerate() {
+            let s = settings_for(
+                check,
+                scene,
+                ctx,
+                mix64(ctx.seed.wrapping_add(i as u64)),
+                Some(1),
+                *st,
+            );
+            let region = region_of(check, &s)?;
+            let film = ctx.renderer.render(scene, &s)?;
+            stats.push((*name, region_stats(&film, region, s.spp, ctx.alpha, None)));
+            films.push((film, region, s.spp));
         }
+        // Each pair is compared through its per-pixel differences dᵢ (zero mean under H0, so image
+        // structure neither inflates the standard error nor passes for a heavy tail):
+        // se = max(√(se_a² + se_b²) from within-pixel variances, sd(d)/√N).
+        let mut unstable = Vec::new();
+        let mut ps = Vec::new();
+        let mut worst = (0.0f64, 1.0f64, String::new(), 0.0f64, 0.0f64);
+        let mut lines = Vec::new();
+        for (a, b) in [(0, 1), (0, 2), (1, 2)] {
+            let (fa, region, _) = &films[a];
+            let (fb, _, _) = &films[b];
+            let (pa, va) = region_pixels(fa, *region);
+            let (pb, vb) = region_pixels(fb, *region);
+            let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
+            let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
+            let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
+            let (stable, why, se_between) =
+                residual_stability(&d, &v, scale, diagnosis_alpha(ctx, 3));
+            let (na, ra) = &stats[a];
+            let (nb, rb) = &stats[b];
+            if !stable {
+                unstable.push(format!("{na} − {nb}: {why}"));
+            }
+            let diff = ra.mean - rb.mean;
+            let se = (ra.se_within.powi(2) + rb.se_within.powi(2))
+                .sqrt()
+                .max(se_between);
+            let t = z_test(diff, se, 0.0);
+            ps.push(t.p);
+            lines.push(format!(
+                "{na} − {nb} = {} ± {} (z {:.2})",
+                fmt_sig(diff),
+                fmt_sig(se),
+                t.z
+            ));
+            if worst.2.is_empty() || t.p < worst.1 {
+                worst = (t.z, t.p, format!("{na} vs {nb}"), diff, se);
+            }
+        }
+        let means: Vec<String> = stats
+            .iter()
+            .map(|(n, r)| format!("{n} {} ± {}", fmt_sig(r.mean), fmt_sig(r.se)))
+            .collect();
+        let mis = &stats[2].1;
+        Ok(Measurement {
+            estimate: Some(worst.3),
+            std_error: Some(worst.4),
+            expected: Some(0.0),
+            statistic: Some(Statistic::Z { z: worst.0 }),
+            p_value: Some(sidak_combine(&ps)),
+            variants: 3,
+            one_sided: false,
+            deterministic_pass: None,
+            unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
+            samples: stats.iter().map(|(_, r)| r.samples).sum(),
+            message: format!(
+                "direct light (max_depth 1), estimate = difference of region means of the worst pair; {}; {}; worst pair {}; relative se of MIS {:.2e}",
+                means.join(", "),
+                lines.join(", "),
+                worst.2,
+                mis.se / mis.mean.abs().max(f64::MIN_POSITIVE)
+            ),
+        })
     }
-    let means: Vec<String> = stats
-        .iter()
-        .map(|(n, r)| format!("{n} {} ± {}", fmt_sig(r.mean), fmt_sig(r.se)))
-        .collect();
-    let mis = &stats[2].1;
-    Ok(Measurement {
-        estimate: Some(worst.3),
-        std_error: Some(worst.4),
-        expected: Some(0.0),
-        statistic: Some(Statistic::Z { z: worst.0 }),
-        p_value: Some(sidak_combine(&ps)),
-        variants: 3,
-        one_sided: false,
-        deterministic_pass: None,
-        unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
-        samples: stats.iter().map(|(_, r)| r.samples).sum(),
-        message: format!(
-            "direct light (max_depth 1), estimate = difference of region means of the worst pair; {}; {}; worst pair {}; relative se of MIS {:.2e}",
-            means.join(", "),
-            lines.join(", "),
-            worst.2,
-            mis.se / mis.mean.abs().max(f64::MIN_POSITIVE)
-        ),
-    })
 }

@@ -1,202 +1,80 @@
-//! Furnace checks. Enclosure form: inside a closed diffuse enclosure whose every surface emits
-//! E and reflects R, radiance is E/(1 − R) everywhere, and with at most D bounces it is
-//! E(1 − R^(D+1))/(1 − R) (the Neumann series of the rendering equation, Kajiya 1986, eq. 5,
-//! with a constant kernel). White-furnace form: a convex object of albedo R under a uniform
-//! environment of radiance L reflects exactly R·L (it sees only the environment).
-//! The expected value is derived from the scene itself, so the check consumes scenes.
-//! Media form: a medium that scatters without absorbing (σa = 0, any σs(λ), any phase
-//! function) leaves an isotropic, uniform radiance field unchanged (the radiative transfer
-//! equation with dL/ds = −σt L + σs ∫ p L dω = 0; Chandrasekhar 1960, *Radiative Transfer*,
-//! §1.5), so lossless media may fill either form; absorbing media are refused.
+//! `furnace`: inside a closed enclosure whose every surface emits E and reflects R the radiance
+//! is E/(1 − R) (capped at D bounces: E(1 − R^(D+1))/(1 − R)); a convex object of albedo R under
+//! a uniform sky L reads R·L; lossless media change neither (`closed_form/furnace.rs`). Grey
+//! scenes are tested in Y, spectral ones in X, Y and Z (Šidák-combined).
 
-use super::{
-    combine, diagnosis_alpha, region_measurement, region_of, region_stats_of, render_region,
-    settings_for,
+use crate::harness::closed_form::furnace::{expectation, validate_view};
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::combine;
+use crate::harness::region::{
+    diagnosis_alpha, region_measurement, region_of, region_stats_of, render_region, settings_for,
 };
-use crate::harness::manifest::CheckSpec;
-use crate::harness::{Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
-use crate::lights::Light;
-use crate::scattering::Bsdf;
-use crate::scene::Scene;
-use crate::spectrum::Spectrum;
+use crate::io::LocatedError;
 
-fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
-    match s {
-        Spectrum::Constant(v) => Ok(*v),
-        _ => Err(format!(
-            "a furnace scene needs constant spectra; {what} is not constant"
-        )),
-    }
-}
+/// The `furnace` kind.
+pub struct Furnace;
 
-/// The closed-form radiance (Y) a furnace scene must show, with a description.
-pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String), String> {
-    if let Some(i) = scene.media.iter().position(|m| !m.is_lossless()) {
-        return Err(format!(
-            "medium {:?} absorbs (sigma_a is not 0): a furnace scene's media must only scatter, which leaves the uniform radiance unchanged",
-            scene.medium_names[i]
-        ));
+impl Kind for Furnace {
+    type Params = ();
+    const NAME: &'static str = "furnace";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        common::VARY,
+        common::SPP,
+        common::WIDTH,
+        common::HEIGHT,
+        common::MAX_DEPTH,
+        common::ROULETTE,
+        common::REGION,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Image;
+
+    fn parse(_: &mut Keys) -> Result<(), LocatedError> {
+        Ok(())
     }
-    if scene.has_media() && max_depth.is_some() {
-        return Err(
-            "media need unlimited depth: light may scatter any number of times before it leaves"
-                .into(),
-        );
-    }
-    let albedos: Vec<f64> = scene
-        .bsdfs
-        .iter()
-        .map(|b| match b {
-            Bsdf::Diffuse(l) => constant(&l.reflectance, "a reflectance"),
-            // lossless at every wavelength: smooth glass (dispersive or not), a perfect mirror
-            b if b.is_lossless() => Ok(1.0),
-            _ => Err("a furnace scene needs Lambertian surfaces or lossless ones (a smooth dielectric with a constant index, a perfect smooth mirror); other models reflect a direction-dependent fraction".to_string()),
-        })
-        .collect::<Result<_, _>>()?;
-    if max_depth.is_some() && scene.bsdfs.iter().any(|b| !matches!(b, Bsdf::Diffuse(_))) {
-        return Err("lossless specular objects need unlimited depth: light may bounce inside them any number of times before it leaves".into());
-    }
-    let r = albedos
-        .first()
-        .copied()
-        .ok_or("a furnace scene needs at least one shape")?;
-    if albedos.iter().any(|a| *a != r) {
-        return Err(format!(
-            "every surface of a furnace scene must have the same albedo; found {albedos:?}"
-        ));
-    }
-    let env: Vec<f64> = scene
-        .lights
-        .iter()
-        .filter_map(|l| match l {
-            Light::Environment { radiance } => Some(constant(radiance, "the environment radiance")),
-            _ => None,
-        })
-        .collect::<Result<_, _>>()?;
-    if scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Point { .. }))
-    {
-        return Err("a furnace scene may not have point lights".into());
-    }
-    if let Some(&l_env) = env.first() {
-        if scene.lights.iter().any(|l| matches!(l, Light::Area { .. })) {
-            return Err(
-                "the white-furnace form takes an environment light and non-emitting objects only"
-                    .into(),
-            );
+
+    /// Runs a furnace check. The expected radiance is the same at every wavelength, so a grey
+    /// scene is tested in Y alone; a scene with spectral inputs (wavelength-dependent media
+    /// coefficients) is tested in X, Y and Z, each against the flat spectrum's value, so that a
+    /// bias at the blue or red end (which Y barely sees) fails too.
+    fn run(check: &Check, _: &(), ctx: &Context) -> Result<Measurement, CheckError> {
+        let scene = check.scene()?;
+        let max_depth = check.render.max_depth.or(scene.render.max_depth);
+        let (expected, what) = expectation(scene, max_depth)?;
+        let s = settings_for(check, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
+        let region = region_of(check, &s)?;
+        validate_view(scene, s.width, s.height, region)?;
+        let what = format!("{what}; path tracer, {} spp", s.spp);
+        if scene.is_grey() {
+            let r = render_region(ctx, scene, &s, region, None, diagnosis_alpha(ctx, 1))?;
+            return Ok(region_measurement(&r, expected, check.rel_tolerance, what));
         }
-        let expected = if max_depth == Some(0) { 0.0 } else { r * l_env };
-        return Ok((expected, format!("white furnace: convex object of albedo {r} under environment {l_env}: expected R·L")));
+        let film = ctx.renderer.render(scene, &s)?;
+        let white = s.observer.white();
+        let parts = ["X", "Y", "Z"]
+            .iter()
+            .enumerate()
+            .map(|(c, name)| {
+                let r = region_stats_of(&film, region, s.spp, diagnosis_alpha(ctx, 3), None, c);
+                let e = expected * white[c] / white[1];
+                (
+                    name.to_string(),
+                    region_measurement(
+                        &r,
+                        e,
+                        check.rel_tolerance,
+                        format!("{what}; channel {name}"),
+                    ),
+                )
+            })
+            .collect();
+        // three channels of one image: count its camera paths once
+        let mut m = combine(parts);
+        m.samples = (s.width * s.height) as u64 * s.spp;
+        Ok(m)
     }
-    let emissions: Vec<f64> = scene
-        .shape_light
-        .iter()
-        .map(|l| match l.map(|i| &scene.lights[i as usize]) {
-            Some(Light::Area { radiance, .. }) => constant(radiance, "an emission"),
-            _ => Err("every surface of a furnace enclosure must emit".into()),
-        })
-        .collect::<Result<_, _>>()?;
-    let e = emissions[0];
-    if emissions.iter().any(|x| *x != e) {
-        return Err(format!(
-            "every surface of a furnace enclosure must emit the same radiance; found {emissions:?}"
-        ));
-    }
-    match max_depth {
-        Some(d) => {
-            // E Σ_{k=0}^{D} R^k, summed directly so R = 1 is exact too
-            let sum: f64 = (0..=d).map(|k| r.powi(k as i32)).sum();
-            Ok((
-                e * sum,
-                format!(
-                    "furnace enclosure E = {e}, R = {r}, D = {d}: expected E(1 − R^(D+1))/(1 − R)"
-                ),
-            ))
-        }
-        None if r < 1.0 => Ok((
-            e / (1.0 - r),
-            format!("furnace enclosure E = {e}, R = {r}: expected E/(1 − R)"),
-        )),
-        None => Err("R = 1 without a depth cap has no finite radiance".into()),
-    }
-}
-
-/// Checks that the region sees what the closed form assumes: in the white-furnace form every
-/// camera ray of the region hits the (single) object, unless every surface is lossless; in the enclosure form every ray hits a
-/// surface whose emission faces the camera (no escaping rays, no back of a one-sided emitter).
-pub fn validate_view(
-    scene: &Scene,
-    width: usize,
-    height: usize,
-    region: [usize; 4],
-) -> Result<(), String> {
-    let white = scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Environment { .. }));
-    // With every surface lossless (albedo 1) any arrangement reads L everywhere, escaping
-    // rays included: each path ends in the environment with its full weight.
-    let all_white = scene.bsdfs.iter().all(|b| match b {
-        Bsdf::Diffuse(l) => l.reflectance == Spectrum::Constant(1.0),
-        b => b.is_lossless(),
-    });
-    if white && all_white {
-        return Ok(());
-    }
-    if white && scene.has_media() {
-        return Err("the white-furnace form with media needs every surface lossless (null boundaries, smooth glass, perfect mirrors, white Lambertian): otherwise the radiance is not uniform".into());
-    }
-    if white && scene.aggregate.shapes().len() != 1 {
-        return Err("the white-furnace form needs exactly one (convex) object unless every surface is lossless: others would be lit by its reflection".into());
-    }
-    super::lambert::per_pixel(scene, width, height, region, &|hit, d| {
-        let hit = hit.ok_or("a camera ray of the region escapes: the region must see only the object (white furnace) or the enclosure")?;
-        if !white {
-            match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
-                Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {}
-                _ => return Err("a camera ray of the region meets a surface that does not emit towards the camera: is the enclosure closed, emitting inward, with the camera inside?".to_string()),
-            }
-        }
-        Ok(0.0)
-    })
-    .map(|_| ())
-}
-
-/// Runs a furnace check. The expected radiance is the same at every wavelength, so a grey
-/// scene is tested in Y alone; a scene with spectral inputs (wavelength-dependent media
-/// coefficients) is tested in X, Y and Z, each against the flat spectrum's value, so that a
-/// bias at the blue or red end (which Y barely sees) fails too.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let scene = spec.scene.as_ref().ok_or("furnace needs a scene")?;
-    let max_depth = spec.render.max_depth.or(scene.render.max_depth);
-    let (expected, what) = expectation(scene, max_depth)?;
-    let s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
-    let region = region_of(spec, &s)?;
-    validate_view(scene, s.width, s.height, region)?;
-    let what = format!("{what}; path tracer, {} spp", s.spp);
-    if scene.is_grey() {
-        let r = render_region(ctx, scene, &s, region, None, diagnosis_alpha(ctx, 1))?;
-        return Ok(region_measurement(&r, expected, spec.rel_tolerance, what));
-    }
-    let film = ctx.renderer.render(scene, &s)?;
-    let white = s.observer.white();
-    let parts = ["X", "Y", "Z"]
-        .iter()
-        .enumerate()
-        .map(|(c, name)| {
-            let r = region_stats_of(&film, region, s.spp, diagnosis_alpha(ctx, 3), None, c);
-            let e = expected * white[c] / white[1];
-            (
-                name.to_string(),
-                region_measurement(&r, e, spec.rel_tolerance, format!("{what}; channel {name}")),
-            )
-        })
-        .collect();
-    // three channels of one image: count its camera paths once
-    let mut m = combine(parts);
-    m.samples = (s.width * s.height) as u64 * s.spp;
-    Ok(m)
 }

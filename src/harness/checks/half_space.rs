@@ -7,12 +7,15 @@
 //! boundary, optically ≥ 1e3 thick along every region ray, under an environment light; the
 //! expected value of each pixel uses μ = |n·d| at its camera rays' hits.
 
-use super::lambert::{per_pixel_rays, FOOTPRINT_K};
-use super::{diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::geometry::{ray, Ray};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::{Context, Measurement};
+use crate::harness::closed_form::footprint::{per_pixel_rays, FOOTPRINT_K};
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::region::{
+    diagnosis_alpha, region_measurement, region_of, render_region, settings_for,
+};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
+use crate::io::LocatedError;
 use crate::lights::Light;
 use crate::media::PhaseFunction;
 use crate::spectrum::Spectrum;
@@ -100,72 +103,10 @@ impl HFunction {
 fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     match s {
         Spectrum::Constant(v) => Ok(*v),
-        _ => Err(format!(
-            "the half-space form needs constant spectra; {what} is not constant"
-        )),
-    }
-}
-
-/// Runs a half-space check.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let scene = spec.scene.as_ref().ok_or("half_space needs a scene")?;
-    let [medium] = scene.media.as_slice() else {
-        return Err("half_space needs exactly one medium".into());
-    };
-    if medium.phase != PhaseFunction::Isotropic {
-        return Err(
-            "the H-function closed form is for isotropic scattering; use phase = \"isotropic\""
-                .into(),
-        );
-    }
-    let (sa, ss) = (
-        constant(&medium.sigma_a, "sigma_a")?,
-        constant(&medium.sigma_s, "sigma_s")?,
-    );
-    let sigma_t = sa + ss;
-    let albedo = if sigma_t > 0.0 { ss / sigma_t } else { 0.0 };
-    let env = match scene.lights.as_slice() {
-        [Light::Environment { radiance }] => constant(radiance, "the environment radiance")?,
-        _ => return Err("half_space needs a single environment light and no other light".into()),
-    };
-    if scene.camera.medium.is_some() || scene.bsdfs.iter().any(|b| !b.is_null()) {
-        return Err(
-            "half_space needs the camera outside the medium and only null boundaries".into(),
-        );
-    }
-    let s = settings_for(spec, scene, ctx, ctx.seed, None, Strategy::Mis);
-    let region = region_of(spec, &s)?;
-    let h = HFunction::new(albedo);
-    let r_of = |mu: f64| h.reflectance(mu.clamp(0.0, 1.0));
-    let expected_ray = |r: Ray| -> Result<f64, String> {
-        let Some(h) = scene.aggregate.intersect(&r, f64::INFINITY) else {
-            return Ok(env);
-        };
-        let mu = h.point.n.dot(r.d).abs();
-        // optical thickness of the chord: the exit point along the same line
-        let inside = ray::spawn(&h.point, r.d);
-        let chord = scene
-            .aggregate
-            .intersect(&inside, f64::INFINITY)
-            .map_or(f64::INFINITY, |e| e.t);
-        if sigma_t * chord < 1e3 {
-            return Err(format!("a region ray crosses the medium with optical thickness {:.3e}; the half-space form needs >= 1e3 (use a larger sphere or sigma)", sigma_t * chord));
-        }
-        Ok(env * r_of(mu))
-    };
-    let px = per_pixel_rays(scene, s.width, s.height, region, &expected_ray, FOOTPRINT_K)?;
-    let expected = px.iter().sum::<f64>() / px.len() as f64;
-    let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
-    Ok(region_measurement(
-        &r,
-        expected,
-        spec.rel_tolerance,
-        format!(
-            "half-space of albedo {albedo}, optical thickness >= 1e3: expected E(1 − √(1 − ϖ) H(μ)) per pixel (H(1) = {:.6}); path tracer, {} spp",
-            h.eval(1.0),
-            s.spp
+        _ => Err(
+            format!("the half-space form needs constant spectra; {what} is not constant").into(),
         ),
-    ))
+    }
 }
 
 #[cfg(test)]
@@ -189,5 +130,92 @@ mod tests {
         // no absorption: everything comes back; no scattering: nothing does
         assert!((HFunction::new(1.0).reflectance(0.7) - 1.0).abs() < 1e-12);
         assert!(HFunction::new(0.0).reflectance(0.7).abs() < 1e-12);
+    }
+}
+
+/// The `half_space` kind.
+pub struct HalfSpace;
+
+impl Kind for HalfSpace {
+    type Params = ();
+    const NAME: &'static str = "half_space";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        common::VARY,
+        common::SPP,
+        common::WIDTH,
+        common::HEIGHT,
+        common::REGION,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(_: &mut Keys) -> Result<(), LocatedError> {
+        Ok(())
+    }
+
+    /// Runs a half-space check.
+    fn run(check: &Check, _: &(), ctx: &Context) -> Result<Measurement, CheckError> {
+        let scene = check.scene()?;
+        let [medium] = scene.media.as_slice() else {
+            return Err("half_space needs exactly one medium".into());
+        };
+        if medium.phase != PhaseFunction::Isotropic {
+            return Err(
+                "the H-function closed form is for isotropic scattering; use phase = \"isotropic\""
+                    .into(),
+            );
+        }
+        let (sa, ss) = (
+            constant(&medium.sigma_a, "sigma_a")?,
+            constant(&medium.sigma_s, "sigma_s")?,
+        );
+        let sigma_t = sa + ss;
+        let albedo = if sigma_t > 0.0 { ss / sigma_t } else { 0.0 };
+        let env = match scene.lights.as_slice() {
+            [Light::Environment { radiance }] => constant(radiance, "the environment radiance")?,
+            _ => {
+                return Err("half_space needs a single environment light and no other light".into())
+            }
+        };
+        if scene.camera.medium.is_some() || scene.bsdfs.iter().any(|b| !b.is_null()) {
+            return Err(
+                "half_space needs the camera outside the medium and only null boundaries".into(),
+            );
+        }
+        let s = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
+        let region = region_of(check, &s)?;
+        let h = HFunction::new(albedo);
+        let r_of = |mu: f64| h.reflectance(mu.clamp(0.0, 1.0));
+        let expected_ray = |r: Ray| -> Result<f64, CheckError> {
+            let Some(h) = scene.aggregate.intersect(&r, f64::INFINITY) else {
+                return Ok(env);
+            };
+            let mu = h.point.n.dot(r.d).abs();
+            // optical thickness of the chord: the exit point along the same line
+            let inside = ray::spawn(&h.point, r.d);
+            let chord = scene
+                .aggregate
+                .intersect(&inside, f64::INFINITY)
+                .map_or(f64::INFINITY, |e| e.t);
+            if sigma_t * chord < 1e3 {
+                return Err(format!("a region ray crosses the medium with optical thickness {:.3e}; the half-space form needs >= 1e3 (use a larger sphere or sigma)", sigma_t * chord).into());
+            }
+            Ok(env * r_of(mu))
+        };
+        let px = per_pixel_rays(scene, s.width, s.height, region, &expected_ray, FOOTPRINT_K)?;
+        let expected = px.iter().sum::<f64>() / px.len() as f64;
+        let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
+        Ok(region_measurement(
+            &r,
+            expected,
+            check.rel_tolerance,
+            format!(
+                "half-space of albedo {albedo}, optical thickness >= 1e3: expected E(1 − √(1 − ϖ) H(μ)) per pixel (H(1) = {:.6}); path tracer, {} spp",
+                h.eval(1.0),
+                s.spp
+            ),
+        ))
     }
 }

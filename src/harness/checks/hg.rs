@@ -1,195 +1,87 @@
-//! Henyey–Greenstein checks for each g: ∫ p dω = 1 and the mean cosine ∫ μ p dω = g by
-//! graded Gauss–Legendre quadrature in μ (deterministic, abs_tol), and the sampling routine
-//! against p: chi-square of μ in bins of (nearly) equal mass whose expected counts are
-//! integrated numerically from `eval`, chi-square of φ against uniform, and a z test of the
-//! sampled mean cosine against g, Šidák-combined.
+//! `hg`: Henyey–Greenstein for each g (Henyey & Greenstein 1941, ApJ 93, eq. 1): ∫ p dω = 1 and
+//! the mean cosine ∫ μ p dω = g by graded quadrature, and the sampling routine against p by
+//! chi-square and a z test of the sampled mean cosine (`model/phase.rs`), Šidák-combined.
 
-use super::{combine, fmt_sig};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::outcome::Statistic;
-use crate::harness::{Context, Measurement};
-use crate::math::{rng::SampleStream, Vec3, PI};
-use crate::media::{HenyeyGreenstein, Phase};
-use crate::stats::{chi2::chi2_gof, z_test, MeanVar};
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::combine;
+use crate::harness::model::phase::measure_phase;
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
+use crate::media::HenyeyGreenstein;
 
-// 8-point Gauss–Legendre nodes and weights on [−1, 1] (Abramowitz & Stegun, Table 25.4).
-const GL_X: [f64; 4] = [
-    0.183_434_642_495_649_8,
-    0.525_532_409_916_329,
-    0.796_666_477_413_626_7,
-    0.960_289_856_497_536_3,
-];
-const GL_W: [f64; 4] = [
-    0.362_683_783_378_362,
-    0.313_706_645_877_887_3,
-    0.222_381_034_453_374_5,
-    0.101_228_536_290_376_3,
-];
-
-/// Panel edges on [−1, 1] refined geometrically towards both ends (where |g| → 1 peaks).
-fn graded_edges() -> Vec<f64> {
-    let k = 80;
-    let mut upper: Vec<f64> = (0..=k)
-        .map(|i| 1.0 - 10f64.powf(-14.0 + 14.0 * i as f64 / k as f64))
-        .collect();
-    upper.push(1.0);
-    upper.sort_by(f64::total_cmp);
-    let mut e: Vec<f64> = upper.iter().map(|x| -x).collect();
-    e.extend(upper.iter().copied());
-    e.sort_by(f64::total_cmp);
-    e.dedup();
-    e
+/// Parameters of an hg check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Asymmetries tested.
+    pub g: Vec<f64>,
+    /// Tolerance of the quadrature identities.
+    pub abs_tol: f64,
+    /// Samples per g.
+    pub samples: u64,
+    /// Bins [μ, φ].
+    pub bins: [usize; 2],
 }
 
-/// ∫_a^b f(μ) dμ, splitting [a, b] at the graded edges and applying GL8 on each piece.
-pub fn integrate_mu(f: &dyn Fn(f64) -> f64, a: f64, b: f64, edges: &[f64]) -> f64 {
-    let mut pts = vec![a];
-    pts.extend(edges.iter().copied().filter(|&x| x > a && x < b));
-    pts.push(b);
-    let mut sum = 0.0;
-    for w in pts.windows(2) {
-        let (c, h) = (0.5 * (w[0] + w[1]), 0.5 * (w[1] - w[0]));
-        for i in 0..4 {
-            sum += GL_W[i] * h * (f(c + h * GL_X[i]) + f(c - h * GL_X[i]));
+/// The `hg` kind.
+pub struct Hg;
+
+impl Kind for Hg {
+    type Params = Params;
+    const NAME: &'static str = "hg";
+    const KEYS: &'static [Key] = &[
+        Key {
+            name: "g",
+            ty: "list of numbers in (-1, 1)",
+            default: "[-0.999, -0.9, -0.5, 0, 0.3, 0.9, 0.999]",
+            doc: "asymmetries tested",
+        },
+        model::samples("100000"),
+        model::abs_tol("1e-6"),
+        model::bins("[40, 16]"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let g = k.finite_list("g", false)?;
+        if let Some(bad) = g.iter().find(|g| g.abs() >= 1.0) {
+            return Err(k.error_at(
+                "g",
+                format!("g = {bad} is not allowed; Henyey-Greenstein needs |g| < 1"),
+            ));
         }
-    }
-    sum
-}
-
-/// p as a function of the scattering cosine μ, through the `Phase` interface (wo = −z).
-fn p_of_mu(phase: &dyn Phase, mu: f64) -> f64 {
-    let wo = Vec3::new(0.0, 0.0, -1.0);
-    let r = (1.0 - mu * mu).max(0.0).sqrt();
-    phase.eval(wo, Vec3::new(r, 0.0, mu))
-}
-
-/// Measures one phase function claimed to be HG with asymmetry `g`.
-pub fn measure_phase(
-    phase: &dyn Phase,
-    g: f64,
-    abs_tol: f64,
-    samples: u64,
-    mu_bins: usize,
-    phi_bins: usize,
-    seed: u64,
-) -> Measurement {
-    let edges = graded_edges();
-    let norm = 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), -1.0, 1.0, &edges);
-    let mean_cos = 2.0 * PI * integrate_mu(&|m| m * p_of_mu(phase, m), -1.0, 1.0, &edges);
-    let det_err = (norm - 1.0).abs().max((mean_cos - g).abs());
-    // μ bins: edges at near-equal mass from a cumulative table on the graded grid.
-    let mut cum = vec![0.0];
-    for w in edges.windows(2) {
-        let last = *cum.last().unwrap_or(&0.0);
-        cum.push(last + 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), w[0], w[1], &[]));
-    }
-    let total = *cum.last().unwrap_or(&1.0);
-    let mut bin_edges = vec![-1.0];
-    for q in 1..mu_bins {
-        let target = total * q as f64 / mu_bins as f64;
-        let i = cum
-            .partition_point(|&c| c < target)
-            .clamp(1, edges.len() - 1);
-        let t = (target - cum[i - 1]) / (cum[i] - cum[i - 1]).max(f64::MIN_POSITIVE);
-        let e = edges[i - 1] + t.clamp(0.0, 1.0) * (edges[i] - edges[i - 1]);
-        if e > *bin_edges.last().unwrap_or(&-1.0) {
-            bin_edges.push(e);
-        }
-    }
-    bin_edges.push(1.0);
-    let expected: Vec<f64> = bin_edges
-        .windows(2)
-        .map(|w| {
-            samples as f64 * 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), w[0], w[1], &edges)
+        Ok(Params {
+            g: if g.is_empty() {
+                vec![-0.999, -0.9, -0.5, 0.0, 0.3, 0.9, 0.999]
+            } else {
+                g
+            },
+            abs_tol: k.non_negative("abs_tol")?.unwrap_or(1e-6),
+            samples: k.samples()?.unwrap_or(100_000),
+            bins: k.bins()?.unwrap_or([40, 16]),
         })
-        .collect();
-    let mut counts = vec![0u64; expected.len()];
-    let mut phi_counts = vec![0u64; phi_bins];
-    let mut mv = MeanVar::default();
-    let mut rng = SampleStream::new(seed, 2, 0);
-    let wo = Vec3::new(0.0, 0.0, -1.0);
-    for _ in 0..samples {
-        let s = phase.sample(wo, rng.next_2d());
-        let mu = s.wi.z.clamp(-1.0, 1.0);
-        mv.push(mu);
-        let b = bin_edges
-            .partition_point(|&e| e <= mu)
-            .clamp(1, counts.len())
-            - 1;
-        counts[b] += 1;
-        let phi = s.wi.y.atan2(s.wi.x).rem_euclid(2.0 * PI);
-        phi_counts[((phi / (2.0 * PI) * phi_bins as f64) as usize).min(phi_bins - 1)] += 1;
     }
-    let chi_mu = chi2_gof(&counts, &expected, 5.0);
-    let chi_phi = chi2_gof(
-        &phi_counts,
-        &vec![samples as f64 / phi_bins as f64; phi_bins],
-        5.0,
-    );
-    let t = z_test(mv.mean(), mv.std_error(), g);
-    // A chi-square that cannot be formed gives a NaN p-value: the check is an ERROR, not a FAIL.
-    let (chi, dof, p_mu) = match &chi_mu {
-        Ok(c) => (c.chi2, c.dof, c.p_value),
-        Err(_) => (f64::NAN, 0, f64::NAN),
-    };
-    let p_phi = chi_phi.as_ref().map_or(f64::NAN, |c| c.p_value);
-    // The three tests share samples, so they are combined by Bonferroni, min(1, 3·p_min),
-    // which holds under any dependence.
-    let ps = [p_mu, p_phi, t.p];
-    let p_combined = if ps.iter().any(|p| p.is_nan()) {
-        f64::NAN
-    } else {
-        (3.0 * ps.iter().copied().fold(1.0, f64::min)).min(1.0)
-    };
-    Measurement {
-        estimate: Some(mv.mean()),
-        std_error: Some(mv.std_error()),
-        expected: Some(g),
-        statistic: Some(Statistic::ChiSquare { chi2: chi, dof }),
-        p_value: Some(p_combined),
-        deterministic_pass: Some(det_err <= abs_tol),
-        unstable: None,
-        variants: 3,
-        one_sided: false,
-        samples,
-        message: format!(
-            "g = {g}: ∫p dω = {} and mean cosine {} by quadrature (|error| {:.1e} vs abs_tol {abs_tol:.0e}); sampled mean cosine {} ± {}; χ²(μ) p {}, χ²(φ) p {}",
-            fmt_sig(norm),
-            fmt_sig(mean_cos),
-            det_err,
-            fmt_sig(mv.mean()),
-            fmt_sig(mv.std_error()),
-            fmt_sig(p_mu),
-            fmt_sig(p_phi)
-        ),
-    }
-}
 
-/// Runs the HG check for every g in the manifest (default −0.999 … 0.999).
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p = &spec.params;
-    let gs = if p.g.is_empty() {
-        vec![-0.999, -0.9, -0.5, 0.0, 0.3, 0.9, 0.999]
-    } else {
-        p.g.clone()
-    };
-    let [mu_bins, phi_bins] = p.bins.unwrap_or([40, 16]);
-    let parts = gs
-        .iter()
-        .enumerate()
-        .map(|(i, &g)| {
-            let hg = HenyeyGreenstein { g };
-            let m = measure_phase(
-                &hg,
-                g,
-                p.abs_tol.unwrap_or(1e-6),
-                p.samples.unwrap_or(100_000),
-                mu_bins,
-                phi_bins,
-                crate::math::rng::mix64(ctx.seed ^ i as u64),
-            );
-            (format!("g = {g}"), m)
-        })
-        .collect();
-    Ok(combine(parts))
+    /// Runs the HG check for every g in the manifest (default −0.999 … 0.999).
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let [mu_bins, phi_bins] = p.bins;
+        let parts =
+            p.g.iter()
+                .enumerate()
+                .map(|(i, &g)| {
+                    let hg = HenyeyGreenstein { g };
+                    let m = measure_phase(
+                        &hg,
+                        g,
+                        p.abs_tol,
+                        p.samples,
+                        mu_bins,
+                        phi_bins,
+                        crate::math::rng::mix64(ctx.seed ^ i as u64),
+                    );
+                    (format!("g = {g}"), m)
+                })
+                .collect();
+        Ok(combine(parts))
+    }
 }

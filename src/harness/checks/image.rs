@@ -4,53 +4,39 @@
 //! channel tests, an optional stated model tolerance). The check's p-value is the Šidák
 //! combination of the smallest region p-value: 1 − (1 − p_min)^m (Šidák 1967).
 
-use super::{fmt_sig, settings_for};
-use crate::harness::compare::{compare, RegionResult, RgbImage};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::outcome::Statistic;
-use crate::harness::{Context, Measurement};
+use crate::harness::compare::{compare, regions_key, regions_measurement, Region, RgbImage};
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::region::settings_for;
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
-
-/// Runs an image comparison with the reference read from the manifest's path.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let path = spec
-        .params
-        .reference
-        .as_ref()
-        .ok_or("image_compare needs a reference")?;
-    run_against(spec, ctx, &RgbImage::load(path)?)
-}
+use crate::io::LocatedError;
+use crate::spectrum::Observer;
+use std::path::PathBuf;
 
 /// Runs an image comparison against `reference` (tests pass a deliberately wrong one).
 pub fn run_against(
-    spec: &CheckSpec,
+    check: &Check,
+    p: &Params,
     ctx: &Context,
     reference: &RgbImage,
-) -> Result<Measurement, String> {
-    let scene = spec.scene.as_ref().ok_or("image_compare needs a scene")?;
+) -> Result<Measurement, CheckError> {
+    let scene = check.scene()?;
     let mut s = settings_for(
-        spec,
+        check,
         scene,
         ctx,
         ctx.seed,
-        spec.render.max_depth.or(scene.render.max_depth),
+        check.render.max_depth.or(scene.render.max_depth),
         Strategy::Mis,
     );
     s.width = reference.width;
     s.height = reference.height;
-    s.observer = spec.params.observer.clone();
+    s.observer = p.observer.clone();
     let film = ctx.renderer.render(scene, &s)?;
     let test = RgbImage::from_film(&film);
     // Only the per-test p-values are used (the family rate passed is irrelevant); the run's correction applies
     // to the combined p-value below.
-    let c = compare(
-        &test,
-        reference,
-        &spec.params.regions,
-        0.5,
-        0.01,
-        spec.rel_tolerance,
-    )?;
+    let c = compare(&test, reference, &p.regions, 0.5, 0.01, check.rel_tolerance)?;
     let what = format!(
         "observer {}, reference {}",
         s.observer.name(),
@@ -63,61 +49,57 @@ pub fn run_against(
     regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)
 }
 
-/// The measurement of a set of region × channel z tests: p is the Šidák combination of the
-/// smallest p over the m tests, 1 − (1 − p_min)^m (Šidák 1967); the worst region's numbers are
-/// shown, with the three smallest p. `what` describes the comparison for the message.
-pub fn regions_measurement(
-    regions: &[RegionResult],
-    samples: u64,
-    what: &str,
-) -> Result<Measurement, String> {
-    if let Some(r) = regions.iter().find(|r| r.p.is_nan()) {
-        return Err(format!(
-            "region {:?} channel {} has a non-finite mean or standard error (test {} ± {}, reference {} ± {})",
-            r.region, r.channel, r.test.0, r.test.1, r.reference.0, r.reference.1
-        ));
+/// Parameters of an image comparison.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Reference image (EXR).
+    pub reference: PathBuf,
+    /// Named regions compared (empty: the whole image).
+    pub regions: Vec<Region>,
+    /// Colour pipeline the image is rendered with.
+    pub observer: Observer,
+}
+
+/// The `image_compare` kind.
+pub struct ImageCompare;
+
+impl Kind for ImageCompare {
+    type Params = Params;
+    const NAME: &'static str = "image_compare";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        Key {
+            name: "reference",
+            ty: "path",
+            default: "required",
+            doc:
+                "reference EXR (linear R, G, B, optional variance.R/G/B), relative to the manifest",
+        },
+        common::REGIONS,
+        common::OBSERVER,
+        common::SPP,
+        common::MAX_DEPTH,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Image;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            reference: k
+                .existing_file(
+                    "reference",
+                    Some("missing; an image comparison needs a reference EXR (path relative to the manifest)"),
+                )?
+                .unwrap_or_default(),
+            regions: regions_key(k, "regions")?,
+            observer: k.observer()?,
+        })
     }
-    let m = regions.len();
-    let worst = regions
-        .iter()
-        .min_by(|a, b| a.p.total_cmp(&b.p))
-        .ok_or("no region to compare")?;
-    let p_min = worst.p;
-    // Šidák: P(min of m independent uniform p ≤ p_min) = 1 − (1 − p_min)^m.
-    let p = -((-p_min).ln_1p() * m as f64).exp_m1();
-    let se = (worst.test.1.powi(2) + worst.reference.1.powi(2)).sqrt();
-    let rel = |r: &RegionResult| {
-        if r.reference.0 != 0.0 {
-            format!("{:+.3}%", 100.0 * (r.test.0 / r.reference.0 - 1.0))
-        } else {
-            "n/a".into()
-        }
-    };
-    let mut listed: Vec<&RegionResult> = regions.iter().collect();
-    listed.sort_by(|a, b| a.p.total_cmp(&b.p));
-    let top: Vec<String> = listed
-        .iter()
-        .take(3)
-        .map(|r| format!("{} {} {} (z {:.2})", r.region, r.channel, rel(r), r.z))
-        .collect();
-    Ok(Measurement {
-        estimate: Some(worst.test.0),
-        std_error: Some(se),
-        expected: Some(worst.reference.0),
-        statistic: Some(Statistic::Z { z: worst.z }),
-        p_value: Some(p.min(1.0)),
-        samples,
-        message: format!(
-            "{m} region x channel z tests ({what}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
-            worst.region,
-            worst.channel,
-            fmt_sig(worst.test.0),
-            fmt_sig(worst.test.1),
-            fmt_sig(worst.reference.0),
-            fmt_sig(worst.reference.1),
-            top.join("; ")
-        ),
-        variants: m,
-        ..Default::default()
-    })
+
+    /// Runs an image comparison with the reference read from the manifest's path.
+    fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let reference = RgbImage::load(&p.reference).map_err(CheckError::Setup)?;
+        run_against(check, p, ctx, &reference)
+    }
 }

@@ -24,13 +24,15 @@
 //! uncertainty = 0.01                     # relative standard uncertainty of a regional mean
 //! ```
 
-use super::{fmt_sig, settings_for};
-use crate::film::io;
 use crate::harness::compare::{parse_regions, Region};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::fmt_sig;
 use crate::harness::outcome::Statistic;
-use crate::harness::{Context, Measurement};
+use crate::harness::region::settings_for;
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
+use crate::io::image as io;
+use crate::io::LocatedError;
 use crate::scene::Source;
 use crate::spectrum::observer::Responses;
 use crate::spectrum::{Observer, Outside, Spectrum};
@@ -96,13 +98,9 @@ pub struct MeasuredImages {
 /// Reads and validates a measurement file; errors name the file, line and column or the band
 /// and key.
 pub fn load(path: &Path) -> Result<MeasuredImages, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
-    let src = Source { path, text: &text };
-    let d: MeasurementDesc = toml::from_str(&text).map_err(|e| {
-        src.error(e.span().unwrap_or(0..0), "", e.message().trim_end())
-            .to_string()
-    })?;
+    let text = crate::io::read_text(path, "the measurement file").map_err(|e| e.to_string())?;
+    let d: MeasurementDesc =
+        crate::io::parse_toml(&Source { path, text: &text }).map_err(|e| e.to_string())?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let at = |key: &str, msg: String| format!("{}: {key}: {msg}", path.display());
     let regions = match &d.regions {
@@ -229,23 +227,13 @@ fn rect_mean(values: &[f64], vars: Option<&[f64]>, w: usize, r: [usize; 4]) -> (
     (s / n, v.sqrt() / n)
 }
 
-/// Runs a `measured` check with the measurement file named in the manifest.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p: &PathBuf = spec
-        .params
-        .measurement
-        .as_ref()
-        .ok_or("measured needs a measurement")?;
-    run_against(spec, ctx, &load(p)?)
-}
-
 /// Runs a `measured` check against `m` (tests pass deliberately wrong measurements).
 pub fn run_against(
-    spec: &CheckSpec,
+    check: &Check,
     ctx: &Context,
     m: &MeasuredImages,
-) -> Result<Measurement, String> {
-    let scene = spec.scene.as_ref().ok_or("measured needs a scene")?;
+) -> Result<Measurement, CheckError> {
+    let scene = check.scene()?;
     // (band, region) → (rendered mean, its se, measured mean)
     let mut cells: Vec<(usize, String, f64, f64, f64)> = Vec::new();
     let mut samples = 0;
@@ -256,11 +244,11 @@ pub fn run_against(
                 .map_or(Spectrum::Constant(0.0), |b| b.response.clone())
         });
         let mut s = settings_for(
-            spec,
+            check,
             scene,
             ctx,
             crate::math::rng::mix64(ctx.seed ^ chunk_i as u64),
-            spec.render.max_depth.or(scene.render.max_depth),
+            check.render.max_depth.or(scene.render.max_depth),
             Strategy::Mis,
         );
         s.width = m.width;
@@ -347,7 +335,7 @@ pub fn run_against(
         }
     }
     if let Some(t) = tests.iter().find(|t| t.1.is_nan()) {
-        return Err(format!("non-finite value in {}", t.2));
+        return Err(format!("non-finite value in {}", t.2).into());
     }
     if m.fit_scale && cells.len() < 2 {
         return Err(
@@ -382,4 +370,53 @@ pub fn run_against(
         variants: n,
         ..Default::default()
     })
+}
+
+/// Parameters of a `measured` check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// The measurement file.
+    pub measurement: PathBuf,
+}
+
+/// The `measured` kind.
+pub struct Measured;
+
+impl Kind for Measured {
+    type Params = Params;
+    const NAME: &'static str = "measured";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        Key {
+            name: "measurement",
+            ty: "path",
+            default: "required",
+            doc: "measurement file (TOML: band images, responses, uncertainties), relative to the manifest",
+        },
+        common::SPP,
+        common::MAX_DEPTH,
+        common::SEED,
+    ];
+    // A spectral film with the bands' responses: only furnace's renderer has one.
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            measurement: k
+                .existing_file(
+                    "measurement",
+                    Some("missing; give the measurement file (path relative to the manifest)"),
+                )?
+                .unwrap_or_default(),
+        })
+    }
+
+    /// Runs a `measured` check with the measurement file named in the manifest.
+    fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        run_against(
+            check,
+            ctx,
+            &load(&p.measurement).map_err(CheckError::Setup)?,
+        )
+    }
 }

@@ -1,13 +1,15 @@
-//! Every registered phase function ([`registry::phases`]): normalisation ∫ p dω = 1 and its
+//! Every registered phase function ([`catalogue::phases`]): normalisation ∫ p dω = 1 and its
 //! known mean cosine by graded quadrature, its sampling routine against p (chi-square of the
-//! scattering cosine and of φ, z test of the sampled mean cosine; [`hg::measure_phase`]), and
+//! scattering cosine and of φ, z test of the sampled mean cosine; [`measure_phase`]), and
 //! reciprocity p(wo, wi) = p(wi, wo) with pdf = p for exact sampling, over random direction
 //! pairs (deterministic, relative tolerance).
 
-use super::{combine, hg};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::registry;
-use crate::harness::{Context, Measurement};
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::combine;
+use crate::harness::model::catalogue;
+use crate::harness::model::phase::measure_phase;
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
 use crate::math::{rng::SampleStream, warp};
 use crate::media::Phase;
 
@@ -41,31 +43,68 @@ pub fn reciprocity_error(phase: &dyn Phase, pairs: u64, seed: u64) -> (f64, f64)
 /// μ (~1e-16) is amplified by d ln p/dμ ≈ 3/(1 − g)² = 3e8.
 pub const PDF_REL_TOL: f64 = 1e-6;
 
-/// Runs the phase check over the registry.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p = &spec.params;
-    let [mu_bins, phi_bins] = p.bins.unwrap_or([40, 16]);
-    let rel_tol = p.rel_tol.unwrap_or(1e-12);
-    let parts = registry::phases()
-        .into_iter()
-        .enumerate()
-        .map(|(i, (name, phase, mean_cos))| {
-            let seed = crate::math::rng::mix64(ctx.seed ^ (0x9e37 + i as u64));
-            let mut m = hg::measure_phase(
-                &phase,
-                mean_cos,
-                p.abs_tol.unwrap_or(1e-6),
-                p.samples.unwrap_or(100_000),
-                mu_bins,
-                phi_bins,
-                seed,
-            );
-            let (rec, pdf_err) = reciprocity_error(&phase, 1000, seed);
-            let ok = rec <= rel_tol && pdf_err <= PDF_REL_TOL;
-            m.deterministic_pass = Some(m.deterministic_pass.unwrap_or(true) && ok);
-            m.message = format!("{name}: {}; reciprocity to {rec:.1e} (rel_tol {rel_tol:.0e}), sampled pdf = pdf to {pdf_err:.1e} (tolerance {PDF_REL_TOL:.0e})", m.message);
-            (name, m)
+/// Parameters of a phase check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Tolerance of the quadrature identities.
+    pub abs_tol: f64,
+    /// Tolerance of reciprocity.
+    pub rel_tol: f64,
+    /// Samples per phase function.
+    pub samples: u64,
+    /// Bins [μ, φ].
+    pub bins: [usize; 2],
+}
+
+/// The `phase` kind.
+pub struct PhaseKind;
+
+impl Kind for PhaseKind {
+    type Params = Params;
+    const NAME: &'static str = "phase";
+    const KEYS: &'static [Key] = &[
+        model::samples("100000"),
+        model::abs_tol("1e-6"),
+        model::rel_tol("1e-12"),
+        model::bins("[40, 16]"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            abs_tol: k.non_negative("abs_tol")?.unwrap_or(1e-6),
+            rel_tol: k.non_negative("rel_tol")?.unwrap_or(1e-12),
+            samples: k.samples()?.unwrap_or(100_000),
+            bins: k.bins()?.unwrap_or([40, 16]),
         })
-        .collect();
-    Ok(combine(parts))
+    }
+
+    /// Runs the phase check over the catalogue.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let [mu_bins, phi_bins] = p.bins;
+        let rel_tol = p.rel_tol;
+        let parts = catalogue::phases()
+            .into_iter()
+            .enumerate()
+            .map(|(i, (name, phase, mean_cos))| {
+                let seed = crate::math::rng::mix64(ctx.seed ^ (0x9e37 + i as u64));
+                let mut m = measure_phase(
+                    &phase,
+                    mean_cos,
+                    p.abs_tol,
+                    p.samples,
+                    mu_bins,
+                    phi_bins,
+                    seed,
+                );
+                let (rec, pdf_err) = reciprocity_error(&phase, 1000, seed);
+                let ok = rec <= rel_tol && pdf_err <= PDF_REL_TOL;
+                m.deterministic_pass = Some(m.deterministic_pass.unwrap_or(true) && ok);
+                m.message = format!("{name}: {}; reciprocity to {rec:.1e} (rel_tol {rel_tol:.0e}), sampled pdf = pdf to {pdf_err:.1e} (tolerance {PDF_REL_TOL:.0e})", m.message);
+                (name, m)
+            })
+            .collect();
+        Ok(combine(parts))
+    }
 }

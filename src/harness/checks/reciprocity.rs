@@ -4,27 +4,16 @@
 //! f(wi, wo)/η(wi)² (Veach 1997, §5.2; [`Bxdf::eta`]), which is plain symmetry when η = 1.
 //! Deterministic: passes when max |f(a,b) − f(b,a)| ≤ abs_tol + rel_tol·max|f|.
 
-use super::fmt_sig;
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::fmt_sig;
+use crate::harness::model::catalogue;
+use crate::harness::model::directions::direction;
 use crate::harness::outcome::Statistic;
-use crate::harness::{registry, Context, Measurement};
-use crate::math::{rng::SampleStream, Vec3, PI};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
+use crate::math::rng::SampleStream;
 use crate::scattering::Bxdf;
 use crate::spectrum::SampledSpectrum;
-
-/// A random direction with |cos θ| ≥ cos(θmax), either hemisphere; every 8th one exactly at θmax.
-pub fn direction(rng: &mut SampleStream, theta_max_deg: f64, i: u64) -> Vec3 {
-    let cmin = theta_max_deg.to_radians().cos();
-    let z = if i % 8 == 7 {
-        cmin
-    } else {
-        cmin + (1.0 - cmin) * rng.next_f64()
-    };
-    let z = if rng.next_f64() < 0.5 { z } else { -z };
-    let phi = 2.0 * PI * rng.next_f64();
-    let r = (1.0 - z * z).max(0.0).sqrt();
-    Vec3::new(r * phi.cos(), r * phi.sin(), z)
-}
 
 /// Measures reciprocity of each named model over `pairs` random pairs.
 pub fn measure(
@@ -35,7 +24,7 @@ pub fn measure(
     rel_tol: f64,
     seed: u64,
 ) -> Measurement {
-    let wl = registry::check_wavelengths();
+    let wl = catalogue::check_wavelengths();
     let mut worst = (0.0f64, 0.0f64, String::new());
     let mut pass = true;
     for (name, b) in models {
@@ -85,17 +74,55 @@ pub fn measure(
     }
 }
 
-/// Runs the reciprocity check over every registered BSDF.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let models = registry::bsdfs();
-    let refs = registry::as_bxdfs(&models);
-    let p = &spec.params;
-    Ok(measure(
-        &refs,
-        p.samples.unwrap_or(20_000),
-        p.theta_max_deg.unwrap_or(89.99),
-        p.abs_tol.unwrap_or(0.0),
-        p.rel_tol.unwrap_or(1e-12),
-        ctx.seed,
-    ))
+/// Parameters of a reciprocity check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Random direction pairs per model.
+    pub pairs: u64,
+    /// Largest polar angle, degrees.
+    pub theta_max_deg: f64,
+    /// Absolute tolerance.
+    pub abs_tol: f64,
+    /// Relative tolerance.
+    pub rel_tol: f64,
+}
+
+/// The `reciprocity` kind.
+pub struct Reciprocity;
+
+impl Kind for Reciprocity {
+    type Params = Params;
+    const NAME: &'static str = "reciprocity";
+    const KEYS: &'static [Key] = &[
+        model::samples("20000"),
+        model::theta_max_deg("89.99"),
+        model::abs_tol("0"),
+        model::rel_tol("1e-12"),
+        common::SEED,
+    ];
+    const STOCHASTIC: bool = false;
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            pairs: k.samples()?.unwrap_or(20_000),
+            theta_max_deg: k.theta_max_deg()?.unwrap_or(89.99),
+            abs_tol: k.non_negative("abs_tol")?.unwrap_or(0.0),
+            rel_tol: k.non_negative("rel_tol")?.unwrap_or(1e-12),
+        })
+    }
+
+    /// Runs the reciprocity check over every registered BSDF.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let models = catalogue::bsdfs();
+        let refs = catalogue::as_bxdfs(&models);
+        Ok(measure(
+            &refs,
+            p.pairs,
+            p.theta_max_deg,
+            p.abs_tol,
+            p.rel_tol,
+            ctx.seed,
+        ))
+    }
 }

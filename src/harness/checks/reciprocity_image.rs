@@ -18,13 +18,18 @@
 //! Not covered: specular surfaces seen by the camera and environment lights (the light tracer
 //! refuses the latter with an error naming the light).
 
-use super::{fmt_sig, settings_for};
-use crate::harness::checks::image::regions_measurement;
-use crate::harness::compare::{region_mean, region_test, whole_image, Region, RgbImage, CHANNELS};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::{Context, Measurement};
+use crate::harness::compare::{
+    region_mean, region_test, regions_key, regions_measurement, whole_image, Region, RgbImage,
+    CHANNELS,
+};
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::fmt_sig;
+use crate::harness::region::settings_for;
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Renderer, Scope};
 use crate::integrators::Strategy;
+use crate::io::LocatedError;
 use crate::math::rng::mix64;
+use crate::spectrum::Observer;
 
 /// Blocks per side of the default region grid.
 pub const DEFAULT_GRID: usize = 4;
@@ -40,104 +45,6 @@ pub fn grid_regions(k: usize) -> Vec<Region> {
             })
         })
         .collect()
-}
-
-/// Runs the comparison of the path tracer's and the light tracer's images of the scene.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let scene = spec
-        .scene
-        .as_ref()
-        .ok_or("reciprocity_image needs a scene")?;
-    let max_depth = spec.render.max_depth.or(scene.render.max_depth);
-    let mut s = settings_for(spec, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
-    s.observer = spec.params.observer.clone();
-    let (w, h) = (s.width, s.height);
-    // No light path reaches the eye straight from an environment light (nor via a specular
-    // surface seen by the camera), so pixels where the camera sees the environment have no
-    // light-tracing estimate: such scenes are compared on a regions file that avoids them.
-    let environment = scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, crate::lights::Light::Environment { .. }));
-    let mut regions = Vec::new();
-    if environment {
-        if spec.params.regions.is_empty() {
-            return Err("the scene has an environment light: give `regions` (a regions file) that avoids the pixels where the camera sees the environment directly; light paths cannot reach the eye that way".into());
-        }
-    } else {
-        regions.push(whole_image());
-    }
-    if spec.params.regions.is_empty() {
-        regions.extend(grid_regions(spec.params.grid.unwrap_or(DEFAULT_GRID)));
-    } else {
-        regions.extend(spec.params.regions.iter().cloned());
-    }
-    let rects = regions
-        .iter()
-        .map(|r| r.pixels(w, h))
-        .collect::<Result<Vec<_>, _>>()?;
-    let n_paths = spec.params.light_paths.unwrap_or((w * h) as u64 * s.spp);
-
-    let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
-    // An independent seed for the light tracer (its streams are also keyed apart).
-    let mut ls = s.clone();
-    ls.seed = mix64(ctx.seed ^ 0x5245_4349_5052_4f43);
-    let light = ctx
-        .renderer
-        .render_light_paths(scene, &ls, n_paths, &rects)?;
-    if light.regions.len() != rects.len() {
-        return Err(format!(
-            "the light tracer returned {} region statistics for {} regions",
-            light.regions.len(),
-            rects.len()
-        ));
-    }
-
-    let mut results = Vec::with_capacity(rects.len() * 3);
-    for ((reg, rect), stats) in regions.iter().zip(&rects).zip(&light.regions) {
-        let n = ((rect[2] - rect[0]) * (rect[3] - rect[1])) as f64;
-        for (c, channel) in CHANNELS.iter().enumerate() {
-            // light-tracer region mean: (per-path region sum)/pixels, exact i.i.d. variance
-            let sum = &stats[3 + c];
-            let test = (sum.mean() / n, sum.std_error() / n);
-            let reference = region_mean(&path, c, *rect);
-            results.push(region_test(
-                &reg.name,
-                channel,
-                test,
-                reference,
-                spec.rel_tolerance,
-            ));
-        }
-    }
-    let mut m = regions_measurement(
-        &results,
-        (w * h) as u64 * s.spp + n_paths,
-        &format!(
-            "light tracer ({n_paths} paths) = test, path tracer ({} spp) = reference, {w}x{h}, max_depth {}, observer {}",
-            s.spp,
-            max_depth.map_or("unlimited".into(), |d| d.to_string()),
-            s.observer.name()
-        ),
-    )?;
-    let whole: Vec<String> = results
-        .iter()
-        .filter(|r| !environment && r.region == regions[0].name)
-        .map(|r| {
-            format!(
-                "{} {} ± {} vs {} ± {}",
-                r.channel,
-                fmt_sig(r.test.0),
-                fmt_sig(r.test.1),
-                fmt_sig(r.reference.0),
-                fmt_sig(r.reference.1)
-            )
-        })
-        .collect();
-    if !whole.is_empty() {
-        m.message = format!("{}; {}: {}", m.message, regions[0].name, whole.join(", "));
-    }
-    Ok(m)
 }
 
 #[cfg(test)]
@@ -158,5 +65,168 @@ mod tests {
             }
         }
         assert!(covered.iter().all(|c| *c == 1));
+    }
+}
+
+/// Parameters of a reciprocity_image check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Colour pipeline of both images.
+    pub observer: Observer,
+    /// Named regions (empty: the whole image and a grid of blocks).
+    pub regions: Vec<Region>,
+    /// Blocks per side of the region grid (None: [`DEFAULT_GRID`]).
+    pub grid: Option<usize>,
+    /// Light paths traced (None: spp × width × height).
+    pub light_paths: Option<u64>,
+}
+
+/// The `reciprocity_image` kind.
+pub struct ReciprocityImage;
+
+impl Kind for ReciprocityImage {
+    type Params = Params;
+    const NAME: &'static str = "reciprocity_image";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        common::SPP,
+        Key {
+            name: "light_paths",
+            ty: "integer 2..=2^40",
+            default: "spp x width x height",
+            doc: "light paths traced by the light tracer",
+        },
+        common::WIDTH,
+        common::HEIGHT,
+        common::MAX_DEPTH,
+        common::ROULETTE,
+        Key {
+            name: "grid",
+            ty: "integer 1..=64",
+            default: "4",
+            doc: "blocks per side of the region grid (instead of `regions`)",
+        },
+        common::REGIONS,
+        common::OBSERVER,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        if k.has("grid") && k.has("regions") {
+            return Err(k.error_at(
+                "grid",
+                "give either `grid` (k x k blocks) or `regions` (a regions file), not both".into(),
+            ));
+        }
+        Ok(Params {
+            observer: k.observer()?,
+            regions: regions_key(k, "regions")?,
+            grid: k.int("grid", 1, 64)?,
+            light_paths: k.int("light_paths", 2, 1 << 40)?,
+        })
+    }
+
+    fn not_applicable(_: &Check, _: &Params, renderer: &dyn Renderer) -> Option<String> {
+        (!renderer.is_reference()).then(|| format!(
+            "kind reciprocity_image compares furnace's path tracer with furnace's light tracer; {} cannot run furnace's light tracer",
+            renderer.name()
+        ))
+    }
+
+    /// Runs the comparison of the path tracer's and the light tracer's images of the scene.
+    fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let scene = check.scene()?;
+        let max_depth = check.render.max_depth.or(scene.render.max_depth);
+        let mut s = settings_for(check, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
+        s.observer = p.observer.clone();
+        let (w, h) = (s.width, s.height);
+        // No light path reaches the eye straight from an environment light (nor via a specular
+        // surface seen by the camera), so pixels where the camera sees the environment have no
+        // light-tracing estimate: such scenes are compared on a regions file that avoids them.
+        let environment = scene
+            .lights
+            .iter()
+            .any(|l| matches!(l, crate::lights::Light::Environment { .. }));
+        let mut regions = Vec::new();
+        if environment {
+            if p.regions.is_empty() {
+                return Err("the scene has an environment light: give `regions` (a regions file) that avoids the pixels where the camera sees the environment directly; light paths cannot reach the eye that way".into());
+            }
+        } else {
+            regions.push(whole_image());
+        }
+        if p.regions.is_empty() {
+            regions.extend(grid_regions(p.grid.unwrap_or(DEFAULT_GRID)));
+        } else {
+            regions.extend(p.regions.iter().cloned());
+        }
+        let rects = regions
+            .iter()
+            .map(|r| r.pixels(w, h))
+            .collect::<Result<Vec<_>, _>>()?;
+        let n_paths = p.light_paths.unwrap_or((w * h) as u64 * s.spp);
+
+        let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
+        // An independent seed for the light tracer (its streams are also keyed apart).
+        let mut ls = s.clone();
+        ls.seed = mix64(ctx.seed ^ 0x5245_4349_5052_4f43);
+        let light = ctx
+            .renderer
+            .render_light_paths(scene, &ls, n_paths, &rects)?;
+        if light.regions.len() != rects.len() {
+            return Err(CheckError::Renderer(format!(
+                "the light tracer returned {} region statistics for {} regions",
+                light.regions.len(),
+                rects.len()
+            )));
+        }
+
+        let mut results = Vec::with_capacity(rects.len() * 3);
+        for ((reg, rect), stats) in regions.iter().zip(&rects).zip(&light.regions) {
+            let n = ((rect[2] - rect[0]) * (rect[3] - rect[1])) as f64;
+            for (c, channel) in CHANNELS.iter().enumerate() {
+                // light-tracer region mean: (per-path region sum)/pixels, exact i.i.d. variance
+                let sum = &stats[3 + c];
+                let test = (sum.mean() / n, sum.std_error() / n);
+                let reference = region_mean(&path, c, *rect);
+                results.push(region_test(
+                    &reg.name,
+                    channel,
+                    test,
+                    reference,
+                    check.rel_tolerance,
+                ));
+            }
+        }
+        let mut m = regions_measurement(
+            &results,
+            (w * h) as u64 * s.spp + n_paths,
+            &format!(
+                "light tracer ({n_paths} paths) = test, path tracer ({} spp) = reference, {w}x{h}, max_depth {}, observer {}",
+                s.spp,
+                max_depth.map_or("unlimited".into(), |d| d.to_string()),
+                s.observer.name()
+            ),
+        )?;
+        let whole: Vec<String> = results
+            .iter()
+            .filter(|r| !environment && r.region == regions[0].name)
+            .map(|r| {
+                format!(
+                    "{} {} ± {} vs {} ± {}",
+                    r.channel,
+                    fmt_sig(r.test.0),
+                    fmt_sig(r.test.1),
+                    fmt_sig(r.reference.0),
+                    fmt_sig(r.reference.1)
+                )
+            })
+            .collect();
+        if !whole.is_empty() {
+            m.message = format!("{}; {}: {}", m.message, regions[0].name, whole.join(", "));
+        }
+        Ok(m)
     }
 }

@@ -2,83 +2,170 @@
 //! form (recomputed for the transformed scene) at every s and t; ray-offset policies tuned for
 //! unit scenes fail this at 1e-4 or 1e5 scale or far from the origin.
 
-use super::{
-    combine, diagnosis_alpha, furnace, lambert, region_measurement, region_of, render_region,
-    settings_for,
+use crate::harness::closed_form::furnace::{expectation as furnace_expectation, validate_view};
+use crate::harness::closed_form::lambert::expectation as lambert_expectation;
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::combine;
+use crate::harness::region::{
+    diagnosis_alpha, region_measurement, region_of, render_region, settings_for,
 };
-use crate::harness::manifest::CheckSpec;
-use crate::harness::{Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
+use crate::io::LocatedError;
 use crate::math::{rng::mix64, Vec3};
 
-/// Runs a scale-invariance check.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let base = spec
-        .scene
-        .as_ref()
-        .ok_or("scale_invariance needs a scene")?;
-    let of = spec
-        .params
-        .of
-        .as_deref()
-        .ok_or("scale_invariance needs `of`")?;
-    let scales = if spec.params.scales.is_empty() {
-        vec![1.0]
-    } else {
-        spec.params.scales.clone()
-    };
-    let offsets = if spec.params.offsets.is_empty() {
-        vec![[0.0; 3]]
-    } else {
-        spec.params.offsets.clone()
-    };
-    let mut parts = Vec::new();
-    let mut k = 0u64;
-    for &s in &scales {
-        for o in &offsets {
-            let scene = base.transformed(s, Vec3::from_array(*o));
-            let (max_depth, strategy) = match of {
-                "furnace" => (
-                    spec.render.max_depth.or(scene.render.max_depth),
-                    Strategy::Mis,
-                ),
-                _ => (Some(1), Strategy::Mis),
-            };
-            let settings =
-                settings_for(spec, &scene, ctx, mix64(ctx.seed ^ k), max_depth, strategy);
-            k += 1;
-            let region = region_of(spec, &settings)?;
-            let (expected, px, what) = match of {
-                "furnace" => {
-                    furnace::validate_view(&scene, settings.width, settings.height, region)?;
-                    let (e, w) = furnace::expectation(&scene, max_depth)?;
-                    (e, None, w)
+/// The closed form a scale-invariance check re-checks.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Of {
+    /// The furnace closed forms (depth as the check or scene says).
+    Furnace,
+    /// Lambert's law, direct light only.
+    Lambert,
+}
+
+/// Parameters of a scale-invariance check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// The closed form re-checked.
+    pub of: Of,
+    /// Scale factors (default [1]).
+    pub scales: Vec<f64>,
+    /// Translations (default [[0, 0, 0]]).
+    pub offsets: Vec<[f64; 3]>,
+}
+
+/// The `scale_invariance` kind.
+pub struct ScaleInvariance;
+
+impl Kind for ScaleInvariance {
+    type Params = Params;
+    const NAME: &'static str = "scale_invariance";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        Key {
+            name: "of",
+            ty: "\"furnace\" or \"lambert\"",
+            default: "required",
+            doc: "the closed form re-checked at every scale and offset",
+        },
+        Key {
+            name: "scales",
+            ty: "list of numbers > 0",
+            default: "[1]",
+            doc: "scale factors applied to the scene",
+        },
+        Key {
+            name: "offsets",
+            ty: "list of [x, y, z]",
+            default: "[[0, 0, 0]]",
+            doc: "translations applied after scaling, scene units",
+        },
+        common::SPP,
+        common::WIDTH,
+        common::HEIGHT,
+        common::MAX_DEPTH,
+        common::REGION,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Image;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let of = match k.get::<String>("of")? {
+            None => {
+                return Err(k.error_at("of", "missing; allowed: \"furnace\", \"lambert\"".into()))
+            }
+            Some(o) => match o.get_ref().as_str() {
+                "furnace" => Of::Furnace,
+                "lambert" => Of::Lambert,
+                other => {
+                    return Err(k.error(
+                        o.span(),
+                        "of",
+                        format!("{other:?}: allowed \"furnace\", \"lambert\""),
+                    ))
                 }
-                _ => {
-                    let (e, px) =
-                        lambert::expectation(&scene, settings.width, settings.height, region)?;
-                    (e, Some(px), "Lambert closed form".to_string())
-                }
-            };
-            let r = render_region(
-                ctx,
-                &scene,
-                &settings,
-                region,
-                px.as_deref(),
-                diagnosis_alpha(ctx, scales.len() * offsets.len()),
-            )?;
-            let label = format!("scale {s:e}, offset {o:?}");
-            parts.push((
-                label.clone(),
-                region_measurement(
-                    &r,
-                    expected,
-                    spec.rel_tolerance,
-                    format!("{what} at {label}"),
-                ),
-            ));
+            },
+        };
+        if of == Of::Lambert && k.has("max_depth") {
+            return Err(k.error_at("max_depth", "scale_invariance of \"lambert\" renders direct light only (max_depth 1); remove max_depth".into()));
         }
+        let scales = k.finite_list("scales", true)?;
+        let offsets = k.get::<Vec<[f64; 3]>>("offsets")?;
+        if let Some(o) = &offsets {
+            if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
+                return Err(k.error(
+                    o.span(),
+                    "offsets",
+                    "every offset component must be finite".into(),
+                ));
+            }
+        }
+        let offsets = offsets.map(|o| o.into_inner()).unwrap_or_default();
+        Ok(Params {
+            of,
+            scales: if scales.is_empty() { vec![1.0] } else { scales },
+            offsets: if offsets.is_empty() {
+                vec![[0.0; 3]]
+            } else {
+                offsets
+            },
+        })
     }
-    Ok(combine(parts))
+
+    /// Runs a scale-invariance check.
+    fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let base = check.scene()?;
+        let of = p.of;
+        let (scales, offsets) = (&p.scales, &p.offsets);
+        let mut parts = Vec::new();
+        let mut k = 0u64;
+        for &s in scales {
+            for o in offsets {
+                let scene = base.transformed(s, Vec3::from_array(*o));
+                let (max_depth, strategy) = match of {
+                    Of::Furnace => (
+                        check.render.max_depth.or(scene.render.max_depth),
+                        Strategy::Mis,
+                    ),
+                    _ => (Some(1), Strategy::Mis),
+                };
+                let settings =
+                    settings_for(check, &scene, ctx, mix64(ctx.seed ^ k), max_depth, strategy);
+                k += 1;
+                let region = region_of(check, &settings)?;
+                let (expected, px, what) = match of {
+                    Of::Furnace => {
+                        validate_view(&scene, settings.width, settings.height, region)?;
+                        let (e, w) = furnace_expectation(&scene, max_depth)?;
+                        (e, None, w)
+                    }
+                    _ => {
+                        let (e, px) =
+                            lambert_expectation(&scene, settings.width, settings.height, region)?;
+                        (e, Some(px), "Lambert closed form".to_string())
+                    }
+                };
+                let r = render_region(
+                    ctx,
+                    &scene,
+                    &settings,
+                    region,
+                    px.as_deref(),
+                    diagnosis_alpha(ctx, scales.len() * offsets.len()),
+                )?;
+                let label = format!("scale {s:e}, offset {o:?}");
+                parts.push((
+                    label.clone(),
+                    region_measurement(
+                        &r,
+                        expected,
+                        check.rel_tolerance,
+                        format!("{what} at {label}"),
+                    ),
+                ));
+            }
+        }
+        Ok(combine(parts))
+    }
 }

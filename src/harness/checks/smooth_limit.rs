@@ -5,17 +5,20 @@
 //! relative tolerance for the masking that remains at α = 1e-4 (1 − G ≈ α² tan² θo); and the
 //! sampled directions must lie within 0.01 rad of the smooth direction for ≥ 99 % of samples.
 
-use super::energy::power_factor;
-use super::{combine, fmt_sig, z_with_tolerance};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::model::albedo::power_factor;
+use crate::harness::model::catalogue;
 use crate::harness::outcome::Statistic;
-use crate::harness::{registry, Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
 use crate::math::Vec3;
 use crate::scattering::Bxdf;
+use crate::stats::z_with_tolerance;
 use crate::stats::MeanVar;
 
-/// The pairs (rough name, smooth name) of the registry that are compared.
+/// The pairs (rough name, smooth name) of the catalogue that are compared.
 pub const PAIRS: [(&str, &str); 2] = [
     ("conductor/ggx α=1e-4", "conductor/smooth n=0.2 k=3"),
     ("dielectric/ggx α=1e-4 η=1.5", "dielectric/smooth η=1.5"),
@@ -23,7 +26,7 @@ pub const PAIRS: [(&str, &str); 2] = [
 
 /// The smooth model's exact (reflected, transmitted) power and lobe directions at `wo`.
 fn smooth_lobes(b: &dyn Bxdf, wo: Vec3) -> ([f64; 2], [Option<Vec3>; 2]) {
-    let wl = registry::check_wavelengths();
+    let wl = catalogue::check_wavelengths();
     let mut power = [0.0; 2];
     let mut dirs = [None; 2];
     // uc just above 0 picks reflection when it has any probability, just below 1 transmission.
@@ -47,7 +50,7 @@ pub fn measure(
     rel_tol: f64,
     seed: u64,
 ) -> Measurement {
-    let wl = registry::check_wavelengths();
+    let wl = catalogue::check_wavelengths();
     let mut rng = SampleStream::new(seed, 8, 0);
     let mut parts = Vec::new();
     let mut worst_far = 0.0f64;
@@ -105,31 +108,59 @@ pub fn measure(
     m
 }
 
-/// Runs the smooth-limit check over the registered pairs.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p = &spec.params;
-    let samples = p.samples.unwrap_or(20_000);
-    let rel_tol = p.rel_tol.unwrap_or(1e-3);
-    let models = registry::bsdfs();
-    let find = |n: &str| {
-        models
-            .iter()
-            .find(|(name, _)| name == n)
-            .map(|(_, b)| b)
-            .ok_or_else(|| format!("registry has no model {n:?}"))
-    };
-    let mut parts = Vec::new();
-    for (i, (r, s)) in PAIRS.iter().enumerate() {
-        parts.push((
-            format!("{r} vs {s}"),
-            measure(
-                find(r)?,
-                find(s)?,
-                samples,
-                rel_tol,
-                mix64(ctx.seed ^ i as u64),
-            ),
-        ));
+/// Parameters of a smooth-limit check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Samples per pair and angle.
+    pub samples: u64,
+    /// Stated relative tolerance between the nearly smooth and the smooth model.
+    pub rel_tol: f64,
+}
+
+/// The `smooth_limit` kind.
+pub struct SmoothLimit;
+
+impl Kind for SmoothLimit {
+    type Params = Params;
+    const NAME: &'static str = "smooth_limit";
+    const KEYS: &'static [Key] = &[
+        model::samples("20000"),
+        model::rel_tol("1e-3"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            samples: k.samples()?.unwrap_or(20_000),
+            rel_tol: k.non_negative("rel_tol")?.unwrap_or(1e-3),
+        })
     }
-    Ok(combine(parts))
+
+    /// Runs the smooth-limit check over the registered pairs.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let (samples, rel_tol) = (p.samples, p.rel_tol);
+        let models = catalogue::bsdfs();
+        let find = |n: &str| {
+            models
+                .iter()
+                .find(|(name, _)| name == n)
+                .map(|(_, b)| b)
+                .ok_or_else(|| format!("the catalogue has no model {n:?}"))
+        };
+        let mut parts = Vec::new();
+        for (i, (r, s)) in PAIRS.iter().enumerate() {
+            parts.push((
+                format!("{r} vs {s}"),
+                measure(
+                    find(r)?,
+                    find(s)?,
+                    samples,
+                    rel_tol,
+                    mix64(ctx.seed ^ i as u64),
+                ),
+            ));
+        }
+        Ok(combine(parts))
+    }
 }

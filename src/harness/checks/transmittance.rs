@@ -6,12 +6,16 @@
 //! scene's null boundaries, so chromatic absorbers test the wavelength weights too. Rendered
 //! with emission only (max_depth 0; crossing a null boundary is not a bounce).
 
-use super::lambert::{per_pixel_rays, FOOTPRINT_K};
-use super::{combine, diagnosis_alpha, region_measurement, region_of, render_region, settings_for};
 use crate::geometry::{ray, Ray};
-use crate::harness::manifest::CheckSpec;
-use crate::harness::{Context, Measurement};
+use crate::harness::closed_form::footprint::{per_pixel_rays, FOOTPRINT_K};
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::measurement::combine;
+use crate::harness::region::{
+    diagnosis_alpha, region_measurement, region_of, render_region, settings_for,
+};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
+use crate::io::LocatedError;
 use crate::lights::Light;
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum};
@@ -20,7 +24,7 @@ use crate::spectrum::{cie, Spectrum};
 /// emitter met through null boundaries and finally the first other surface or the environment,
 /// each attenuated by the absorbing segments before it. A ray with no surface ahead has left
 /// every medium (as in the path tracer).
-pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, String> {
+pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
     let mut path: Vec<(u32, f64)> = Vec::new();
     // (emitted spectrum, number of path segments in front of it)
     let mut sources: Vec<(&Spectrum, usize)> = Vec::new();
@@ -33,7 +37,7 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, String> {
                 return Err(format!(
                     "medium {:?} scatters; the transmittance kind needs purely absorbing media (sigma_s = 0)",
                     scene.medium_names[m as usize]
-                ));
+                ).into());
             }
             path.push((m, h.t));
         }
@@ -76,31 +80,54 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, String> {
     })[1])
 }
 
-/// Runs a transmittance check.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let scene = spec.scene.as_ref().ok_or("transmittance needs a scene")?;
-    if !scene.has_media() {
-        return Err("transmittance needs a scene with an absorbing medium".into());
+/// The `transmittance` kind.
+pub struct Transmittance;
+
+impl Kind for Transmittance {
+    type Params = ();
+    const NAME: &'static str = "transmittance";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        common::VARY,
+        common::SPP,
+        common::WIDTH,
+        common::HEIGHT,
+        common::REGION,
+        common::SEED,
+        common::REL_TOLERANCE,
+    ];
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(_: &mut Keys) -> Result<(), LocatedError> {
+        Ok(())
     }
-    let s = settings_for(spec, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
-    let region = region_of(spec, &s)?;
-    let px = per_pixel_rays(
-        scene,
-        s.width,
-        s.height,
-        region,
-        &|r| along(scene, r),
-        FOOTPRINT_K,
-    )?;
-    let expected = px.iter().sum::<f64>() / px.len() as f64;
-    let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
-    Ok(combine(vec![(
-        "transmittance".into(),
-        region_measurement(
-            &r,
-            expected,
-            spec.rel_tolerance,
-            format!("emission through absorbing media, expected Σ ȳ Le exp(−Σ σa d) per pixel; path tracer, emission only, {} spp", s.spp),
-        ),
-    )]))
+
+    /// Runs a transmittance check.
+    fn run(check: &Check, _: &(), ctx: &Context) -> Result<Measurement, CheckError> {
+        let scene = check.scene()?;
+        if !scene.has_media() {
+            return Err("transmittance needs a scene with an absorbing medium".into());
+        }
+        let s = settings_for(check, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
+        let region = region_of(check, &s)?;
+        let px = per_pixel_rays(
+            scene,
+            s.width,
+            s.height,
+            region,
+            &|r| along(scene, r),
+            FOOTPRINT_K,
+        )?;
+        let expected = px.iter().sum::<f64>() / px.len() as f64;
+        let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
+        Ok(combine(vec![(
+            "transmittance".into(),
+            region_measurement(
+                &r,
+                expected,
+                check.rel_tolerance,
+                format!("emission through absorbing media, expected Σ ȳ Le exp(−Σ σa d) per pixel; path tracer, emission only, {} spp", s.spp),
+            ),
+        )]))
+    }
 }

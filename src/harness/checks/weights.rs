@@ -3,15 +3,18 @@
 //! weight equals the directional albedo from quadrature (z test). Chi-square tests alone
 //! cannot see a wrong eval or a wrong weight.
 
-use super::{
-    combine, energy, energy::albedo_quadrature, fmt_sig, reciprocity::direction, z_with_tolerance,
-};
-use crate::harness::manifest::CheckSpec;
+use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::model::albedo::{albedo_quadrature, quadrature_resolves};
+use crate::harness::model::catalogue;
+use crate::harness::model::directions::direction;
 use crate::harness::outcome::Statistic;
-use crate::harness::{registry, Context, Measurement};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
 use crate::media::{HenyeyGreenstein, Phase};
 use crate::scattering::Bxdf;
+use crate::stats::z_with_tolerance;
 use crate::stats::MeanVar;
 
 fn rel_err(a: f64, b: f64) -> f64 {
@@ -31,7 +34,7 @@ pub fn measure_bsdf(
     rel_tol: f64,
     seed: u64,
 ) -> Measurement {
-    let wl = registry::check_wavelengths();
+    let wl = catalogue::check_wavelengths();
     let mut rng = SampleStream::new(seed, 4, 0);
     let mut worst = 0.0f64;
     let mut worst_at = String::new();
@@ -44,7 +47,7 @@ pub fn measure_bsdf(
         };
         // The albedo comparison needs a quadrature the grid resolves (energy::quadrature_resolves);
         // elsewhere only the per-sample identities are checked.
-        let albedo = energy::quadrature_resolves(b, wo)
+        let albedo = quadrature_resolves(b, wo)
             .then(|| albedo_quadrature(b, wo, 512, 64).iter().sum::<f64>());
         let mut mv = MeanVar::default();
         for _ in 0..samples {
@@ -126,29 +129,60 @@ pub fn measure_phase(ph: &dyn Phase, samples: u64, rel_tol: f64, seed: u64) -> M
     }
 }
 
-/// Runs the sample-weight check over every registered BSDF and a set of HG phase functions.
-pub fn run(spec: &CheckSpec, ctx: &Context) -> Result<Measurement, String> {
-    let p = &spec.params;
-    let samples = p.samples.unwrap_or(20_000);
-    let rel_tol = p.rel_tol.unwrap_or(1e-9);
-    let theta = p.theta_max_deg.unwrap_or(89.9);
-    let mut parts = Vec::new();
-    for (i, (name, b)) in registry::bsdfs().iter().enumerate() {
-        parts.push((
-            format!("bsdf {name}"),
-            measure_bsdf(b, samples, theta, rel_tol, mix64(ctx.seed ^ i as u64)),
-        ));
+/// Parameters of a sample-weight check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// Samples per model.
+    pub samples: u64,
+    /// Tolerance of weight = eval·cos/pdf and pdf = pdf(wo, wi).
+    pub rel_tol: f64,
+    /// Largest polar angle, degrees.
+    pub theta_max_deg: f64,
+}
+
+/// The `sample_weights` kind.
+pub struct SampleWeights;
+
+impl Kind for SampleWeights {
+    type Params = Params;
+    const NAME: &'static str = "sample_weights";
+    const KEYS: &'static [Key] = &[
+        model::samples("20000"),
+        model::theta_max_deg("89.9"),
+        model::rel_tol("1e-9"),
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Model;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        Ok(Params {
+            samples: k.samples()?.unwrap_or(20_000),
+            rel_tol: k.non_negative("rel_tol")?.unwrap_or(1e-9),
+            theta_max_deg: k.theta_max_deg()?.unwrap_or(89.9),
+        })
     }
-    for (i, g) in [-0.9, 0.0, 0.7, 0.99].iter().enumerate() {
-        parts.push((
-            format!("phase hg g={g}"),
-            measure_phase(
-                &HenyeyGreenstein { g: *g },
-                samples,
-                rel_tol,
-                mix64(ctx.seed ^ (100 + i) as u64),
-            ),
-        ));
+
+    /// Runs the sample-weight check over every registered BSDF and a set of HG phase functions.
+    fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let (samples, rel_tol, theta) = (p.samples, p.rel_tol, p.theta_max_deg);
+        let mut parts = Vec::new();
+        for (i, (name, b)) in catalogue::bsdfs().iter().enumerate() {
+            parts.push((
+                format!("bsdf {name}"),
+                measure_bsdf(b, samples, theta, rel_tol, mix64(ctx.seed ^ i as u64)),
+            ));
+        }
+        for (i, g) in [-0.9, 0.0, 0.7, 0.99].iter().enumerate() {
+            parts.push((
+                format!("phase hg g={g}"),
+                measure_phase(
+                    &HenyeyGreenstein { g: *g },
+                    samples,
+                    rel_tol,
+                    mix64(ctx.seed ^ (100 + i) as u64),
+                ),
+            ));
+        }
+        Ok(combine(parts))
     }
-    Ok(combine(parts))
 }

@@ -1,6 +1,6 @@
-//! Triangle-mesh file loading for scene geometry: reads Wavefront OBJ and
-//! Stanford PLY files into plain [`MeshData`] (positions plus triangle
-//! vertex indices), with no materials, normals or texture coordinates.
+//! Triangle-mesh files: reads Wavefront OBJ and Stanford PLY files into plain [`MeshData`]
+//! (positions plus triangle vertex indices), with no materials, normals or texture
+//! coordinates, and writes binary PLY ([`ply_binary_f32`]).
 //!
 //! Supported input:
 //! - **OBJ** (UTF-8 text; invalid UTF-8 is replaced by U+FFFD when loading
@@ -1278,6 +1278,29 @@ impl<'a> BodyReader<'a> for BinaryReader<'a> {
     fn last(&self) -> (Location, String) {
         (self.location(self.last_start), self.last_value.to_string())
     }
+}
+
+/// A binary little-endian PLY file: float32 positions (scene units, rounded from f64; what
+/// Mitsuba stores), int32 triangle indices.
+pub fn ply_binary_f32(positions: &[crate::math::Vec3], triangles: &[[u32; 3]]) -> Vec<u8> {
+    let mut b = format!(
+        "ply\nformat binary_little_endian 1.0\nelement vertex {}\nproperty float x\nproperty float y\nproperty float z\nelement face {}\nproperty list uchar int vertex_indices\nend_header\n",
+        positions.len(),
+        triangles.len()
+    )
+    .into_bytes();
+    for p in positions {
+        for c in [p.x, p.y, p.z] {
+            b.extend_from_slice(&(c as f32).to_le_bytes());
+        }
+    }
+    for t in triangles {
+        b.push(3);
+        for &k in t {
+            b.extend_from_slice(&(k as i32).to_le_bytes());
+        }
+    }
+    b
 }
 
 #[cfg(test)]

@@ -1,12 +1,16 @@
-//! Scene errors: every one names the file, the line and column, the key, and what is allowed.
+//! Located errors in text files (scenes, manifests, renderer tables, regions, measurements):
+//! every one names the file, the line and column, the key, and what is allowed; and the one
+//! TOML loader every caller uses.
 
+use serde::de::DeserializeOwned;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
 
-/// An invalid or unreadable scene.
+/// An invalid or unreadable input file, located by line and column (0:0 when the file could
+/// not be read at all, and then not shown).
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
-#[error("{}:{line}:{column}: {}{message}", file.display(), if key.is_empty() { String::new() } else { format!("{key}: ") })]
-pub struct SceneError {
+#[error("{}{}: {}{message}", file.display(), if *line > 0 { format!(":{line}:{column}") } else { String::new() }, if key.is_empty() { String::new() } else { format!("{key}: ") })]
+pub struct LocatedError {
     /// The file at fault (the scene, or a CSV it references).
     pub file: PathBuf,
     /// 1-based line (0 when the file could not be read at all).
@@ -47,9 +51,9 @@ impl Source<'_> {
         span: Range<usize>,
         key: impl Into<String>,
         message: impl Into<String>,
-    ) -> SceneError {
+    ) -> LocatedError {
         let (line, column) = self.line_column(span.start);
-        SceneError {
+        LocatedError {
             file: self.path.to_path_buf(),
             line,
             column,
@@ -57,6 +61,28 @@ impl Source<'_> {
             message: message.into(),
         }
     }
+}
+
+/// The error of a scene, manifest or other located input.
+pub type SceneError = LocatedError;
+
+/// Reads a whole text file; `what` names it in the error ("the scene file", "the manifest").
+pub fn read_text(path: &Path, what: &str) -> Result<String, LocatedError> {
+    std::fs::read_to_string(path).map_err(|e| LocatedError {
+        file: path.to_path_buf(),
+        line: 0,
+        column: 0,
+        key: String::new(),
+        message: format!("cannot read {what}: {e}"),
+    })
+}
+
+/// Parses TOML text into `T`; a syntax or type error (unknown key, wrong type) is located.
+pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> {
+    toml::from_str(src.text).map_err(|e| {
+        let span = e.span().unwrap_or(0..0);
+        src.error(span, "", e.message().trim_end().to_string())
+    })
 }
 
 #[cfg(test)]

@@ -1,0 +1,98 @@
+//! Closed forms averaged over pixel footprints: a value along each camera ray through a pixel,
+//! integrated by k×k midpoint quadrature over the pixel (the box filter's footprint).
+
+use crate::geometry::{Hit, Ray};
+use crate::harness::error::CheckError;
+use crate::math::Vec3;
+use crate::scene::Scene;
+
+/// Quadrature points per pixel side of the checks' closed-form footprint averages.
+pub const FOOTPRINT_K: usize = 9;
+
+/// A closed form of whole camera rays averaged over `region` by k×k midpoint quadrature.
+pub fn ray_average(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(Ray) -> Result<f64, CheckError>,
+    k: usize,
+) -> Result<f64, CheckError> {
+    let camera = scene
+        .camera
+        .build(width, height)
+        .map_err(CheckError::Setup)?;
+    let mut sum = 0.0;
+    for j in 0..k {
+        for i in 0..k {
+            let x = region[0] as f64 + (region[2] - region[0]) as f64 * (i as f64 + 0.5) / k as f64;
+            let y = region[1] as f64 + (region[3] - region[1]) as f64 * (j as f64 + 0.5) / k as f64;
+            sum += f(camera.ray(x, y, width, height))?;
+        }
+    }
+    Ok(sum / (k * k) as f64)
+}
+
+/// Closed-form value of every pixel of `region` (row-major), each averaged over its footprint.
+pub fn per_pixel(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &RayClosedForm<'_>,
+) -> Result<Vec<f64>, CheckError> {
+    per_pixel_k(scene, width, height, region, f, FOOTPRINT_K)
+}
+
+/// [`per_pixel`] with k×k midpoint quadrature per pixel.
+pub fn per_pixel_k(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &RayClosedForm<'_>,
+    k: usize,
+) -> Result<Vec<f64>, CheckError> {
+    per_pixel_rays(
+        scene,
+        width,
+        height,
+        region,
+        &|ray| {
+            f(
+                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
+                ray.d,
+            )
+        },
+        k,
+    )
+}
+
+/// A closed form of whole camera rays for every pixel of `region` (row-major), each averaged
+/// over its footprint by k×k midpoint quadrature ([`ray_average`]).
+pub fn per_pixel_rays(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(Ray) -> Result<f64, CheckError>,
+    k: usize,
+) -> Result<Vec<f64>, CheckError> {
+    let mut v = Vec::new();
+    for y in region[1]..region[3] {
+        for x in region[0]..region[2] {
+            v.push(ray_average(
+                scene,
+                width,
+                height,
+                [x, y, x + 1, y + 1],
+                f,
+                k,
+            )?);
+        }
+    }
+    Ok(v)
+}
+
+/// A closed form evaluated along one camera ray: its first hit (None: it escapes) and direction.
+pub type RayClosedForm<'a> = dyn Fn(Option<&Hit>, Vec3) -> Result<f64, CheckError> + 'a;

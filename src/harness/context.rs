@@ -1,0 +1,70 @@
+//! How a run is configured ([`RunOptions`]) and what one check sees while it runs
+//! ([`Context`]): the renderer under test, its seed, threads and per-test significance.
+
+use super::renderer::Renderer;
+use crate::math::rng::mix64;
+
+/// Family-wise error correction across the stochastic tests of a run.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Correction {
+    /// Šidák: every test at 1 − (1 − α)^(1/m).
+    Sidak,
+    /// Holm's step-down procedure.
+    Holm,
+}
+
+impl Correction {
+    /// The name used on the command line and in reports.
+    pub fn name(self) -> &'static str {
+        match self {
+            Correction::Sidak => "sidak",
+            Correction::Holm => "holm",
+        }
+    }
+}
+
+/// How to run a set of checks.
+#[derive(Debug, Clone)]
+pub struct RunOptions {
+    /// Run seed; a check without its own seed derives one from this and its name.
+    pub seed: u64,
+    /// Family-wise false-alarm rate.
+    pub family_alpha: f64,
+    /// Correction method.
+    pub correction: Correction,
+    /// Render threads (0 = all cores).
+    pub threads: usize,
+}
+
+impl Default for RunOptions {
+    fn default() -> Self {
+        RunOptions {
+            seed: 1,
+            family_alpha: 0.01,
+            correction: Correction::Sidak,
+            threads: 0,
+        }
+    }
+}
+
+/// What a check runs with.
+pub struct Context<'a> {
+    /// The renderer under test.
+    pub renderer: &'a dyn Renderer,
+    /// The check's seed.
+    pub seed: u64,
+    /// Render threads.
+    pub threads: usize,
+    /// Per-test significance (Šidák level), for power and diagnostics.
+    pub alpha: f64,
+}
+
+/// Seed of a check: its own, or a hash (FNV-1a, then mixed) of the run seed and its name.
+pub fn check_seed(own: Option<u64>, name: &str, run_seed: u64) -> u64 {
+    own.unwrap_or_else(|| {
+        let h = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
+            (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
+        });
+        mix64(h ^ mix64(run_seed))
+    })
+}

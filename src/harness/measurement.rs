@@ -1,0 +1,104 @@
+//! What a check kind measured, before the runner assigns a verdict: the estimate, its
+//! standard error, the expected value, the statistic and the p-value, with the message that
+//! explains them; and the rule that folds several sub-tests of one check into one measurement.
+
+use super::outcome::Statistic;
+
+/// What a check kind measured, before the runner assigns a verdict.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Measurement {
+    /// Measured value.
+    pub estimate: Option<f64>,
+    /// Its standard error.
+    pub std_error: Option<f64>,
+    /// Expected value.
+    pub expected: Option<f64>,
+    /// Test statistic.
+    pub statistic: Option<Statistic>,
+    /// p-value of the stochastic part (None for purely deterministic checks).
+    pub p_value: Option<f64>,
+    /// Verdict of the deterministic part (None for purely stochastic checks).
+    pub deterministic_pass: Option<bool>,
+    /// Evidence that the variance did not settle (makes the verdict UNSTABLE).
+    pub unstable: Option<String>,
+    /// Samples used.
+    pub samples: u64,
+    /// Explanation: estimator, what was compared, sub-results.
+    pub message: String,
+    /// Number of sub-tests folded into `p_value` (0 or 1: one test); the detection power is
+    /// computed at the per-sub-test level this implies.
+    pub variants: usize,
+    /// True when the test is one-sided (energy: only an albedo above 1 is a violation).
+    pub one_sided: bool,
+}
+
+/// Combines several region tests (one per variant) into one measurement: p is the Šidák
+/// combination of the variants' p-values; the reported numbers are the worst variant's.
+pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
+    let ps: Vec<f64> = parts.iter().filter_map(|(_, m)| m.p_value).collect();
+    let worst = parts
+        .iter()
+        .enumerate()
+        .min_by(|a, b| {
+            a.1 .1
+                .p_value
+                .unwrap_or(1.0)
+                .total_cmp(&b.1 .1.p_value.unwrap_or(1.0))
+        })
+        .map(|(i, _)| i)
+        .unwrap_or(0);
+    let samples = parts.iter().map(|(_, m)| m.samples).sum();
+    let unstable: Vec<String> = parts
+        .iter()
+        .filter_map(|(n, m)| m.unstable.as_ref().map(|u| format!("{n}: {u}")))
+        .collect();
+    let summary: Vec<String> = parts
+        .iter()
+        .map(|(n, m)| {
+            format!(
+                "{n}: {} ± {} vs {} (p {})",
+                fmt_sig(m.estimate.unwrap_or(f64::NAN)),
+                fmt_sig(m.std_error.unwrap_or(f64::NAN)),
+                fmt_sig(m.expected.unwrap_or(f64::NAN)),
+                fmt_sig(m.p_value.unwrap_or(f64::NAN))
+            )
+        })
+        .collect();
+    let det = parts
+        .iter()
+        .filter_map(|(_, m)| m.deterministic_pass)
+        .reduce(|a, b| a && b);
+    let mut m = parts.get(worst).map(|p| p.1.clone()).unwrap_or_default();
+    // A sub-test that could not be formed (NaN p) makes the whole check an ERROR.
+    m.p_value = (!ps.is_empty()).then(|| {
+        if ps.iter().any(|p| p.is_nan()) {
+            f64::NAN
+        } else {
+            crate::stats::multiple::sidak_combine(&ps)
+        }
+    });
+    m.variants = parts.iter().map(|(_, p)| p.variants.max(1)).sum();
+    m.samples = samples;
+    m.deterministic_pass = det;
+    m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
+    m.message = format!(
+        "{} variants, p Šidák-combined, worst shown; {}",
+        parts.len(),
+        summary.join("; ")
+    );
+    m
+}
+
+/// A number with 4 significant digits.
+pub fn fmt_sig(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let a = x.abs();
+    if (1e-3..1e5).contains(&a) {
+        let decimals = (3 - a.log10().floor() as i32).max(0) as usize;
+        format!("{x:.decimals$}")
+    } else {
+        format!("{x:.3e}")
+    }
+}

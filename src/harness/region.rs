@@ -1,0 +1,261 @@
+//! The skeleton every scene-level check shares: render settings from the check and the scene,
+//! the measured pixel region, and the region's mean with a standard error that survives image
+//! structure and a variance diagnosis (stable, or UNSTABLE with the numbers).
+
+use super::context::Context;
+use super::error::CheckError;
+use super::kind::Check;
+use super::measurement::Measurement;
+use crate::film::Film;
+use crate::integrators::{PathTracer, Strategy};
+use crate::render::RenderSettings;
+use crate::scene::Scene;
+use crate::stats::{stability, z_with_tolerance};
+
+/// Statistics of the Y channel over a pixel region of a rendered image.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionStats {
+    /// Mean of the pixel means (the box-filtered radiance averaged over the region; Y).
+    pub mean: f64,
+    /// Standard error used by the test: the larger of the within-pixel estimate and (for
+    /// homoscedastic regions of at least 16 pixels) the batch-means estimate over pixels,
+    /// each pixel mean being a batch of spp samples.
+    pub se: f64,
+    /// Standard error from the per-pixel sample variances, √(Σ s²ᵢ/nᵢ)/N.
+    pub se_within: f64,
+    /// Standard error from the spread of the pixel residuals, sd(r)/√N (0 when not used).
+    pub se_between: f64,
+    /// Pixels in the region.
+    pub pixels: usize,
+    /// Camera paths traced for the whole image.
+    pub samples: u64,
+    /// Whether the variance settled (stats::stability on the pixel residuals).
+    pub stable: bool,
+    /// The diagnosis with its numbers.
+    pub stability: String,
+}
+
+/// Image size, spp and region of a scene-level check (independent sampling).
+pub fn settings_for(
+    check: &Check,
+    scene: &Scene,
+    ctx: &Context,
+    seed: u64,
+    max_depth: Option<u32>,
+    strategy: Strategy,
+) -> RenderSettings {
+    let ov = &check.render;
+    RenderSettings {
+        width: ov.width.unwrap_or(scene.render.width),
+        height: ov.height.unwrap_or(scene.render.height),
+        spp: ov.spp.unwrap_or(scene.render.spp),
+        seed,
+        threads: ctx.threads,
+        integrator: PathTracer {
+            max_depth,
+            rr_depth: if ov.roulette { Some(5) } else { None },
+            strategy,
+            force_media_code: false,
+        },
+        observer: Default::default(),
+        sampler: Default::default(),
+        spectral: Default::default(),
+    }
+}
+
+/// The region [x0, y0, x1, y1) of a check, checked against the image size.
+pub fn region_of(check: &Check, s: &RenderSettings) -> Result<[usize; 4], CheckError> {
+    let r = check.render.region.unwrap_or([0, 0, s.width, s.height]);
+    if r[2] > s.width || r[3] > s.height {
+        return Err(CheckError::Setup(format!(
+            "region {r:?} does not fit the {}x{} image",
+            s.width, s.height
+        )));
+    }
+    Ok(r)
+}
+
+/// Renders with `settings` and measures the Y channel over `region`; `expected_px` are the
+/// closed-form pixel values (row-major within the region) when the image is not uniform.
+pub fn render_region(
+    ctx: &Context,
+    scene: &Scene,
+    settings: &RenderSettings,
+    region: [usize; 4],
+    expected_px: Option<&[f64]>,
+    diag_alpha: f64,
+) -> Result<RegionStats, CheckError> {
+    let film = ctx.renderer.render(scene, settings)?;
+    Ok(region_stats(
+        &film,
+        region,
+        settings.spp,
+        diag_alpha,
+        expected_px,
+    ))
+}
+
+/// The false-alarm level of each variance diagnosis in a check with `diagnoses` diagnosed
+/// images: the diagnosis has two criteria, so α/(2·diagnoses) keeps a check's UNSTABLE
+/// false alarms at or below its per-test α.
+pub fn diagnosis_alpha(ctx: &Context, diagnoses: usize) -> f64 {
+    ctx.alpha / (2.0 * diagnoses.max(1) as f64)
+}
+
+/// Pixel means and variances of the mean (Y) over a region, row-major.
+pub fn region_pixels(film: &Film, region: [usize; 4]) -> (Vec<f64>, Vec<f64>) {
+    region_pixels_of(film, region, 1)
+}
+
+/// Pixel means and variances of the mean of XYZ `channel` (0, 1, 2) over a region.
+pub fn region_pixels_of(film: &Film, region: [usize; 4], channel: usize) -> (Vec<f64>, Vec<f64>) {
+    let means = film.means(channel);
+    let vars = film.mean_variances(channel);
+    let mut m = Vec::new();
+    let mut v = Vec::new();
+    for y in region[1]..region[3] {
+        for x in region[0]..region[2] {
+            m.push(means[y * film.width + x]);
+            v.push(vars[y * film.width + x]);
+        }
+    }
+    (m, v)
+}
+
+/// Region statistics of a film's Y channel; `expected_px` are the closed-form pixel values
+/// (None: the image is expected to be uniform).
+pub fn region_stats(
+    film: &Film,
+    region: [usize; 4],
+    spp: u64,
+    alpha: f64,
+    expected_px: Option<&[f64]>,
+) -> RegionStats {
+    region_stats_of(film, region, spp, alpha, expected_px, 1)
+}
+
+/// [`region_stats`] of XYZ `channel` (0 = X, 1 = Y, 2 = Z).
+pub fn region_stats_of(
+    film: &Film,
+    region: [usize; 4],
+    spp: u64,
+    alpha: f64,
+    expected_px: Option<&[f64]>,
+    channel: usize,
+) -> RegionStats {
+    let (px, vars) = region_pixels_of(film, region, channel);
+    let n = px.len() as f64;
+    let mean = px.iter().sum::<f64>() / n;
+    let se_within = vars.iter().sum::<f64>().sqrt() / n;
+    let samples = (film.width * film.height) as u64 * spp;
+    let resid: Vec<f64> = match expected_px {
+        Some(e) => px.iter().zip(e).map(|(m, e)| m - e).collect(),
+        None => px.iter().map(|m| m - mean).collect(),
+    };
+    let scale = px.iter().fold(0.0f64, |a, v| a.max(v.abs()));
+    if spp < 2 {
+        let why =
+            "spp < 2: one sample per pixel gives no variance estimate, so no test is possible"
+                .to_string();
+        return RegionStats {
+            mean,
+            se: se_within,
+            se_within,
+            se_between: 0.0,
+            pixels: px.len(),
+            samples,
+            stable: false,
+            stability: why,
+        };
+    }
+    let (stable, stability, se_between) = residual_stability(&resid, &vars, scale, alpha);
+    RegionStats {
+        mean,
+        se: se_within.max(se_between),
+        se_within,
+        se_between,
+        pixels: px.len(),
+        samples,
+        stable,
+        stability,
+    }
+}
+
+/// Variance diagnosis of per-pixel residuals rᵢ (zero mean under the null hypothesis) whose
+/// variances are `vars`: returns (stable, the diagnosis, batch-means standard error of their
+/// mean). Residuals are standardised by their own standard errors first when the variances
+/// differ by more than 100× (emitters in view), so that bright pixels do not pass for a heavy
+/// tail; the batch-means standard error is then not used (0). Residuals without Monte Carlo
+/// noise (all variances below (1e-12·scale)²) are reported as deterministic.
+pub fn residual_stability(
+    resid: &[f64],
+    vars: &[f64],
+    scale: f64,
+    alpha: f64,
+) -> (bool, String, f64) {
+    if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
+        return (
+            true,
+            "no Monte Carlo noise: every pixel is exact up to rounding".into(),
+            0.0,
+        );
+    }
+    let n = resid.len() as f64;
+    let mut sorted: Vec<f64> = vars.iter().copied().filter(|v| *v > 0.0).collect();
+    sorted.sort_by(f64::total_cmp);
+    let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
+    let hetero = median > 0.0 && sorted.last().copied().unwrap_or(0.0) > 100.0 * median;
+    let values: Vec<f64> = if hetero {
+        resid
+            .iter()
+            .zip(vars)
+            .filter(|(_, v)| **v > 0.0)
+            .map(|(r, v)| r / v.sqrt())
+            .collect()
+    } else {
+        resid.to_vec()
+    };
+    let diag = stability::diagnose(&values, alpha);
+    let se_between = if !hetero && resid.len() >= 16 {
+        let rm = resid.iter().sum::<f64>() / n;
+        (resid.iter().map(|r| (r - rm) * (r - rm)).sum::<f64>() / (n - 1.0) / n).sqrt()
+    } else {
+        0.0
+    };
+    let reason = format!(
+        "{}{}",
+        if hetero {
+            "standardised residuals: "
+        } else {
+            ""
+        },
+        diag.reason
+    );
+    (diag.stable, reason, se_between)
+}
+
+/// A measurement from one region test against a closed form.
+pub fn region_measurement(
+    r: &RegionStats,
+    expected: f64,
+    rel_tolerance: f64,
+    message: String,
+) -> Measurement {
+    let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
+    Measurement {
+        estimate: Some(r.mean),
+        std_error: Some(r.se),
+        expected: Some(expected),
+        statistic: Some(super::outcome::Statistic::Z { z }),
+        p_value: Some(p),
+        deterministic_pass: None,
+        unstable: (!r.stable).then(|| format!("UNSTABLE: {}", r.stability)),
+        variants: 1,
+        one_sided: false,
+        samples: r.samples,
+        message: format!(
+            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}",
+            r.pixels, r.se_within, r.se_between, r.stability
+        ),
+    }
+}

@@ -1,0 +1,82 @@
+//! The renderer under test: anything that turns a scene into an image with per-pixel
+//! variance. furnace's own path tracer is [`BuiltIn`]; external renderers are
+//! [`super::adapter::External`].
+
+use crate::film::Film;
+use crate::render::light::{trace_light_image, LightImage};
+use crate::render::{render, RenderSettings};
+use crate::scene::Scene;
+
+/// A renderer failed or cannot do what was asked (its message names it).
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct RendererError(pub String);
+
+impl From<String> for RendererError {
+    fn from(s: String) -> Self {
+        RendererError(s)
+    }
+}
+
+impl From<RendererError> for super::error::CheckError {
+    fn from(e: RendererError) -> Self {
+        super::error::CheckError::Renderer(e.0)
+    }
+}
+
+/// Something that turns a scene into an image with per-pixel variance.
+pub trait Renderer: Sync {
+    /// Name shown in reports.
+    fn name(&self) -> String;
+    /// Renders `scene` with `settings`.
+    fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, RendererError>;
+    /// True for furnace's own renderer: kinds that need its estimators or film run only for it.
+    fn is_reference(&self) -> bool {
+        true
+    }
+    /// Renders `scene` by light tracing `n_paths` paths (settings as for [`Renderer::render`];
+    /// `spp` unused), with exact statistics of the per-path sums over `regions` ([x0, y0, x1,
+    /// y1) pixel rectangles). Only furnace's own renderer has a light tracer: the default is an
+    /// error naming the renderer.
+    fn render_light_paths(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _n_paths: u64,
+        _regions: &[[usize; 4]],
+    ) -> Result<LightImage, RendererError> {
+        Err(RendererError(format!(
+            "{} has no light tracer furnace can drive",
+            self.name()
+        )))
+    }
+}
+
+/// furnace's own path tracer.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct BuiltIn;
+
+impl Renderer for BuiltIn {
+    fn name(&self) -> String {
+        format!("furnace {}", env!("CARGO_PKG_VERSION"))
+    }
+    fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, RendererError> {
+        render(scene, settings, &|_| {}).map_err(|e| RendererError(e.to_string()))
+    }
+    fn render_light_paths(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        n_paths: u64,
+        regions: &[[usize; 4]],
+    ) -> Result<LightImage, RendererError> {
+        let camera = scene.camera.build(settings.width, settings.height)?;
+        let sensor = crate::integrators::light::PinholeSensor {
+            camera,
+            width: settings.width,
+            height: settings.height,
+        };
+        trace_light_image(scene, settings, n_paths, regions, &sensor, &|_| {})
+            .map_err(|e| RendererError(e.to_string()))
+    }
+}

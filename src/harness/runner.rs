@@ -1,0 +1,196 @@
+//! The runner: runs checks against a renderer, applies the family-wise correction across the
+//! stochastic ones, and turns measurements into verdicts with their numbers.
+
+use super::context::{check_seed, Context, Correction, RunOptions};
+use super::kind::Check;
+use super::measurement::Measurement;
+use super::outcome::{Outcome, RunReport, Statistic, Verdict};
+use super::renderer::Renderer;
+use crate::stats::{multiple, power};
+use std::time::Instant;
+
+/// Simple glob: `*` matches any run of characters, `?` one character.
+pub fn glob_match(pattern: &str, name: &str) -> bool {
+    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
+    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
+    while ni < n.len() {
+        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
+            pi += 1;
+            ni += 1;
+        } else if pi < p.len() && p[pi] == '*' {
+            star = Some(pi);
+            mark = ni;
+            pi += 1;
+        } else if let Some(s) = star {
+            pi = s + 1;
+            mark += 1;
+            ni = mark;
+        } else {
+            return false;
+        }
+    }
+    p[pi..].iter().all(|&c| c == '*')
+}
+
+/// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
+/// UNSTABLE if the variance did not settle, FAIL if the deterministic part fails or p ≤ α.
+pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
+    if ms.unstable.is_some() {
+        return Verdict::Unstable;
+    }
+    let det = ms.deterministic_pass.unwrap_or(true);
+    let stoch = ms.p_value.is_none_or(|p| p > alpha);
+    if det && stoch {
+        Verdict::Pass
+    } else {
+        Verdict::Fail
+    }
+}
+
+/// Runs `checks` against `renderer`; `progress` sees each check's name as it starts (before the
+/// correction when Holm is used, so its verdict may still change).
+pub fn run(
+    checks: &[Check],
+    opts: &RunOptions,
+    renderer: &dyn Renderer,
+    manifests: Vec<String>,
+    progress: &mut dyn FnMut(&str),
+) -> RunReport {
+    let start = Instant::now();
+    let m = checks
+        .iter()
+        .filter(|c| c.kind.stochastic())
+        .filter(|c| c.kind.not_applicable(c, renderer).is_none())
+        .count()
+        .max(1);
+    let alpha = multiple::sidak_alpha(opts.family_alpha, m);
+    let mut outcomes = Vec::new();
+    let mut measured = Vec::new();
+    for check in checks {
+        progress(&check.name);
+        if let Some(why) = check.kind.not_applicable(check, renderer) {
+            let mut o = Outcome::new(&check.name, check.kind_name());
+            o.verdict = Verdict::Skipped;
+            o.message = why;
+            outcomes.push(o);
+            measured.push(None);
+            continue;
+        }
+        let ctx = Context {
+            renderer,
+            seed: check_seed(check.seed, &check.name, opts.seed),
+            threads: opts.threads,
+            alpha,
+        };
+        let t0 = Instant::now();
+        let result = check.kind.run(check, &ctx);
+        let seconds = t0.elapsed().as_secs_f64();
+        let mut o = Outcome::new(&check.name, check.kind_name());
+        o.seconds = seconds;
+        o.rel_tolerance = check.rel_tolerance;
+        match result {
+            Err(e) => {
+                o.verdict = Verdict::Error;
+                o.message = format!("{e} ({})", check.origin);
+                measured.push(None);
+            }
+            Ok(ms) => {
+                o.estimate = ms.estimate;
+                o.std_error = ms.std_error;
+                o.expected = ms.expected;
+                o.statistic = ms.statistic.clone().unwrap_or(Statistic::None);
+                o.p_value = ms.p_value;
+                o.samples = ms.samples;
+                o.message = ms.message.clone();
+                let finite = [ms.estimate, ms.std_error, ms.p_value]
+                    .iter()
+                    .flatten()
+                    .all(|v| v.is_finite());
+                if !finite {
+                    o.verdict = Verdict::Error;
+                    o.message = format!(
+                        "non-finite estimate, standard error or p-value; {}",
+                        o.message
+                    );
+                    measured.push(None);
+                } else {
+                    measured.push(Some(ms));
+                }
+            }
+        }
+        outcomes.push(o);
+    }
+    // Verdicts: the deterministic part, then the stochastic part under the correction.
+    let p_values: Vec<(usize, f64)> = measured
+        .iter()
+        .enumerate()
+        .filter_map(|(i, ms)| ms.as_ref().and_then(|m| m.p_value.map(|p| (i, p))))
+        .collect();
+    let holm = match opts.correction {
+        Correction::Holm => Some(multiple::holm(
+            &p_values.iter().map(|x| x.1).collect::<Vec<_>>(),
+            opts.family_alpha,
+        )),
+        Correction::Sidak => None,
+    };
+    for (i, ms) in measured.iter().enumerate() {
+        let Some(ms) = ms else { continue };
+        let o = &mut outcomes[i];
+        let mut pass = ms.deterministic_pass.unwrap_or(true);
+        if let Some(p) = ms.p_value {
+            let k = p_values.iter().position(|x| x.0 == i).unwrap_or(0);
+            let (rejected, threshold) = match &holm {
+                Some(h) => h.get(k).copied().unwrap_or((p <= alpha, alpha)),
+                None => (p <= alpha, alpha),
+            };
+            o.alpha = Some(threshold);
+            pass &= !rejected;
+        }
+        // Detection power at the level this test actually ran at: the corrected threshold,
+        // split over the sub-tests folded into the p-value, one- or two-sided, plus the
+        // stated model tolerance.
+        if let (Some(se), Some(exp), Some(thr)) = (ms.std_error, ms.expected, o.alpha) {
+            if exp != 0.0 {
+                let k = ms.variants.max(1) as f64;
+                // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
+                let per = -((-thr).ln_1p() / k).exp_m1();
+                let level = if ms.one_sided { 2.0 * per } else { per };
+                o.detection_power =
+                    Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
+            }
+        }
+        o.verdict = if ms.unstable.is_some() {
+            o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
+            Verdict::Unstable
+        } else if pass {
+            Verdict::Pass
+        } else {
+            Verdict::Fail
+        };
+    }
+    RunReport {
+        furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+        renderer: renderer.name(),
+        manifests,
+        seed: opts.seed,
+        family_alpha: opts.family_alpha,
+        correction: opts.correction.name().into(),
+        stochastic_tests: m,
+        outcomes,
+        seconds: start.elapsed().as_secs_f64(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn glob() {
+        assert!(glob_match("furnace/*", "furnace/sphere[albedo=0.5]"));
+        assert!(glob_match("*sphere*", "furnace/sphere"));
+        assert!(!glob_match("lambert/*", "furnace/sphere"));
+        assert!(glob_match("f?rnace", "furnace"));
+        assert!(glob_match("*", ""));
+    }
+}
