@@ -117,18 +117,7 @@ pub fn loss_table(samples: u64) -> String {
     out
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
 
-    /// Prints the README's loss table:
-    /// `cargo test --release --lib albedo::tests::print_loss_table -- --ignored --nocapture`
-    #[test]
-    #[ignore]
-    fn print_loss_table() {
-        println!("{}", loss_table(1_000_000));
-    }
-}
 
 /// Parameters of an albedo check.
 #[derive(Debug, Clone, PartialEq)]
@@ -181,5 +170,18 @@ impl Kind for Albedo {
             m.message
         );
         Ok(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Prints the README's loss table:
+    /// `cargo test --release --lib albedo::tests::print_loss_table -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn print_loss_table() {
+        println!("{}", loss_table(1_000_000));
     }
 }

@@ -82,22 +82,7 @@ pub fn measure_sampler(
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
 
-    #[test]
-    fn every_registered_sampler_passes_alone() {
-        let mut bad = Vec::new();
-        for (i, (name, make)) in catalogue::samplers().into_iter().enumerate() {
-            let m = measure_sampler(make().as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64));
-            if m.p_value.unwrap_or(0.0) < 1e-4 {
-                bad.push(format!("{name}: {} p {:?}", m.message, m.p_value));
-            }
-        }
-        assert!(bad.is_empty(), "{}", bad.join("\n"));
-    }
-}
 
 /// Parameters of a chi-square check.
 #[derive(Debug, Clone, PartialEq)]
@@ -142,5 +127,22 @@ impl Kind for Chi2 {
             })
             .collect();
         Ok(combine(parts))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_registered_sampler_passes_alone() {
+        let mut bad = Vec::new();
+        for (i, (name, make)) in catalogue::samplers().into_iter().enumerate() {
+            let m = measure_sampler(make().as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64));
+            if m.p_value.unwrap_or(0.0) < 1e-4 {
+                bad.push(format!("{name}: {} p {:?}", m.message, m.p_value));
+            }
+        }
+        assert!(bad.is_empty(), "{}", bad.join("\n"));
     }
 }

@@ -183,6 +183,54 @@ pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckE
     })
 }
 
+/// What `furnace converge` reports of one ladder: the fitted rate, time per sample, the
+/// efficiency 1/(MSE·time) at the top rung, and the samples N* and time to reach a target
+/// relative RMSE from the fitted line, N* = (target·mean/C)^(1/slope).
+#[derive(Debug, Clone, PartialEq)]
+pub struct LadderSummary {
+    /// The check's name.
+    pub name: String,
+    /// Sampler name.
+    pub sampler: String,
+    /// Fitted slope of ln RMSE against ln N.
+    pub slope: f64,
+    /// Half-width of its 95 % interval (Student t with the fit's dof, normal when infinite).
+    pub slope_ci95: f64,
+    /// The fitted constant C of RMSE = C·N^slope.
+    pub constant: f64,
+    /// Seconds per camera path at the top rung.
+    pub seconds_per_sample: f64,
+    /// 1/(MSE·time) at the top rung, 1/s in the image's squared units.
+    pub efficiency: f64,
+    /// Samples per pixel to reach the target relative RMSE.
+    pub n_star: f64,
+    /// Seconds per render to reach it.
+    pub seconds_to_target: f64,
+}
+
+/// Summarises a measured ladder for a target relative RMSE (`target` × region mean).
+pub fn summarize(name: &str, l: &Ladder, target: f64) -> Option<LadderSummary> {
+    let last = l.rungs.last()?;
+    let mean = last.reference_mean.abs().max(f64::MIN_POSITIVE);
+    let n_star = (target * mean / l.fit.intercept.exp()).powf(1.0 / l.fit.slope);
+    let t = if l.fit.dof.is_finite() {
+        t_two_sided_quantile(0.05, l.fit.dof)
+    } else {
+        1.959_963_984_540_054
+    };
+    Some(LadderSummary {
+        name: name.to_string(),
+        sampler: l.sampler.clone(),
+        slope: l.fit.slope,
+        slope_ci95: t * l.fit.se_slope,
+        constant: l.fit.intercept.exp(),
+        seconds_per_sample: last.seconds / last.samples.max(1) as f64,
+        efficiency: 1.0 / (last.rmse * last.rmse * last.seconds),
+        n_star,
+        seconds_to_target: n_star * last.seconds / last.spp as f64,
+    })
+}
+
 /// The closed form a convergence ladder measures its error against.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Of {

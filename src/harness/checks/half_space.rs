@@ -100,7 +100,7 @@ impl HFunction {
     }
 }
 
-fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
+fn constant(s: &Spectrum, what: &str) -> Result<f64, CheckError> {
     match s {
         Spectrum::Constant(v) => Ok(*v),
         _ => Err(
@@ -109,29 +109,7 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, String> {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
 
-    #[test]
-    fn h_function_moments_and_tabulated_values() {
-        let nodes = gauss_legendre_01(64);
-        for albedo in [0.1, 0.5, 0.9, 0.99, 1.0] {
-            let h = HFunction::new(albedo);
-            // zeroth moment α0 = ∫ H dμ = (2/ϖ)(1 − √(1 − ϖ)) (Chandrasekhar 1960, §39 eq. 37)
-            let a0: f64 = nodes.iter().map(|&(x, w)| w * h.eval(x)).sum();
-            let want = 2.0 / albedo * (1.0 - (1.0 - albedo).sqrt());
-            assert!((a0 - want).abs() < 1e-6, "ϖ {albedo}: α0 {a0} vs {want}");
-        }
-        // conservative isotropic scattering: H(1) = 2.90781 (Chandrasekhar 1960, Table XI)
-        let h1 = HFunction::new(1.0).eval(1.0);
-        assert!((h1 - 2.90781).abs() < 2e-5, "{h1}");
-        assert!((HFunction::new(0.5).eval(0.0) - 1.0).abs() < 1e-12);
-        // no absorption: everything comes back; no scattering: nothing does
-        assert!((HFunction::new(1.0).reflectance(0.7) - 1.0).abs() < 1e-12);
-        assert!(HFunction::new(0.0).reflectance(0.7).abs() < 1e-12);
-    }
-}
 
 /// The `half_space` kind.
 pub struct HalfSpace;
@@ -217,5 +195,29 @@ impl Kind for HalfSpace {
                 s.spp
             ),
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn h_function_moments_and_tabulated_values() {
+        let nodes = gauss_legendre_01(64);
+        for albedo in [0.1, 0.5, 0.9, 0.99, 1.0] {
+            let h = HFunction::new(albedo);
+            // zeroth moment α0 = ∫ H dμ = (2/ϖ)(1 − √(1 − ϖ)) (Chandrasekhar 1960, §39 eq. 37)
+            let a0: f64 = nodes.iter().map(|&(x, w)| w * h.eval(x)).sum();
+            let want = 2.0 / albedo * (1.0 - (1.0 - albedo).sqrt());
+            assert!((a0 - want).abs() < 1e-6, "ϖ {albedo}: α0 {a0} vs {want}");
+        }
+        // conservative isotropic scattering: H(1) = 2.90781 (Chandrasekhar 1960, Table XI)
+        let h1 = HFunction::new(1.0).eval(1.0);
+        assert!((h1 - 2.90781).abs() < 2e-5, "{h1}");
+        assert!((HFunction::new(0.5).eval(0.0) - 1.0).abs() < 1e-12);
+        // no absorption: everything comes back; no scattering: nothing does
+        assert!((HFunction::new(1.0).reflectance(0.7) - 1.0).abs() < 1e-12);
+        assert!(HFunction::new(0.0).reflectance(0.7).abs() < 1e-12);
     }
 }

@@ -47,26 +47,7 @@ pub fn grid_regions(k: usize) -> Vec<Region> {
         .collect()
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
 
-    #[test]
-    fn the_grid_tiles_the_image() {
-        let g = grid_regions(4);
-        assert_eq!(g.len(), 16);
-        let mut covered = vec![0u32; 32 * 32];
-        for r in &g {
-            let [x0, y0, x1, y1] = r.pixels(32, 32).unwrap();
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    covered[y * 32 + x] += 1;
-                }
-            }
-        }
-        assert!(covered.iter().all(|c| *c == 1));
-    }
-}
 
 /// Parameters of a reciprocity_image check.
 #[derive(Debug, Clone, PartialEq)]
@@ -228,5 +209,26 @@ impl Kind for ReciprocityImage {
             m.message = format!("{}; {}: {}", m.message, regions[0].name, whole.join(", "));
         }
         Ok(m)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_grid_tiles_the_image() {
+        let g = grid_regions(4);
+        assert_eq!(g.len(), 16);
+        let mut covered = vec![0u32; 32 * 32];
+        for r in &g {
+            let [x0, y0, x1, y1] = r.pixels(32, 32).unwrap();
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    covered[y * 32 + x] += 1;
+                }
+            }
+        }
+        assert!(covered.iter().all(|c| *c == 1));
     }
 }

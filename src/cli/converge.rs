@@ -1,0 +1,83 @@
+//! `furnace converge`: measure the convergence ladders of manifests and draw their page.
+
+use super::{write_file, Failure};
+use anyhow::Context;
+use clap::Args;
+use furnace::harness::checks::convergence;
+use furnace::harness::{self, manifest, BuiltIn};
+use furnace::report::convergence::{line, page, ManifestLadders};
+use furnace::report::plot::Series;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct ConvergeArgs {
+    /// Manifests with `convergence` checks.
+    manifests: Vec<PathBuf>,
+    /// Run seed.
+    #[arg(long, default_value_t = 1)]
+    seed: u64,
+    /// Render threads; 0 uses every core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Relative error (RMSE over the region mean) for the "time to reach" column.
+    #[arg(long, default_value_t = 1e-3)]
+    target: f64,
+    /// Write the HTML page (table and SVG plots) here.
+    #[arg(long)]
+    report: Option<PathBuf>,
+}
+
+/// Runs `furnace converge`; returns the exit code.
+pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
+    if !(a.target > 0.0 && a.target < 1.0) {
+        return Err(anyhow::anyhow!("--target {} must lie in (0, 1)", a.target).into());
+    }
+    if a.manifests.is_empty() {
+        return Err(anyhow::anyhow!(
+            "give at least one manifest, e.g. tests/manifests/convergence.toml"
+        )
+        .into());
+    }
+    let mut manifests = Vec::new();
+    let mut time_error = Vec::new();
+    let mut table = Vec::new();
+    for f in &a.manifests {
+        let checks =
+            manifest::load(f).with_context(|| format!("invalid manifest {}", f.display()))?;
+        let mut series = Vec::new();
+        for (check, params) in checks
+            .iter()
+            .filter_map(|c| c.params_as::<convergence::Params>().map(|p| (c, p)))
+        {
+            let ctx = harness::Context {
+                renderer: &BuiltIn,
+                seed: harness::check_seed(check.seed, &check.name, a.seed),
+                threads: a.threads,
+                alpha: 0.01,
+            };
+            let l = convergence::ladder(check, params, &ctx)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", check.name))?;
+            let summary = convergence::summarize(&check.name, &l, a.target)
+                .ok_or_else(|| anyhow::anyhow!("{}: the ladder has no rungs", check.name))?;
+            println!("{}", line(&summary));
+            table.push(summary);
+            let mean = l.rungs[0].reference_mean.abs().max(f64::MIN_POSITIVE);
+            let label = check.name.rsplit('/').next().unwrap_or(&check.name);
+            let curve = |x: &dyn Fn(&convergence::Rung) -> f64| Series {
+                name: label.to_string(),
+                points: l.rungs.iter().map(|r| (x(r), r.rmse / mean)).collect(),
+            };
+            series.push(curve(&|r| r.spp as f64));
+            time_error.push(curve(&|r| r.seconds));
+        }
+        manifests.push(ManifestLadders {
+            manifest: f.display().to_string(),
+            series,
+        });
+    }
+    if let Some(p) = &a.report {
+        write_file(p, &page(a.seed, a.target, &table, &manifests, &time_error)?)?;
+        println!("wrote {}", p.display());
+    }
+    Ok(0)
+}

@@ -1,0 +1,108 @@
+//! The `furnace` command line: one file per command, each turning its arguments into a call of
+//! the library. Errors carry context through `anyhow`; exit codes: 0 success, 1 a check failed
+//! (or images differ), 2 invalid input (bad scene, manifest or option).
+
+mod check;
+mod compare;
+mod converge;
+mod export;
+mod render;
+mod report;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+use furnace::harness::compare::{self as image_compare, RgbImage};
+use furnace::report::html;
+use std::path::Path;
+
+/// furnace: a predictive-rendering validation harness and spectral reference renderer.
+#[derive(Debug, Parser)]
+#[command(name = "furnace", version, about)]
+pub struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Render a TOML scene spectrally to a linear EXR (XYZ, sRGB and variance channels) and an sRGB PNG preview.
+    Render(render::RenderArgs),
+    /// Run validation checks from TOML manifests (default: every manifest under tests/manifests/); exit 0 all pass, 1 a check failed, 2 invalid manifest or scene.
+    Check(check::CheckArgs),
+    /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
+    Compare(compare::CompareArgs),
+    /// Measure convergence ladders (the `convergence` checks of the manifests): RMSE vs samples per sampler, fitted rates, time per sample, efficiency; writes an HTML page with log-log and time-error plots.
+    Converge(converge::ConvergeArgs),
+    /// Turn check results (JSON) and image comparisons into one self-contained HTML page and a Markdown summary; exit 1 when something failed.
+    Report(report::ReportArgs),
+    /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
+    Export(export::ExportArgs),
+}
+
+/// An error with the exit code it maps to.
+#[derive(Debug)]
+pub struct Failure {
+    /// Process exit code.
+    pub code: i32,
+    /// The error with context.
+    pub error: anyhow::Error,
+}
+
+impl<E: Into<anyhow::Error>> From<E> for Failure {
+    fn from(e: E) -> Self {
+        Failure {
+            code: 2,
+            error: e.into(),
+        }
+    }
+}
+
+/// Runs the parsed command line; returns the exit code on success.
+pub fn run(cli: Cli) -> Result<i32, Failure> {
+    match cli.command {
+        Command::Render(args) => render::run(args),
+        Command::Check(args) => check::run(args),
+        Command::Compare(args) => compare::run(args),
+        Command::Export(args) => export::run(args),
+        Command::Report(args) => report::run(args),
+        Command::Converge(args) => converge::run(args),
+    }
+}
+
+pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
+    if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
+    }
+    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    Ok(())
+}
+
+/// Reads an EXR as linear RGB with optional variance channels.
+pub(crate) fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
+    Ok(RgbImage::load(p).map_err(|e| anyhow::anyhow!(e))?)
+}
+
+/// Reads a regions file; a TOML error names file, line and column.
+pub(crate) fn load_regions(p: &Path) -> Result<Vec<image_compare::Region>, Failure> {
+    let text =
+        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+    Ok(image_compare::parse_regions(&text, p)?)
+}
+
+/// A comparison as a report section, with its images.
+pub(crate) fn section(
+    test_path: &Path,
+    reference_path: &Path,
+    test: &RgbImage,
+    reference: &RgbImage,
+    c: image_compare::Comparison,
+    family_alpha: f64,
+) -> Result<html::ComparisonSection, Failure> {
+    let panels = html::comparison_panels(test, reference, &c).map_err(|e| anyhow::anyhow!(e))?;
+    Ok(html::ComparisonSection {
+        title: format!("{} vs {}", test_path.display(), reference_path.display()),
+        comparison: c,
+        family_alpha,
+        panels,
+    })
+}

@@ -1,0 +1,244 @@
+//! `furnace render`: a scene to a linear EXR and an sRGB PNG preview, by path or light tracing.
+
+use super::Failure;
+use anyhow::Context;
+use clap::Args;
+use furnace::integrators::{PathTracer, Strategy};
+use furnace::io::image as io;
+use furnace::math::rng::Sampler;
+use furnace::render::{render, render_light_paths, RenderSettings};
+use furnace::scene::Scene;
+use furnace::spectrum::Observer;
+use indicatif::{ProgressBar, ProgressStyle};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+#[derive(Debug, Args)]
+pub struct RenderArgs {
+    /// The scene file (TOML).
+    scene: PathBuf,
+    /// Samples per pixel [default: the scene's render.spp, else 16].
+    #[arg(long)]
+    spp: Option<u64>,
+    /// Run seed: the same seed gives the same image, bit for bit, for any thread count.
+    #[arg(long, default_value_t = 0)]
+    seed: u64,
+    /// Worker threads; 0 uses every core.
+    #[arg(long, default_value_t = 0)]
+    threads: usize,
+    /// Image width in pixels [default: the scene's render.width, else 256].
+    #[arg(long)]
+    width: Option<usize>,
+    /// Image height in pixels [default: the scene's render.height, else 256].
+    #[arg(long)]
+    height: Option<usize>,
+    /// Maximum number of bounces (0 = emitters only, 1 = direct light) [default: the scene's render.max_depth, else unlimited]. Mitsuba's max_depth is this + 1.
+    #[arg(long)]
+    max_depth: Option<u32>,
+    /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
+    #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
+    rr_depth: RrDepth,
+    /// Estimator: path (camera paths, the default) or light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media).
+    #[arg(long, default_value = "path", value_parser = ["path", "light"])]
+    integrator: String,
+    /// Light paths traced by --integrator light [default: spp x width x height].
+    #[arg(long)]
+    light_paths: Option<u64>,
+    /// How emitters are found by the path tracer: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
+    #[arg(long, default_value = "mis", value_parser = ["mis", "bsdf", "light"])]
+    strategy: String,
+    /// Colour pipeline of the film: cie1931 (furnace's: CIE 1931 at 1 nm, Y/106.857, IEC matrix) or mitsuba3 (Mitsuba 3's: the same table at 5 nm, Y/106.750, its matrix), to compare RGB with a Mitsuba render without a colour-conversion difference.
+    #[arg(long, default_value = "cie1931", value_parser = ["cie1931", "mitsuba3"])]
+    observer: String,
+    /// Sample pattern per pixel: independent, stratified (jittered strata in random order) or sobol (Owen-scrambled, up to 65536 spp).
+    #[arg(long, default_value = "independent", value_parser = ["independent", "stratified", "sobol"])]
+    sampler: String,
+    /// Always take the spectral path, even when every spectrum is constant (grey mode off), to measure what grey mode saves.
+    #[arg(long)]
+    no_grey_mode: bool,
+    /// Run the path tracer's volumetric variant even when the scene has no participating media (the image is the same), to measure what skipping the media code saves.
+    #[arg(long)]
+    always_media_code: bool,
+    /// Wavelengths per sample entering the film: 4 (hero wavelength sampling) or 1 (the single-wavelength estimator, for comparison).
+    #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
+    wavelengths: u8,
+    /// Output EXR path [default: out/<scene name>.exr].
+    #[arg(long)]
+    out: Option<PathBuf>,
+    /// PNG preview path [default: the EXR path with extension .png].
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Multiplier applied to linear sRGB before the PNG's sRGB encoding.
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f64,
+    /// No progress bar.
+    #[arg(long)]
+    quiet: bool,
+}
+
+/// Russian-roulette start depth, or None for "off".
+#[derive(Debug, Clone, Copy)]
+struct RrDepth(Option<u32>);
+
+fn parse_rr_depth(s: &str) -> Result<RrDepth, String> {
+    if s == "off" {
+        return Ok(RrDepth(None));
+    }
+    s.parse::<u32>()
+        .map(|d| RrDepth(Some(d)))
+        .map_err(|_| format!("{s:?} is not a bounce count; give a whole number >= 0 or \"off\""))
+}
+
+/// Runs `furnace render`; returns the exit code.
+pub fn run(a: RenderArgs) -> Result<i32, Failure> {
+    let scene =
+        Scene::load(&a.scene).with_context(|| format!("invalid scene {}", a.scene.display()))?;
+    let d = &scene.render;
+    let settings = RenderSettings {
+        width: a.width.unwrap_or(d.width),
+        height: a.height.unwrap_or(d.height),
+        spp: a.spp.unwrap_or(d.spp),
+        seed: a.seed,
+        threads: a.threads,
+        integrator: PathTracer {
+            max_depth: a.max_depth.or(d.max_depth),
+            rr_depth: a.rr_depth.0,
+            strategy: match a.strategy.as_str() {
+                "bsdf" => Strategy::BsdfOnly,
+                "light" => Strategy::LightOnly,
+                _ => Strategy::Mis,
+            },
+            force_media_code: a.always_media_code,
+        },
+        observer: Observer::from_name(&a.observer).expect("clap restricts --observer"),
+        sampler: Sampler::from_name(&a.sampler).expect("clap restricts --sampler"),
+        spectral: furnace::render::SpectralSampling {
+            grey_mode: !a.no_grey_mode,
+            wavelengths: a.wavelengths as usize,
+        },
+    };
+    if !(a.exposure.is_finite() && a.exposure >= 0.0) {
+        return Err(
+            anyhow::anyhow!("--exposure {} must be a finite number >= 0", a.exposure).into(),
+        );
+    }
+    let stem = a
+        .scene
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "render".into());
+    let exr_path = a
+        .out
+        .clone()
+        .unwrap_or_else(|| Path::new("out").join(format!("{stem}.exr")));
+    let png_path = a
+        .png
+        .clone()
+        .unwrap_or_else(|| exr_path.with_extension("png"));
+    let light = a.integrator == "light";
+    if a.light_paths.is_some() && !light {
+        return Err(anyhow::anyhow!(
+            "--light-paths is only used by --integrator light (the path tracer takes --spp)"
+        )
+        .into());
+    }
+    let camera_paths = settings.width as u64 * settings.height as u64 * settings.spp;
+    let total = if light {
+        a.light_paths.unwrap_or(camera_paths)
+    } else {
+        camera_paths
+    };
+    let bar = if a.quiet {
+        ProgressBar::hidden()
+    } else {
+        ProgressBar::new(total)
+    };
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {wide_bar} {percent}% {per_sec} eta {eta}",
+        )
+        .context("progress bar template")?,
+    );
+    let start = Instant::now();
+    let film = if light {
+        render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
+    } else {
+        render(&scene, &settings, &|n| bar.set_position(n))
+    }
+    .context("cannot render")?;
+    let secs = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let bad = film.non_finite_pixels();
+    let mut attrs = vec![
+        ("furnace.version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
+        ("furnace.scene".to_string(), a.scene.display().to_string()),
+        ("furnace.integrator".to_string(), a.integrator.clone()),
+        if light {
+            // every pixel's variance comes from `total` i.i.d. path samples: total − 1 dof
+            ("furnace.variance_dof".to_string(), (total - 1).to_string())
+        } else {
+            ("furnace.spp".to_string(), settings.spp.to_string())
+        },
+        ("furnace.seed".to_string(), settings.seed.to_string()),
+        ("furnace.max_depth".to_string(), settings.integrator.max_depth.map_or("unlimited".into(), |d| d.to_string())),
+        ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
+        ("furnace.strategy".to_string(), a.strategy.clone()),
+        ("furnace.filter".to_string(), "box".to_string()),
+        ("furnace.observer".to_string(), settings.observer.name().to_string()),
+        ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
+        ("furnace.wavelengths".to_string(), settings.spectral.wavelengths.to_string()),
+        ("furnace.grey_mode".to_string(), (settings.spectral.grey_mode && scene.is_grey()).to_string()),
+        ("furnace.media_code".to_string(), (scene.has_media() || settings.integrator.force_media_code).to_string()),
+        ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
+    ];
+    if light {
+        // light-traced pixels are correlated (one path reaches several pixels): the variance of
+        // a region mean is not the sum of the pixel variances
+        attrs.push(("furnace.light_paths".to_string(), total.to_string()));
+        attrs.push(("furnace.pixels_correlated".to_string(), "true".to_string()));
+    }
+    io::write_exr(&exr_path, &film.to_layers(attrs))
+        .with_context(|| format!("cannot write {}", exr_path.display()))?;
+    io::write_png_srgb(
+        &png_path,
+        film.width,
+        film.height,
+        &film.linear_srgb(),
+        a.exposure,
+    )
+    .with_context(|| format!("cannot write {}", png_path.display()))?;
+    println!("wrote {} and {}", exr_path.display(), png_path.display());
+    if bad > 0 {
+        eprintln!("warning: {bad} pixels hold NaN or Inf");
+    }
+    if light {
+        println!(
+            "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
+            settings.width,
+            settings.height,
+            total,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    } else {
+        println!(
+            "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
+            settings.width,
+            settings.height,
+            settings.spp,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    }
+    // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
+    // image mean, and 1/(relative variance × time) — comparable across estimators.
+    let (ym, yv) = (film.means(1), film.mean_variances(1));
+    let n = ym.len() as f64;
+    let mean = ym.iter().sum::<f64>() / n;
+    let rel_var = yv.iter().sum::<f64>() / n / (mean * mean).max(f64::MIN_POSITIVE);
+    println!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
+        1.0 / (rel_var * secs)
+    );
+    Ok(if bad > 0 { 1 } else { 0 })
+}
