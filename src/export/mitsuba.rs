@@ -1,31 +1,8 @@
-//! Mitsuba 3 scene XML (format version 3.0.0) plus binary PLY meshes.
-//!
-//! Translation (each choice keeps Mitsuba's image equal in expectation to furnace's):
-//! - spectra stay spectra, never RGB: a constant → `value="c"` (Mitsuba's `uniform`), a table
-//!   → `value="λ:v, …"` (Mitsuba's `irregular`: linear between samples, zero outside, as
-//!   furnace's `outside = "zero"`; `"clamp"` adds the end values at 360 and 830 nm, the range
-//!   both renderers sample), a blackbody → `blackbody` (same unit, W·sr⁻¹·m⁻²·nm⁻¹), or a 1 nm
-//!   Planck table when it carries a scale;
-//! - `diffuse` → `diffuse` inside `twosided` (furnace's Lambertian is two-sided);
-//! - quads and triangle meshes → binary little-endian PLY files next to the XML, loaded with
-//!   `face_normals = true` (flat shading, as furnace; vertex order keeps furnace's normal
-//!   (p1 − p0) × (p2 − p0)); spheres → `sphere`; `flip_normals` passed through;
-//! - an emitting shape → `area` emitter (one-sided on the normal's side, as furnace); point
-//!   light → `point`; environment → `constant`;
-//! - camera → `perspective` with `fov_axis = "y"` and a `lookat` transform, `box` filter,
-//!   `independent` sampler, `path` integrator;
-//! - `$spp`, `$width`, `$height`, `$seed` and `$max_depth` are XML parameters with the scene's
-//!   defaults, so a driver passes them to `mitsuba.load_file(path, spp=…)`; `max_depth`
-//!   follows Mitsuba's convention (bounces + 1, −1 = unlimited).
-//!
-//! - media → `homogeneous` with `sigma_t` = σa + σs and `albedo` = σs/σt (spectra; 1 nm
-//!   tables when either coefficient varies), `isotropic`, `hg` or `rayleigh` phase; a shape's
-//!   `interior`/`exterior` → `<ref name="interior"/"exterior">` (Mitsuba's interior is also
-//!   the side opposite the normal); `null` material → `null` BSDF; the camera's medium → a
-//!   medium reference inside the sensor; scenes with media use the `volpath` integrator, or
-//!   `volpathmis` (spectral MIS) when a medium's coefficients vary with wavelength.
-//!
-//! Two-sided emission has no one-shape Mitsuba equivalent and is an error.
+//! Mitsuba 3 scene XML (format version 3.0.0) plus binary PLY meshes. Each translation keeps
+//! Mitsuba's image equal in expectation to furnace's: spectra stay spectra (same unit,
+//! W·sr⁻¹·m⁻²·nm⁻¹), `max_depth` follows Mitsuba's convention (bounces + 1), media become
+//! `homogeneous` under `volpath`/`volpathmis`; two-sided emission has no one-shape Mitsuba
+//! equivalent and is an error. The full mapping: docs/renderers.md, "`export::mitsuba`".
 
 use super::ExportError;
 use crate::geometry::Shape;

@@ -1,24 +1,8 @@
-//! pbrt-v4 scene text (one self-contained `.pbrt` file, meshes inline).
-//!
-//! Not run here (pbrt-v4 is not packaged on these machines): the text is snapshot-tested
-//! and the mapping below is written from the pbrt-v4 file-format documentation; treat it as
-//! a starting point to verify with a pbrt build before trusting a comparison.
-//! - camera: `Scale -1 1 1` then `LookAt` (pbrt's camera space is left-handed; the mirror
-//!   keeps furnace's image orientation), `perspective` with `fov` of the *shorter* image axis;
-//! - `Film "rgb"` (linear sRGB, default `cie1931` sensor), `PixelFilter "box"` (radius 0.5 px =
-//!   one pixel, as furnace), `Sampler "independent"`, `Integrator "path"` with `maxdepth` =
-//!   furnace bounces (65536 for unlimited: Russian roulette ends paths);
-//! - spectra as `λ v` pairs (pbrt's piecewise-linear spectrum is zero outside its samples, as
-//!   furnace's `outside = "zero"`; constants and `clamp` become two-point or extended tables
-//!   over 360–830 nm), blackbodies as `blackbody` (normalised by pbrt, so given a scale);
-//! - pbrt-v4 normalises light spectra to unit luminance (`SpectrumToPhotometric`, ∫ S ȳ dλ)
-//!   before applying `scale`, and its film does not divide by ∫ȳ; every light gets `scale` =
-//!   furnace's Y of its spectrum (∫ S ȳ dλ / ∫ȳ dλ), so that pbrt's image reads the Y furnace's
-//!   film reads (the emitted radiance is the written spectrum / 106.857);
-//! - `diffuse` material (two-sided in pbrt), emitting shapes with `AreaLightSource "diffuse"`
-//!   (`twosided` as in the scene), `flip_normals` → `ReverseOrientation`; quads and meshes as
-//!   inline `trianglemesh` with furnace's winding (pbrt's normal (p0 − p2) × (p1 − p2) equals
-//!   furnace's (p1 − p0) × (p2 − p0)); spheres with `Translate`.
+//! pbrt-v4 scene text (one self-contained `.pbrt` file, meshes inline). Not run here (pbrt-v4
+//! is not packaged on these machines): the text is snapshot-tested and the mapping is written
+//! from the pbrt-v4 file-format documentation, a starting point to verify with a pbrt build.
+//! Every light gets `scale` = furnace's Y of its spectrum, since pbrt-v4 normalises light
+//! spectra to unit luminance. The full mapping: docs/renderers.md, "`export::pbrt`".
 
 use super::ExportError;
 use crate::geometry::Shape;

@@ -1,18 +1,8 @@
-//! The film: per-pixel CIE XYZ estimates accumulated in f64 with their variance, and its
-//! conversion to EXR layers and PNG previews.
-//!
-//! Each pixel keeps, per channel (X, Y, Z and linear sRGB R, G, B), the running mean of its
-//! sample estimates and the running sum of squared deviations (Welford's update, the stable
-//! form of "sum and sum of squares"), plus the sample count. The pixel filter is a box: every
-//! sample's film position is uniform in its own pixel and counts only there, so pixels are
-//! independent estimates and the per-pixel variance is exact for that estimator. (A light-traced
-//! film, render::light, holds the same per-pixel statistics over i.i.d. light paths, but its
-//! pixels are correlated: one path reaches several pixels.)
-//!
-//! EXR channels (32-bit float): `R`, `G`, `B` linear sRGB (D65 white, XYZ_TO_SRGB of
-//! `spectrum::color`); `X`, `Y`, `Z` CIE 1931 normalised so that a constant spectral
-//! radiance of 1 W·sr⁻¹·m⁻²·nm⁻¹ reads Y = 1; `variance.R` … `variance.Z`: the estimated
-//! variance of each pixel mean (s²/n); header attributes `furnace.spp`, `furnace.seed` etc.
+//! The film: per-pixel CIE XYZ estimates accumulated in f64 with their variance (Welford),
+//! and its conversion to EXR layers and PNG previews. Units: CIE 1931 XYZ normalised so that
+//! a constant spectral radiance of 1 W·sr⁻¹·m⁻²·nm⁻¹ reads Y = 1, plus linear sRGB; the
+//! `variance.*` channels hold the variance of each pixel mean (s²/n). Box filter: pixels are
+//! independent estimates. Details and EXR channels: docs/rendering.md, "`film`".
 
 use crate::stats::MeanVar;
 

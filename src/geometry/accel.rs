@@ -1,18 +1,8 @@
 //! The scene aggregate: all shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
-//! only home of `obvhs`).
-//!
-//! The BVH works in f32 and only culls. It is built in a normalised frame: coordinates
-//! relative to the scene centre, scaled so that the scene's extent is [`FRAME_EXTENT`], with
-//! boxes padded by 1e-5 of the extent — far more than the f32 rounding of boxes, ray origin and
-//! direction (≈ 1e-7 of the extent) — and rays clipped to the scene box in f64 before
-//! conversion, so the culling is conservative at any scale or offset. obvhs builds the tree
-//! and `obvhs::traverse!` orders the walk; the node test is furnace's own, on child boxes
-//! decoded once per node and rounded outward, with t from 0 (obvhs's own test starts at 1e-4),
-//! in eight f32 lanes. Every candidate is then intersected exactly, in f64, from a flat list in
-//! BVH order (mesh triangles with their corners and normal inline), and the surface point is
-//! computed for the nearest hit only. Consecutive mesh triangles that form a quad (a shared
-//! edge, the same winding, about the same box) are one BVH primitive, tested together: half
-//! the visits and four corners sheared instead of six on a room's walls and boxes' faces.
+//! only home of `obvhs`). The BVH works in f32 and only culls, conservatively at any scale or
+//! offset (a frame normalised to [`FRAME_EXTENT`], padded boxes, rays clipped in f64); every
+//! candidate is then intersected exactly in f64, in scene units. The frame, the node test and
+//! quad pairs: docs/rendering.md, "`geometry::accel`".
 
 use super::{
     mesh::TriangleMesh,

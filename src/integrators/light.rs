@@ -2,39 +2,10 @@
 //! the adjoint BSDF, and every vertex is connected to the camera by a shadow ray
 //! (Arvo & Kirk 1990, "Particle transport and image synthesis", SIGGRAPH; Veach 1997, PhD
 //! thesis, §10.2, the bidirectional estimator with s ≥ 1 light vertices and t = 1 camera
-//! vertex).
-//!
-//! The estimator. A light path x₀ x₁ … is sampled with x₀ uniform on a uniformly chosen
-//! light (pdf p_sel·p_A) and ω₀ from the light's emission sampling (pdf p_ω). The particle
-//! leaving x₀ carries the power weight P = L_e(x₀, ω₀)|cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7's
-//! α₁ for s = 1); scattering at x_k multiplies the throughput β by the adjoint BSDF's sample
-//! weight. Pixel j's measurement I_j = ∫ W_e⁽ʲ⁾(ω) L(ω) cos θ_e dω (camera module doc) is, after
-//! the change of variables dω = |cos θ_x| dA(x)/d² (Veach eq. 8.3), estimated from vertex x_k by
-//!
-//!   c_k = P·β_k · f(x_k; ω_cam, ω_prev) · |cos θ_x| · W_e(ω) cos θ_e / d²     (k ≥ 1),
-//!   c₀  = L_e(x₀ → eye)/(p_sel p_A) · |cos θ_x₀| · W_e(ω) cos θ_e / d²,
-//!
-//! with V(x_k, eye) tested by a shadow ray. Note the sensor cosine cos θ_e: with the pinhole
-//! importance W_e = 1/(A_pix cos⁴θ), W_e·cos θ_e = 1/(A_pix cos³θ) (the film-plane Jacobian).
-//!
-//! Bounces, as in [`crate::integrators::PathTracer`]: the connection from x_k counts k bounces
-//! (a directly visible emitter is depth 0), so with `max_depth = D` exactly the paths with at
-//! most D bounces are included and both estimators have the same expectation. Russian
-//! roulette is the path tracer's: after the k-th bounce with k ≥ rr_depth the path survives
-//! with q = min(1, max β) (β the product of scattering weights, without the emitted power P).
-//!
-//! Environment light enters through the disk of the scene's bounding sphere that faces a
-//! uniformly chosen direction (`Light::sample_emission`: p_A = 1/(πr²), p_ω = 1/(4π),
-//! cos θ₀ = 1, so P = L·4π·πr²/p_sel, the flux through the disk); the disk point is never
-//! connected to the camera. A dispersive surface keeps only the hero wavelength past it,
-//! scaled by the lane count so that the film's 1/N lane weight holds (as in the path tracer).
-//!
-//! Not covered (documented limitations): surfaces seen by the camera through delta (specular)
-//! lobes — `eval` is zero for them, so a light path cannot be connected there; the environment
-//! seen directly (for the same reason); point lights seen directly (a delta in position: the
-//! path tracer cannot see them either, so c₀ is omitted for them); participating media
-//! (refused by the renderer). There are no shading normals in furnace, so no shading-normal
-//! adjoint correction (Veach §5.3) is needed.
+//! vertex). Each connection estimates a pixel's measurement in the film's units (spectral
+//! radiance), with the bounce count and Russian roulette of [`crate::integrators::PathTracer`],
+//! so both estimators have the same expectation. The estimator, environment lights and what
+//! is not covered: docs/rendering.md, "`integrators::light`".
 
 use crate::camera::Camera;
 use crate::geometry::{ray, Ray, SurfacePoint};
@@ -44,7 +15,7 @@ use crate::math::rng::SampleStream;
 use crate::math::Vec3;
 use crate::scattering::Bxdf;
 use crate::scene::Scene;
-use crate::spectrum::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
+use crate::spectrum::{SampledSpectrum, Wavelengths};
 
 /// Where a world point lands on a sensor and how much importance reaches it.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -245,13 +216,10 @@ impl LightTracer {
                 break;
             }
 
-            // A dispersive surface sends the wavelengths different ways: past it only the hero
-            // continues, scaled by the lane count so that the film's 1/N lane weight holds
-            // (the camera connection above does not depend on wavelength and kept all lanes;
-            // see integrators::path).
-            if bsdf.separates_wavelengths() && !wl.secondary_terminated {
-                wl.terminate_secondary();
-                beta = SampledSpectrum([beta.0[0] * N_WAVELENGTHS as f64, 0.0, 0.0, 0.0]);
+            // A dispersive surface sends the wavelengths different ways (the camera connection
+            // above does not depend on wavelength and kept all lanes).
+            if bsdf.separates_wavelengths() {
+                wl.disperse(&mut beta, 1.0);
             }
             let wl = &*wl;
 

@@ -1,19 +1,10 @@
 //! Unidirectional path tracing with next-event estimation and multiple importance sampling
 //! (Veach 1997, PhD thesis, ch. 9, the power heuristic with β = 2, eq. 9.13), and unbiased
-//! Russian roulette ([`super::roulette`]).
-//!
-//! Depth counts scattering events (bounces): emission seen directly has depth 0, direct
-//! lighting depth 1. With `max_depth = D` the estimate is exactly the sum of paths with at
-//! most D bounces (so a furnace of emission E and albedo R reads E(1 − R^(D+1))/(1 − R)).
-//! Mitsuba's `max_depth` counts path segments: Mitsuba max_depth = D + 1.
-//!
-//! Participating media (only in scenes that have them): free-flight distances are sampled
-//! per segment with one-sample spectral MIS ([`crate::media::sample_free_flight`]); a
-//! scattering event is a bounce with next-event estimation through the medium (the
-//! transmittance of the shadow ray, stepping through null boundaries) and phase-function
-//! sampling, combined with the power heuristic on the directional pdfs; purely absorbing
-//! media apply their transmittance analytically. Null boundaries are stepped through without
-//! a bounce.
+//! Russian roulette ([`super::roulette`]). Estimates spectral radiance (W·sr⁻¹·m⁻²·nm⁻¹).
+//! Depth counts bounces (emission seen directly: 0); `max_depth = D` keeps exactly the paths
+//! of at most D bounces, Mitsuba's `max_depth` = D + 1. Scenes with participating media add
+//! free-flight sampling with one-sample spectral MIS ([`crate::media::sample_free_flight`]).
+//! Details: docs/rendering.md, "`integrators::path`".
 
 use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
@@ -23,7 +14,7 @@ use crate::math::Vec3;
 use crate::media::{sample_free_flight, transmittance, Phase};
 use crate::scattering::SampledBsdf;
 use crate::scene::Scene;
-use crate::spectrum::{SampledSpectrum, Wavelengths, N_WAVELENGTHS};
+use crate::spectrum::{SampledSpectrum, Wavelengths};
 
 /// How emitted light is found at each path vertex; the three are independent estimators of
 /// the same integral (except that BSDF sampling alone cannot find point lights).
@@ -268,11 +259,7 @@ impl PathTracer {
                         // Keep the lane-mean of the path's density ratios at 1, so that beta
                         // is the balance-heuristic weight itself (see sample_free_flight).
                         r *= ff.pdf_ratio;
-                        let lanes = if wl.secondary_terminated {
-                            1
-                        } else {
-                            N_WAVELENGTHS
-                        };
+                        let lanes = wl.active_lanes();
                         let mean = r.0[..lanes].iter().sum::<f64>() / lanes as f64;
                         if !(mean > 0.0 && mean.is_finite()) {
                             break;
@@ -368,18 +355,8 @@ impl PathTracer {
             if self.max_depth.is_some_and(|d| depth >= d) {
                 break;
             }
-            if bsdf.separates_wavelengths() && !wl.secondary_terminated {
-                wl.terminate_secondary();
-                // From here the hero alone carries the estimate, with its own pdf (undo the
-                // lane mixture: r₀ = p₀/mean p, 1 without media) and with the weight of all
-                // the film's lanes, since the film keeps weighting each lane 1/N; what the path
-                // gathered before stays a four-lane estimate (Wilkie et al. 2014, §4.3).
-                let b0 = if r.0[0] > 0.0 {
-                    beta.0[0] / r.0[0]
-                } else {
-                    0.0
-                };
-                beta = SampledSpectrum([b0 * N_WAVELENGTHS as f64, 0.0, 0.0, 0.0]);
+            // Dispersion: the hero alone goes on, with its own pdf (the lane mixture undone).
+            if bsdf.separates_wavelengths() && wl.disperse(&mut beta, r.0[0]) {
                 r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
             }
             let wl = &*wl;

@@ -1,37 +1,10 @@
 //! Image file I/O for furnace: multi-channel linear OpenEXR and 8-bit sRGB PNG previews.
-//!
-//! * [`write_exr`] / [`read_exr`] store a [`Layers`] image (any number of named `f32` channels
-//!   plus string metadata) losslessly as a single-part, scan-line OpenEXR file with
-//!   32-bit float channels and ZIP compression (zlib, 16 scan lines per block).
-//!   Values are written bit-exactly (including NaN payloads, infinities and negative zero);
-//!   a write/read round trip reproduces every value and every channel name.
-//! * [`write_png_srgb`] writes a display preview: exposure-scaled, clamped, sRGB-encoded,
-//!   8 bits per channel RGB.
-//!
-//! # Units
-//! This module never interprets pixel values: "linear" values are whatever the caller stores
-//! (radiance, XYZ tristimulus values, variances, sample counts, ...). Only the PNG preview
-//! applies a transform, and it assumes its input is linear-light RGB in the sRGB primaries.
-//!
-//! # Channel names
-//! Channel names are stored byte-exactly (UTF-8) in the EXR channel list. Names containing dots,
-//! such as `"variance.Y"`, follow the OpenEXR layer-naming convention (`layer.channel`) that
-//! other tools display as a "variance" layer with a "Y" channel, but neither this module nor
-//! the `exr` crate (which reads and writes `AnyChannel` names verbatim, without splitting at
-//! dots) ever splits them: `"variance.Y"` is written as `"variance.Y"` and read back as
-//! `"variance.Y"`. The whole image is one EXR part without a part name, so no prefix is added.
-//!
-//! # Ordering
-//! OpenEXR requires the channel list on disk to be sorted by name (byte-wise). [`write_exr`]
-//! accepts channels in any order; [`read_exr`] returns them in the on-disk (sorted) order,
-//! and attributes sorted by name. Look channels up by name ([`Layers::channel`]) rather than by
-//! position.
-//!
-//! # Robustness
-//! Invalid arguments and malformed files are reported as [`ImageIoError`]s; no function here
-//! panics on bad input. As defence in depth, EXR decoding runs single-threaded inside
-//! [`std::panic::catch_unwind`], so an unexpected panic inside the `exr` crate on a corrupt
-//! file becomes [`ImageIoError::DecoderPanic`] (this cannot help under `panic = "abort"`).
+//! [`write_exr`] / [`read_exr`] store a [`Layers`] image (named `f32` channels plus string
+//! metadata) losslessly and bit-exactly; [`write_png_srgb`] writes an exposure-scaled, clamped,
+//! sRGB-encoded preview. Units: pixel values are never interpreted (radiance, XYZ, variances,
+//! sample counts, … as the caller stores them); only the PNG assumes linear-light sRGB. Bad
+//! input is an [`ImageIoError`], never a panic. Compression, channel names and order, and
+//! robustness: docs/formats.md, "`io::image`".
 
 use std::collections::HashSet;
 use std::fmt::Write as _;

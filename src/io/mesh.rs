@@ -1,38 +1,9 @@
-//! Triangle-mesh files: reads Wavefront OBJ and Stanford PLY files into plain [`MeshData`]
-//! (positions plus triangle vertex indices), with no materials, normals or texture
-//! coordinates, and writes binary PLY ([`ply_binary_f32`]).
-//!
-//! Supported input:
-//! - **OBJ** (UTF-8 text; invalid UTF-8 is replaced by U+FFFD when loading
-//!   from disk): `v x y z [w]` vertices and `f` faces whose corners are
-//!   written `i`, `i/t`, `i//n` or `i/t/n`. Indices are 1-based; negative
-//!   indices count back from the last vertex defined so far (`-1` is the most
-//!   recent). A face may only use vertices defined on earlier lines. Anything
-//!   after a `#` on a line is a comment.
-//!   `vt`, `vn`, `o`, `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, free-form
-//!   geometry and any statement this reader does not know are skipped
-//!   without checking their contents. Values after the third coordinate of a
-//!   `v` statement (the optional `w`, or per-vertex colours some exporters
-//!   write) are ignored. Line continuation with a trailing `\` is not
-//!   supported.
-//! - **PLY** formats `ascii 1.0`, `binary_little_endian 1.0` and
-//!   `binary_big_endian 1.0`. The `vertex` element must have scalar `x`, `y`,
-//!   `z` properties of any PLY scalar type; the `face` element must have a
-//!   list property named `vertex_indices` (or `vertex_index`) with integer
-//!   count and index types. Every other property and element is skipped
-//!   according to its declared type. Indices are 0-based. In ASCII files each
-//!   element instance must be on its own line; blank lines are skipped.
-//!   Data after the last declared element is ignored.
-//!
-//! Polygons with more than three vertices are fan-triangulated around their
-//! first vertex: `(v0 v1 v2 v3 …)` becomes `(v0 v1 v2)`, `(v0 v2 v3)`, …,
-//! which keeps the polygon's winding and is exact for convex, planar
-//! polygons. Degenerate triangles (repeated indices) are kept as written.
-//!
-//! Coordinates are returned exactly as stored in the file, in scene units;
-//! no scaling, axis swapping or welding is applied. Every malformed input is
-//! reported as a [`MeshIoError`] naming the file and, where it applies, the
-//! line or byte offset and the offending token; the parsers never panic.
+//! Triangle-mesh files: reads Wavefront OBJ and Stanford PLY (ASCII and binary) files into
+//! plain [`MeshData`] (positions plus triangle vertex indices), with no materials, normals or
+//! texture coordinates, and writes binary PLY ([`ply_binary_f32`]). Coordinates are returned
+//! exactly as stored, in scene units; polygons are fan-triangulated. Every malformed input is
+//! a [`MeshIoError`] naming the file and, where it applies, the line or byte offset and the
+//! offending token; the parsers never panic. What is accepted: docs/formats.md, "`io::mesh`".
 
 use std::borrow::Cow;
 use std::fmt;

@@ -1,21 +1,10 @@
-//! Counter-based random numbers: every value is a pure function of
-//! (seed, pixel, sample index, dimension), so a render is bit-identical whatever the
-//! thread count or tile order.
-//!
-//! Mixing is the SplitMix64 finaliser (Steele, Lea & Flood 2014, "Fast splittable
-//! pseudorandom number generators", OOPSLA; constants of Stafford's "Mix13").
-//!
-//! Three sample patterns ([`Sampler`]), all pure functions of (seed, pixel, sample,
-//! dimension) and all with uniform marginals (so every estimator stays unbiased):
-//! - independent: every number from the hash;
-//! - stratified: a jittered a×b grid (a = ⌊√spp⌋, b = ⌊spp/a⌋) for each 2D draw and spp
-//!   jittered strata for each 1D draw, the cells visited in a random order per pixel and
-//!   dimension (samples beyond a·b fall back to independent numbers). Jittered sampling of a
-//!   smooth 2D integrand converges as N^-1 in RMSE, across an edge as N^-0.75 (Mitchell 1996,
-//!   "Consequences of stratified sampling in graphics", SIGGRAPH);
-//! - sobol: Owen-scrambled Sobol points (Burley 2020, "Practical hash-based Owen scrambling",
-//!   JCGT 9(4), via the `sobol_burley` crate), seeded per pixel, for the first 256 dimensions
-//!   and the first 2^16 samples; later dimensions are independent numbers.
+//! Counter-based random numbers in [0, 1): every value is a pure function of (seed, pixel,
+//! sample index, dimension), so a render is bit-identical whatever the thread count or tile
+//! order. Mixing is the SplitMix64 finaliser (Steele, Lea & Flood 2014, "Fast splittable
+//! pseudorandom number generators", OOPSLA; constants of Stafford's "Mix13"). Three sample
+//! patterns ([`Sampler`]), all with uniform marginals: independent, jittered stratified
+//! (Mitchell 1996, SIGGRAPH) and Owen-scrambled Sobol (Burley 2020, JCGT 9(4)). Details:
+//! docs/rendering.md, "`math::rng`", and docs/convergence.md, "Samplers".
 
 /// One 64-bit mixing step (bijective on u64).
 #[inline]

@@ -1,23 +1,10 @@
 //! Rendering by light tracing: N i.i.d. light paths splat their camera connections onto the
-//! film (integrators::light).
-//!
-//! Per-pixel statistics. Path i gives pixel j the sample c_ij = the sum of its contributions
-//! to j (0 for most paths); the c_ij, i = 1..N, are i.i.d. with mean I_j. So each pixel's
-//! estimate is the sample mean of N values, and its variance is estimated exactly as for N
-//! samples of a camera-path render: s² = Σ(c − c̄)²/(N − 1), Var(mean) ≈ s²/N. Each channel keeps
-//! Σc and Σc² (f64) per chunk of paths, turned into (n, mean, m2) per chunk and merged across
-//! chunks with Chan et al.'s pairwise formula (stats::MeanVar::merge), so `film::Pixel`'s
-//! accumulators hold N, the mean and Σ(c − c̄)² and everything downstream (EXR variance
-//! channels, region statistics, comparisons) reads them unchanged.
-//!
-//! Pixels are NOT independent: one path may contribute to several pixels, so the variance of
-//! a region mean is not Σ Var(pixel)/n². For regions named up front the renderer also keeps the
-//! per-path region sums C_iR = Σ_{j∈R} c_ij and their exact statistics ([`LightImage::regions`]).
-//!
-//! Determinism: path i's random numbers depend only on (seed, i, dimension); the N paths are
-//! split into [`CHUNKS`] fixed chunks whatever the thread count, each chunk is accumulated in
-//! path order, and chunks are merged in chunk order: the same seed gives the same bits for
-//! any number of threads.
+//! film (integrators::light). Path i gives pixel j one sample c_ij (the sum of its
+//! contributions there, 0 for most paths), so each pixel holds the mean and variance of N
+//! i.i.d. values (film units, N − 1 degrees of freedom) exactly as a camera-path render does.
+//! Pixels are correlated, so region statistics come from per-path region sums
+//! ([`LightImage::regions`]). The same seed gives the same bits for any thread count
+//! ([`CHUNKS`] fixed chunks). Details: docs/rendering.md, "`render::light`".
 
 use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
 use crate::film::{Film, Pixel};

@@ -1,14 +1,8 @@
 //! Dielectric interfaces (glass, water): a smooth Fresnel interface or a rough GGX one
 //! (Walter, Marschner, Li & Torrance 2007, "Microfacet models for refraction through rough
 //! surfaces", EGSR). The normal points to the outside (index 1); the inside has index
-//! `ior`(λ). `eval` carries radiance: transmitted radiance is scaled by (η_o/η_i)², so the
-//! BSDF obeys the generalised reciprocity f(wo, wi)/η(wo)² = f(wi, wo)/η(wi)² (see
-//! [`Bxdf::eta`]).
-//!
-//! With a dispersive index, each wavelength has its own lobes: `eval` evaluates every
-//! wavelength with its own index, while sampling and `pdf` use the path's first (hero)
-//! wavelength; the integrator drops the other wavelengths at such a surface
-//! ([`super::Bsdf::separates_wavelengths`]).
+//! `ior`(λ). `eval` carries radiance: transmitted radiance is scaled by (η_o/η_i)² (see
+//! [`Bxdf::eta`]). Reciprocity and dispersion: docs/rendering.md, "`scattering::dielectric`".
 
 use super::fresnel::{self, Ior};
 use super::microfacet::Ggx;

@@ -166,11 +166,39 @@ impl Wavelengths {
         VIS_NORM * (1.0 - t * t)
     }
 
-    /// Drops every wavelength but the hero (Wilkie et al. 2014, §4.3: once directions
-    /// depend on wavelength, the secondary wavelengths' paths no longer exist). The caller
-    /// rescales the hero's throughput by the lane count (the film weights every lane 1/N).
+    /// Drops every wavelength but the hero from the start (the single-wavelength film); paths
+    /// that meet dispersion use [`Wavelengths::disperse`], which also rescales the throughput.
     pub fn terminate_secondary(&mut self) {
         self.secondary_terminated = true;
+    }
+
+    /// The dispersion rule, at a surface that sends wavelengths apart (Wilkie et al. 2014,
+    /// §4.3: past it the secondary wavelengths' paths no longer exist): only the hero goes on,
+    /// with throughput `beta` over its lane density ratio `hero_ratio` (the hero's pdf over the
+    /// lanes' mean pdf; 1 without media) times the lane count, since the film keeps weighting
+    /// every lane 1/N and what the path gathered before stays a four-lane estimate. A path
+    /// already reduced to its hero is left alone. True when the secondaries were dropped here.
+    pub fn disperse(&mut self, beta: &mut SampledSpectrum, hero_ratio: f64) -> bool {
+        if self.secondary_terminated {
+            return false;
+        }
+        self.secondary_terminated = true;
+        let b0 = if hero_ratio > 0.0 {
+            beta.0[0] / hero_ratio
+        } else {
+            0.0
+        };
+        *beta = SampledSpectrum([b0 * N_WAVELENGTHS as f64, 0.0, 0.0, 0.0]);
+        true
+    }
+
+    /// Wavelengths still carried by the path: 1 after dispersion, else all.
+    pub fn active_lanes(&self) -> usize {
+        if self.secondary_terminated {
+            1
+        } else {
+            N_WAVELENGTHS
+        }
     }
 
     /// Four fixed wavelengths with a given pdf; for tests and single-wavelength studies.

@@ -1,14 +1,8 @@
-//! Pearson's chi-square goodness-of-fit test of binned counts against expected counts,
-//! with pooling of sparsely populated bins.
-//!
-//! The statistic χ² = Σ (O_i − E_i)² / E_i is, for a multinomial sample whose expected
-//! counts are E_i, approximately chi-square distributed with (bins − 1) degrees of freedom.
-//! The approximation is poor when some E_i are small, so bins whose expected count is
-//! below a threshold (conventionally 5, Cochran 1954, Biometrics 10) are pooled first.
-//!
-//! Expected counts are used exactly as given: they are *not* rescaled to the observed
-//! total. A pdf that integrates to 0.9 gives expected counts summing to 0.9·N, and the
-//! resulting excess of observed counts is part of what this test must detect.
+//! Pearson's chi-square goodness-of-fit test of binned counts against expected counts, with
+//! pooling of sparsely populated bins: χ² = Σ (O_i − E_i)²/E_i, approximately chi-square with
+//! (bins − 1) degrees of freedom once bins with expected count below a threshold
+//! (conventionally 5, Cochran 1954, Biometrics 10) are pooled. Expected counts are used exactly
+//! as given, not rescaled: docs/statistics.md, "`stats::chi2`".
 
 use statrs::distribution::{ChiSquared, ContinuousCDF};
 use thiserror::Error;

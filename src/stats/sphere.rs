@@ -1,21 +1,9 @@
-//! Histograms of directions over the unit sphere, and the expected probability mass of
-//! each histogram bin under a given solid-angle pdf.
-//!
-//! Together with [`super::chi2::chi2_gof`] this tests a direction sampler against the pdf
-//! it claims: count samples per bin, integrate the pdf over each bin, scale by the number
-//! of samples, and compare.
-//!
-//! Binning: `theta_bins` strips that are **uniform in cos θ** (θ measured from +z), so
-//! every strip covers the same solid angle 4π/theta_bins (Archimedes' hat-box theorem),
-//! times `phi_bins` uniform sectors of φ = atan2(y, x) ∈ [0, 2π). All bins have equal solid
-//! angle 4π/(theta_bins·phi_bins) sr. Strip 0 touches +z; bin index = strip·phi_bins +
-//! sector. Choose an even `theta_bins` for a pdf that is discontinuous at the horizon
-//! (z = 0), so the discontinuity falls on a strip edge and the quadrature stays accurate.
-//!
-//! Every count/mass vector has one extra, last entry: the *invalid-direction* bin at index
-//! [`SphereBinning::n_bins`]. Directions that are zero, infinite or NaN are counted there,
-//! and its expected mass is 0, so `chi2_gof` reports any such sample as a zero-pdf hit
-//! (a certain failure) instead of the sample silently disappearing.
+//! Histograms of directions over the unit sphere, and the expected probability mass of each
+//! bin under a given solid-angle pdf (sr⁻¹); with [`super::chi2::chi2_gof`] they test a
+//! direction sampler against the pdf it claims. Bins: `theta_bins` strips uniform in cos θ
+//! (Archimedes' hat-box theorem) times `phi_bins` sectors of φ, each of solid angle
+//! 4π/(theta_bins·phi_bins) sr, plus a last invalid-direction bin of expected mass 0.
+//! Layout and choices: docs/statistics.md, "`stats::sphere`".
 
 /// Largest number of regular bins a binning may have; larger (or empty) binnings are
 /// degenerate and have no regular bins.
@@ -111,27 +99,56 @@ impl SphereBinning {
     /// pdf's integral over the sphere (1 when normalised). The pdf's values are used as
     /// returned: negative or NaN values propagate and are rejected later by `chi2_gof`.
     pub fn integrate(&self, pdf: impl Fn([f64; 3]) -> f64, sub: usize) -> Vec<f64> {
+        let r: Result<Vec<f64>, std::convert::Infallible> =
+            self.integrate_batched(|w| Ok(w.iter().map(|&w| pdf(w)).collect()), sub);
+        match r {
+            Ok(m) => m,
+            Err(e) => match e {},
+        }
+    }
+
+    /// [`SphereBinning::integrate`] with the pdf evaluated a strip of bins at a time (for
+    /// models answering batches); the same sums in the same order, so the same bits.
+    pub fn integrate_batched<E>(
+        &self,
+        mut pdf: impl FnMut(&[[f64; 3]]) -> Result<Vec<f64>, E>,
+        sub: usize,
+    ) -> Result<Vec<f64>, E> {
         let n = self.n_bins();
         let mut mass = vec![0.0; n + 1];
         if n == 0 {
-            return mass;
+            return Ok(mass);
         }
         let (nodes, weights) = gauss_legendre(sub.clamp(1, MAX_SUB));
         let (t, p) = (self.theta_bins, self.phi_bins);
         let dc = 2.0 / t as f64;
         let dphi = std::f64::consts::TAU / p as f64;
+        let mut points = Vec::with_capacity(p * nodes.len() * nodes.len());
         for strip in 0..t {
             let c_hi = 1.0 - strip as f64 * dc;
             let c_mid = c_hi - 0.5 * dc;
+            points.clear();
             for sector in 0..p {
                 let phi_mid = (sector as f64 + 0.5) * dphi;
-                let mut sum = 0.0;
-                for (&xu, &wu) in nodes.iter().zip(&weights) {
+                for &xu in &nodes {
                     let c = (c_mid + 0.5 * dc * xu).clamp(-1.0, 1.0);
                     let s = (1.0 - c * c).max(0.0).sqrt();
-                    for (&xp, &wp) in nodes.iter().zip(&weights) {
+                    for &xp in &nodes {
                         let phi = phi_mid + 0.5 * dphi * xp;
-                        sum += wu * wp * pdf([s * phi.cos(), s * phi.sin(), c]);
+                        points.push([s * phi.cos(), s * phi.sin(), c]);
+                    }
+                }
+            }
+            let values = pdf(&points)?;
+            let per_bin = nodes.len() * nodes.len();
+            for sector in 0..p {
+                let v = &values[sector * per_bin..(sector + 1) * per_bin];
+                let mut sum = 0.0;
+                let mut k = 0;
+                for &wu in &weights {
+                    for &wp in &weights {
+                        sum += wu * wp * v[k];
+                        k += 1;
                     }
                 }
                 // Gauss–Legendre (Abramowitz & Stegun 1964, eq. 25.4.29) mapped affinely to
@@ -139,7 +156,7 @@ impl SphereBinning {
                 mass[strip * p + sector] = sum * 0.25 * dc * dphi;
             }
         }
-        mass
+        Ok(mass)
     }
 }
 

@@ -1,35 +1,10 @@
-//! Is a standard error trustworthy? Diagnostics for heavy tails and correlation.
-//!
-//! A Monte Carlo estimator can be unbiased and still have infinite variance (fireflies:
-//! rare, huge samples). Then the sample standard error is itself wildly variable and
-//! usually *understates* the error, so a z test built on it passes when it should not.
-//! [`diagnose`] looks at a sequence of independent batch values (e.g. per-pixel means, each
-//! the mean of spp samples, in a fixed order) and reports whether the standard error of
-//! their grand mean can be trusted:
-//!
-//! * (a) batch means: the SE of the grand mean estimated from the means of batches of b
-//!   consecutive values must agree across b = 1, 2, 4, … within chi-square sampling error;
-//!   they drift apart under serial correlation (or any dependence on the order);
-//! * (b) Hill's tail index of |x − median|: if even its upper confidence bound is below 2,
-//!   the variance is infinite and the SE is meaningless;
-//! * (c) the largest single share of the sum of squares, reported as evidence only.
-//!
-//! Calibration (seeded simulations, test `calibration_false_alarm_and_power`, run with
-//! `--ignored`), at `false_alarm = 1e-3`: of about 250 000 normal, exponential, χ²(1) and
-//! Student-t(3) data sets with n from 16 to 16384, two were flagged (both by (a), both at a
-//! batch size with only 8 batches, i.e. ordinary chi-square excursions); (b) flagged every
-//! one of 2000 Pareto(1.2) data sets with n = 4096.
-//!
-//! Choices behind (b): k = min(⌊2√n⌋, ⌊n/16⌋) upper order statistics, and no estimate when
-//! k < 10 (n < 160). The common k = √n missed Pareto(1.2) at n = 4096 in 4% of data sets,
-//! and k/n large (k = 10 for n = 20…64) flagged exponential data up to 16% of the time, so
-//! k is doubled at large n and capped at n/16 at small n. The confidence bound is the exact
-//! one for a Pareto tail, α̂·G⁻¹_k(1 − false_alarm)/k with G_k the Gamma(k, 1) law, rather
-//! than the asymptotic α̂(1 + z/√k), which is anti-conservative for small k. Tail indices
-//! between 2 and 3 sit near the boundary: Pareto(2.5) data (finite variance) were flagged
-//! in 0.4–6% of data sets depending on n, partly because |x − median| shortens a Pareto
-//! tail. Criterion (a) has almost no power against iid heavy tails (the largest value
-//! dominates every batch size alike); it is there for dependence on the order.
+//! Is a standard error trustworthy? Diagnostics for heavy tails and correlation: [`diagnose`]
+//! takes independent batch values in a fixed order (e.g. per-pixel means, in any one unit) and
+//! flags (a) batch-means standard errors at b = 1, 2, 4, … that disagree beyond chi-square
+//! sampling error (dependence on the order), (b) a Hill tail index of |x − median| whose upper
+//! confidence bound is below 2 (infinite variance); (c) the largest share of the sum of
+//! squares is evidence only. Calibration and the choices behind (b): docs/statistics.md,
+//! "`stats::stability`".
 
 use statrs::distribution::{ChiSquared, ContinuousCDF, Gamma};
 
