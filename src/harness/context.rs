@@ -1,7 +1,9 @@
 //! How a run is configured ([`RunOptions`]) and what one check sees while it runs
 //! ([`Context`]): the renderer under test, its seed, threads and per-test significance.
 
+use super::error::CheckError;
 use super::renderer::Renderer;
+use super::under_test::ModelSource;
 use crate::math::rng::mix64;
 
 /// Family-wise error correction across the stochastic tests of a run.
@@ -51,12 +53,26 @@ impl Default for RunOptions {
 pub struct Context<'a> {
     /// The renderer under test.
     pub renderer: &'a dyn Renderer,
+    /// Its models, when it serves them (furnace's own in process).
+    pub models: Option<&'a dyn ModelSource>,
     /// The check's seed.
     pub seed: u64,
     /// Render threads.
     pub threads: usize,
     /// Per-test significance (Šidák level), for power and diagnostics.
     pub alpha: f64,
+}
+
+impl Context<'_> {
+    /// The models under test, or an error naming the renderer that serves none.
+    pub fn models(&self) -> Result<&dyn ModelSource, CheckError> {
+        self.models.ok_or_else(|| {
+            CheckError::Renderer(format!(
+                "{} serves no models: give its renderers.toml entry a `models` command (docs/model-protocol.md)",
+                self.renderer.name()
+            ))
+        })
+    }
 }
 
 /// Seed of a check: its own, or a hash (FNV-1a, then mixed) of the run seed and its name.

@@ -6,7 +6,7 @@ use super::context::Context;
 use super::error::CheckError;
 use super::keys::{Key, Keys};
 use super::measurement::Measurement;
-use super::renderer::Renderer;
+use super::under_test::Subject;
 use crate::io::LocatedError;
 use crate::scene::Scene;
 use std::any::Any;
@@ -40,28 +40,27 @@ pub trait Kind: Send + Sync + 'static {
     /// Parses the kind's own keys; the common ones (scene, render settings, seed, tolerance)
     /// are already in the [`Check`].
     fn parse(keys: &mut Keys) -> Result<Self::Params, LocatedError>;
-    /// Why `check` cannot judge `renderer`, or None when it can.
-    fn not_applicable(
-        _check: &Check,
-        _p: &Self::Params,
-        renderer: &dyn Renderer,
-    ) -> Option<String> {
-        scope_rule(Self::NAME, Self::SCOPE, renderer)
+    /// Why `check` cannot judge `subject`, or None when it can.
+    fn not_applicable(_check: &Check, _p: &Self::Params, subject: &Subject) -> Option<String> {
+        scope_rule(Self::NAME, Self::SCOPE, subject)
     }
     /// Runs the check.
     fn run(check: &Check, p: &Self::Params, ctx: &Context) -> Result<Measurement, CheckError>;
 }
 
-/// The default applicability rule of a [`Scope`].
-pub fn scope_rule(kind: &str, scope: Scope, renderer: &dyn Renderer) -> Option<String> {
-    if renderer.is_reference() {
-        return None;
-    }
-    let name = renderer.name();
+/// The default applicability rule of a [`Scope`]: image kinds judge any renderer, model
+/// kinds any renderer that serves models, furnace kinds only furnace.
+pub fn scope_rule(kind: &str, scope: Scope, subject: &Subject) -> Option<String> {
+    let name = subject.renderer.name();
     match scope {
         Scope::Image => None,
-        Scope::Model | Scope::Furnace => Some(format!(
-            "kind {kind} tests furnace's own models or needs control over its estimator or film; {name} is judged by the scene-level kinds"
+        Scope::Model if subject.models.is_some() => None,
+        Scope::Model => Some(format!(
+            "kind {kind} queries the renderer's own models; {name} serves none (give it a `models` command in renderers.toml, docs/model-protocol.md)"
+        )),
+        Scope::Furnace if subject.renderer.is_reference() => None,
+        Scope::Furnace => Some(format!(
+            "kind {kind} needs control over furnace's own estimator or film; {name} is judged by the image and model kinds"
         )),
     }
 }
@@ -79,7 +78,7 @@ pub trait DynKind: Send + Sync {
     /// [`Kind::parse`].
     fn parse(&self, keys: &mut Keys) -> Result<Arc<dyn Any + Send + Sync>, LocatedError>;
     /// [`Kind::not_applicable`].
-    fn not_applicable(&self, check: &Check, renderer: &dyn Renderer) -> Option<String>;
+    fn not_applicable(&self, check: &Check, subject: &Subject) -> Option<String>;
     /// [`Kind::run`].
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError>;
 }
@@ -125,8 +124,8 @@ impl<K: Kind> DynKind for Registered<K> {
     fn parse(&self, keys: &mut Keys) -> Result<Arc<dyn Any + Send + Sync>, LocatedError> {
         Ok(Arc::new(K::parse(keys)?))
     }
-    fn not_applicable(&self, check: &Check, renderer: &dyn Renderer) -> Option<String> {
-        K::not_applicable(check, self.params(check), renderer)
+    fn not_applicable(&self, check: &Check, subject: &Subject) -> Option<String> {
+        K::not_applicable(check, self.params(check), subject)
     }
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError> {
         K::run(check, self.params(check), ctx)

@@ -2,7 +2,8 @@
 //! judge, and the runner that applies the family-wise error correction.
 //!
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
-//! `outcome`, `error` → `measurement` → `renderer` → `context`, `keys` → `kind` → `model/`,
+//! `outcome`, `error` → `measurement` → `renderer` → `under_test` → `context`, `keys` → `kind` →
+//! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `runner`.
 
@@ -22,10 +23,12 @@ pub mod region;
 pub mod registry;
 pub mod renderer;
 pub mod runner;
+pub mod under_test;
 
 pub use context::{check_seed, Context, Correction, RunOptions};
 pub use error::CheckError;
 pub use kind::{Check, Kind, Scope};
 pub use measurement::Measurement;
 pub use renderer::{BuiltIn, Renderer, RendererError};
-pub use runner::{glob_match, judge, run};
+pub use runner::{glob_match, judge, run, run_with};
+pub use under_test::{ModelSource, Subject};

@@ -4,8 +4,10 @@
 use super::context::{check_seed, Context, Correction, RunOptions};
 use super::kind::Check;
 use super::measurement::Measurement;
+use super::model::local::LocalModels;
 use super::outcome::{Outcome, RunReport, Statistic, Verdict};
 use super::renderer::Renderer;
+use super::under_test::{ModelSource, Subject};
 use crate::stats::{multiple, power};
 use std::time::Instant;
 
@@ -47,8 +49,8 @@ pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
     }
 }
 
-/// Runs `checks` against `renderer`; `progress` sees each check's name as it starts (before the
-/// correction when Holm is used, so its verdict may still change).
+/// Runs `checks` against `renderer` and, for furnace's own renderer, its models in process;
+/// `progress` sees each check's name as it starts.
 pub fn run(
     checks: &[Check],
     opts: &RunOptions,
@@ -56,11 +58,31 @@ pub fn run(
     manifests: Vec<String>,
     progress: &mut dyn FnMut(&str),
 ) -> RunReport {
+    let local = LocalModels;
+    let models: Option<&dyn ModelSource> = renderer.is_reference().then_some(&local as _);
+    run_with(
+        checks,
+        opts,
+        Subject { renderer, models },
+        manifests,
+        progress,
+    )
+}
+
+/// Runs `checks` against `subject` (a renderer and the models it serves).
+pub fn run_with(
+    checks: &[Check],
+    opts: &RunOptions,
+    subject: Subject,
+    manifests: Vec<String>,
+    progress: &mut dyn FnMut(&str),
+) -> RunReport {
+    let renderer = subject.renderer;
     let start = Instant::now();
     let m = checks
         .iter()
         .filter(|c| c.kind.stochastic())
-        .filter(|c| c.kind.not_applicable(c, renderer).is_none())
+        .filter(|c| c.kind.not_applicable(c, &subject).is_none())
         .count()
         .max(1);
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
@@ -68,7 +90,7 @@ pub fn run(
     let mut measured = Vec::new();
     for check in checks {
         progress(&check.name);
-        if let Some(why) = check.kind.not_applicable(check, renderer) {
+        if let Some(why) = check.kind.not_applicable(check, &subject) {
             let mut o = Outcome::new(&check.name, check.kind_name());
             o.verdict = Verdict::Skipped;
             o.message = why;
@@ -78,6 +100,7 @@ pub fn run(
         }
         let ctx = Context {
             renderer,
+            models: subject.models,
             seed: check_seed(check.seed, &check.name, opts.seed),
             threads: opts.threads,
             alpha,

@@ -128,6 +128,15 @@ fn the_recorded_mitsuba_run_rebuilds_the_comparison_report_without_python() {
 fn external_renderers_skip_checks_that_state_furnace_internals() {
     let r = load_renderers(&renderers("scenes/furnace-sphere.toml", "\"true\"")).unwrap();
     let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let ext = harness::Subject {
+        renderer: &ext,
+        models: None,
+    };
+    let local = harness::model::local::LocalModels;
+    let builtin = harness::Subject {
+        renderer: &harness::BuiltIn,
+        models: Some(&local),
+    };
     let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
     for s in &specs {
         let why = s.kind.not_applicable(s, &ext);
@@ -137,16 +146,20 @@ fn external_renderers_skip_checks_that_state_furnace_internals() {
         let own = p.sampler == furnace::math::rng::Sampler::Independent
             && p.strategy == furnace::integrators::Strategy::Mis;
         assert_eq!(why.is_none(), own, "{}: {why:?}", s.name);
-        assert!(s.kind.not_applicable(s, &harness::BuiltIn).is_none());
+        assert!(s.kind.not_applicable(s, &builtin).is_none());
     }
+    // model kinds need a model server
     let bsdf = manifest::load(&root("tests/manifests/bsdf.toml")).unwrap();
     assert!(bsdf
         .iter()
         .all(|s| s.kind.not_applicable(s, &ext).is_some()));
+    assert!(bsdf
+        .iter()
+        .all(|s| s.kind.not_applicable(s, &builtin).is_none()));
     // furnace's light tracer cannot be run on an external renderer
     for s in manifest::load(&root("tests/manifests/light.toml")).unwrap() {
         let why = s.kind.not_applicable(&s, &ext).unwrap();
         assert!(why.contains("light tracer"), "{why}");
-        assert!(s.kind.not_applicable(&s, &harness::BuiltIn).is_none());
+        assert!(s.kind.not_applicable(&s, &builtin).is_none());
     }
 }

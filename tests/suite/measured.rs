@@ -93,6 +93,7 @@ fn spec(measurement: &Path) -> CheckSpec {
 fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_error() {
     let dir = std::env::temp_dir().join(format!("furnace-measured-{}", std::process::id()));
     let ctx = Context {
+        models: None,
         renderer: &BuiltIn,
         seed: 5,
         threads: 0,

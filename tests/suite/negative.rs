@@ -8,8 +8,10 @@ use furnace::film::Film;
 use furnace::geometry::{ray, Ray};
 use furnace::harness::checks::{chi2, energy, reciprocity, weights};
 use furnace::harness::manifest;
-use furnace::harness::model::catalogue::DirectionSampler;
+use furnace::harness::model::local::{LocalBsdf, LocalPhase};
+use furnace::harness::model::samplers::DirectionSampler;
 use furnace::harness::outcome::Verdict;
+use furnace::harness::under_test::{BsdfModel, ModelError, Named};
 use furnace::harness::Check as CheckSpec;
 use furnace::harness::{self, judge, BuiltIn, Renderer, RunOptions};
 use furnace::integrators::Strategy;
@@ -22,10 +24,27 @@ use furnace::render::RenderSettings;
 use furnace::scattering::{BsdfSample, Bxdf};
 use furnace::scene::Scene;
 use furnace::spectrum::{cie, SampledSpectrum, Spectrum, Wavelengths, N_WAVELENGTHS};
+use std::sync::Arc;
 
 /// The default suite tests each check at a Šidák level of about 3.3e-4 (1 % over 30 tests);
 /// the controls must be rejected at the stricter 1e-4.
 const ALPHA: f64 = 1e-4;
+
+/// A test BSDF as a named model under test.
+fn bsdf<B: Bxdf + Send + Sync + 'static>(name: &str, b: B) -> Named<dyn BsdfModel> {
+    Named {
+        name: name.into(),
+        model: Arc::new(LocalBsdf::new(b)),
+    }
+}
+
+/// A test phase function as a model under test (no stated mean cosine).
+fn phase<P: Phase + Send + Sync>(p: P) -> LocalPhase<P> {
+    LocalPhase {
+        phase: p,
+        mean_cosine: None,
+    }
+}
 
 fn specs(manifest_file: &str, name: &str) -> Vec<CheckSpec> {
     let all = manifest::load(&root(manifest_file)).unwrap();
@@ -409,74 +428,89 @@ impl Phase for HgSignError {
 /// Claims a cosine-weighted pdf but draws uniformly over the hemisphere.
 struct CosineClaimUniformDraw;
 impl DirectionSampler for CosineClaimUniformDraw {
-    fn sample(&self, u: [f64; 2], _uc: f64) -> Option<Vec3> {
-        let w = warp::uniform_sphere(u);
-        Some(Vec3::new(w.x, w.y, w.z.abs()))
+    fn sample(&self, q: &[([f64; 2], f64)]) -> Result<Vec<Option<Vec3>>, ModelError> {
+        Ok(q.iter()
+            .map(|&(u, _)| {
+                let w = warp::uniform_sphere(u);
+                Some(Vec3::new(w.x, w.y, w.z.abs()))
+            })
+            .collect())
     }
-    fn pdf(&self, w: Vec3) -> f64 {
-        warp::cosine_hemisphere_pdf(w)
+    fn pdf(&self, w: &[Vec3]) -> Result<Vec<f64>, ModelError> {
+        Ok(w.iter().map(|&w| warp::cosine_hemisphere_pdf(w)).collect())
     }
 }
 
 #[test]
 fn reciprocity_rejects_a_non_reciprocal_brdf() {
     let m = reciprocity::measure(
-        &[("non-reciprocal".into(), &NonReciprocal as &dyn Bxdf)],
+        &[bsdf("non-reciprocal", NonReciprocal)],
         2000,
         89.99,
         0.0,
         1e-12,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
 #[test]
 fn energy_rejects_a_lambert_missing_one_over_pi() {
     let m = energy::measure(
-        &[("no 1/pi".into(), &LambertNoInvPi(0.5) as &dyn Bxdf)],
+        &[bsdf("no 1/pi", LambertNoInvPi(0.5))],
         89.9,
         1e-6,
         10_000,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
 #[test]
 fn sample_weights_reject_a_weight_inconsistent_with_eval() {
-    let m = weights::measure_bsdf(&LambertInconsistentWeight(0.5), 2_000, 89.9, 1e-9, 1);
+    let m = weights::measure_bsdf(
+        &LocalBsdf::new(LambertInconsistentWeight(0.5)),
+        2_000,
+        89.9,
+        1e-9,
+        1,
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
 #[test]
 fn hg_rejects_a_sign_error() {
     let m = furnace::harness::model::phase::measure_phase(
-        &HgSignError(0.5),
+        &phase(HgSignError(0.5)),
         0.5,
         1e-6,
         50_000,
         40,
         16,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
     // and the true HG passes the same measurement
     let ok = furnace::harness::model::phase::measure_phase(
-        &HenyeyGreenstein { g: 0.5 },
+        &phase(HenyeyGreenstein { g: 0.5 }),
         0.5,
         1e-6,
         50_000,
         40,
         16,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }
 
 #[test]
 fn chi2_rejects_a_sampler_whose_pdf_is_wrong() {
-    let m = chi2::measure_sampler(&CosineClaimUniformDraw, 50_000, [24, 48], 1);
+    let m = chi2::measure_sampler(&CosineClaimUniformDraw, 50_000, [24, 48], 1).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -494,6 +528,7 @@ fn convergence_rejects_a_sampler_regression() {
         })
     );
     let ctx = harness::Context {
+        models: None,
         renderer: &BuiltIn,
         seed: 3,
         threads: 0,
@@ -535,6 +570,7 @@ fn convergence_rejects_an_error_floor() {
         "convergence/stratified-smooth",
     );
     let ctx = harness::Context {
+        models: None,
         renderer: &OnePercentBright,
         seed: 3,
         threads: 0,
@@ -616,28 +652,30 @@ fn albedo_rejects_a_microfacet_model_missing_its_masking_term() {
         .find(|(n, _)| n == name)
         .unwrap()
         .1;
-    let expect = albedo_expectation(name, &model).unwrap();
+    let expect = albedo_expectation(name, &LocalBsdf::of(model).flags).unwrap();
     assert!(matches!(
         expect,
         AlbedoExpectation::SingleScatteringLoss { .. }
     ));
     let good = albedo::measure(
-        &BrokenConductor::of(name, false, false),
+        &LocalBsdf::new(BrokenConductor::of(name, false, false)),
         expect,
         89.99,
         20_000,
         1e-12,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
     let bad = albedo::measure(
-        &BrokenConductor::of(name, true, false),
+        &LocalBsdf::new(BrokenConductor::of(name, true, false)),
         expect,
         89.99,
         20_000,
         1e-12,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
 }
 
@@ -676,13 +714,14 @@ fn albedo_rejects_glass_without_radiance_scaling() {
         microfacet: None,
     };
     let m = albedo::measure(
-        &GlassWithoutEtaScaling(glass),
+        &LocalBsdf::new(GlassWithoutEtaScaling(glass)),
         AlbedoExpectation::Lossless,
         89.99,
         2_000,
         1e-12,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -717,23 +756,17 @@ fn reciprocity_rejects_a_btdf_with_swapped_indices() {
         microfacet: furnace::scattering::microfacet::Ggx::rough(0.3, 0.3),
     };
     let good = reciprocity::measure(
-        &[("rough glass".into(), &d as &dyn Bxdf)],
+        &[bsdf("rough glass", d.clone())],
         2000,
         89.99,
         1e-12,
         1e-9,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
     let bad = SwappedEtaBtdf(d);
-    let m = reciprocity::measure(
-        &[("swapped η".into(), &bad as &dyn Bxdf)],
-        2000,
-        89.99,
-        1e-12,
-        1e-9,
-        1,
-    );
+    let m = reciprocity::measure(&[bsdf("swapped η", bad)], 2000, 89.99, 1e-12, 1e-9, 1).unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -747,20 +780,22 @@ fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
         .unwrap()
         .1;
     let good = smooth_limit::measure(
-        &BrokenConductor::of(rough, false, false),
-        &smooth_model,
+        &LocalBsdf::new(BrokenConductor::of(rough, false, false)),
+        &LocalBsdf::of(smooth_model.clone()),
         20_000,
         1e-3,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
     let bad = smooth_limit::measure(
-        &BrokenConductor::of(rough, false, true),
-        &smooth_model,
+        &LocalBsdf::new(BrokenConductor::of(rough, false, true)),
+        &LocalBsdf::of(smooth_model.clone()),
         20_000,
         1e-3,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
 }
 
@@ -871,7 +906,6 @@ fn reciprocity_image_passes_the_unbroken_sensor_through_the_same_wrapper() {
 
 // ---------------------------------------------------------------- participating media
 
-use furnace::harness::checks::phase as phase_check;
 use furnace::integrators::{power_heuristic, shadow_transmittance};
 use furnace::media::{sample_free_flight, transmittance, PhaseFunction, Rayleigh};
 
@@ -1068,24 +1102,37 @@ impl Phase for RayleighUniformDraw {
 
 #[test]
 fn phase_rejects_a_non_reciprocal_phase_function_and_a_wrong_sampler() {
-    let (rec, _) = phase_check::reciprocity_error(&NonReciprocalPhase, 1000, 1);
+    let (rec, _) =
+        furnace::harness::model::phase::reciprocity_error(&phase(NonReciprocalPhase), 1000, 1)
+            .unwrap();
     assert!(rec > 0.1, "asymmetry {rec}");
-    let (rec_ok, pdf_ok) = phase_check::reciprocity_error(&Rayleigh, 1000, 1);
+    let (rec_ok, pdf_ok) =
+        furnace::harness::model::phase::reciprocity_error(&phase(Rayleigh), 1000, 1).unwrap();
     assert!(
-        rec_ok <= 1e-12 && pdf_ok <= phase_check::PDF_REL_TOL,
+        rec_ok <= 1e-12 && pdf_ok <= furnace::harness::model::phase::PDF_REL_TOL,
         "{rec_ok} {pdf_ok}"
     );
     let m = furnace::harness::model::phase::measure_phase(
-        &RayleighUniformDraw,
+        &phase(RayleighUniformDraw),
         0.0,
         1e-6,
         50_000,
         40,
         16,
         1,
-    );
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
-    let ok = furnace::harness::model::phase::measure_phase(&Rayleigh, 0.0, 1e-6, 50_000, 40, 16, 1);
+    let ok = furnace::harness::model::phase::measure_phase(
+        &phase(Rayleigh),
+        0.0,
+        1e-6,
+        50_000,
+        40,
+        16,
+        1,
+    )
+    .unwrap();
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
 }
 

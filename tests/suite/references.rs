@@ -75,6 +75,7 @@ fn spec(name: &str) -> CheckSpec {
 
 fn ctx(renderer: &dyn Renderer) -> Context<'_> {
     Context {
+        models: None,
         renderer,
         seed: 7,
         threads: 0,

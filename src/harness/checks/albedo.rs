@@ -10,26 +10,26 @@ use crate::harness::measurement::{combine, fmt_sig};
 use crate::harness::model::albedo::{albedo_mc, outgoing};
 use crate::harness::model::catalogue::{self, AlbedoExpectation};
 use crate::harness::outcome::Statistic;
+use crate::harness::under_test::{BsdfModel, ModelError, Named};
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
-use crate::scattering::Bxdf;
 use crate::stats::normal_sf;
 
 /// Measures one model against its expectation with `samples` samples per angle.
 pub fn measure(
-    b: &dyn Bxdf,
+    b: &dyn BsdfModel,
     expect: AlbedoExpectation,
     theta_max_deg: f64,
     samples: u64,
     rel_tol: f64,
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let mut rng = SampleStream::new(seed, 6, 0);
     let mut parts = Vec::new();
     for wo in outgoing(theta_max_deg) {
         let theta = wo.z.acos().to_degrees();
-        let (mean, se, bad) = albedo_mc(b, wo, samples, &mut rng);
+        let (mean, se, bad) = albedo_mc(b, wo, samples, &mut rng)?;
         let (a, s) = (mean[0], se[0]);
         let m = match expect {
             AlbedoExpectation::Lossless => {
@@ -84,40 +84,8 @@ pub fn measure(
             m,
         ));
     }
-    combine(parts)
+    Ok(combine(parts))
 }
-
-/// The albedo table of the README ("Energy loss of the rough models"): power albedo at the
-/// hero wavelength of the white rough models, by θo, from `samples` samples each.
-pub fn loss_table(samples: u64) -> String {
-    let angles: [f64; 6] = [0.0, 30.0, 60.0, 80.0, 89.0, 89.99];
-    let mut out = String::from("| model |");
-    for a in angles {
-        out.push_str(&format!(" θo = {a}° |"));
-    }
-    out.push_str("\n| --- |");
-    out.push_str(&" ---: |".repeat(angles.len()));
-    out.push('\n');
-    for (i, (name, b)) in catalogue::bsdfs().iter().enumerate() {
-        let Some(AlbedoExpectation::SingleScatteringLoss { .. }) =
-            catalogue::albedo_expectation(name, b)
-        else {
-            continue;
-        };
-        out.push_str(&format!("| {name} |"));
-        let mut rng = SampleStream::new(mix64(i as u64), 7, 0);
-        for a in angles {
-            let t: f64 = a.to_radians();
-            let wo = crate::math::Vec3::new(t.sin(), 0.0, t.cos());
-            let (mean, se, _) = albedo_mc(b, wo, samples, &mut rng);
-            out.push_str(&format!(" {:.4} ± {:.4} |", mean[0], se[0]));
-        }
-        out.push('\n');
-    }
-    out
-}
-
-
 
 /// Parameters of an albedo check.
 #[derive(Debug, Clone, PartialEq)]
@@ -152,15 +120,22 @@ impl Kind for Albedo {
         })
     }
 
-    /// Runs the albedo check over every registered BSDF that states an expectation.
+    /// Runs the albedo check over every BSDF under test with a stated expectation.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let (samples, theta, rel_tol) = (p.samples, p.theta_max_deg, p.rel_tol);
         let mut parts = Vec::new();
-        for (i, (name, b)) in catalogue::bsdfs().iter().enumerate() {
-            if let Some(e) = catalogue::albedo_expectation(name, b) {
+        for (i, Named { name, model }) in ctx.models()?.bsdfs()?.iter().enumerate() {
+            if let Some(e) = catalogue::albedo_expectation(name, model.flags()) {
                 parts.push((
                     name.clone(),
-                    measure(b, e, theta, samples, rel_tol, mix64(ctx.seed ^ i as u64)),
+                    measure(
+                        model.as_ref(),
+                        e,
+                        theta,
+                        samples,
+                        rel_tol,
+                        mix64(ctx.seed ^ i as u64),
+                    )?,
                 ));
             }
         }
@@ -170,18 +145,5 @@ impl Kind for Albedo {
             m.message
         );
         Ok(m)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    /// Prints the README's loss table:
-    /// `cargo test --release --lib albedo::tests::print_loss_table -- --ignored --nocapture`
-    #[test]
-    #[ignore]
-    fn print_loss_table() {
-        println!("{}", loss_table(1_000_000));
     }
 }

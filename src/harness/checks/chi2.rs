@@ -5,11 +5,13 @@
 
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::measurement::{combine, fmt_sig};
-use crate::harness::model::catalogue::{self, DirectionSampler};
+use crate::harness::model::samplers::{samplers, DirectionSampler};
 use crate::harness::outcome::Statistic;
+use crate::harness::under_test::ModelError;
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
+use crate::math::Vec3;
 use crate::stats::{chi2::chi2_gof, sphere::SphereBinning};
 
 /// Chi-square test of one sampler with `samples` draws.
@@ -18,33 +20,33 @@ pub fn measure_sampler(
     samples: u64,
     bins: [usize; 2],
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let binning = SphereBinning {
         theta_bins: bins[0],
         phi_bins: bins[1],
     };
     let mut rng = SampleStream::new(seed, 3, 0);
-    let mut drawn = Vec::with_capacity(samples as usize);
-    for _ in 0..samples {
-        let u = rng.next_2d();
-        let uc = rng.next_f64();
-        if let Some(w) = sampler.sample(u, uc) {
-            drawn.push(w.to_array());
-        }
-    }
-    let counts = binning.count(drawn.iter().copied());
-    // A sample where the claimed pdf is zero is a failure by itself, whatever the bins say.
-    let zero_pdf = drawn
-        .iter()
-        .filter(|w| {
-            let p = sampler.pdf(crate::math::Vec3::from_array(**w));
-            p.is_nan() || p <= 0.0
+    let rows: Vec<([f64; 2], f64)> = (0..samples)
+        .map(|_| {
+            let u = rng.next_2d();
+            (u, rng.next_f64())
         })
+        .collect();
+    let drawn: Vec<Vec3> = sampler.sample(&rows)?.into_iter().flatten().collect();
+    let counts = binning.count(drawn.iter().map(|w| w.to_array()));
+    // A sample where the claimed pdf is zero is a failure by itself, whatever the bins say.
+    let zero_pdf = sampler
+        .pdf(&drawn)?
+        .iter()
+        .filter(|p| p.is_nan() || **p <= 0.0)
         .count();
     // 32×32 nodes per bin: pdfs with a hard edge (a light's silhouette) cut bins, and the
     // midpoint rule's error there is O(1/32) of the bin's mass.
     let expected: Vec<f64> = binning
-        .integrate(|w| sampler.pdf(crate::math::Vec3::from_array(w)), 32)
+        .integrate_batched(
+            |w| sampler.pdf(&w.iter().map(|&w| Vec3::from_array(w)).collect::<Vec<_>>()),
+            32,
+        )?
         .iter()
         .map(|m| m * samples as f64)
         .collect();
@@ -56,14 +58,14 @@ pub fn measure_sampler(
         .filter(|(e, c)| **e == 0.0 && **c > 0)
         .count();
     if missed > 0 && zero_pdf == 0 {
-        return Measurement {
+        return Ok(Measurement {
             p_value: Some(f64::NAN),
             samples,
             message: format!("{missed} bins hold samples but no pdf mass by quadrature (32x32 nodes per bin); refine the binning"),
             ..Default::default()
-        };
+        });
     }
-    match chi2_gof(&counts, &expected, 5.0) {
+    Ok(match chi2_gof(&counts, &expected, 5.0) {
         Ok(c) => Measurement {
             estimate: Some(drawn.len() as f64 / samples as f64),
             expected: Some(expected.iter().sum::<f64>() / samples as f64),
@@ -79,10 +81,8 @@ pub fn measure_sampler(
             ..Default::default()
         },
         Err(e) => Measurement { p_value: Some(f64::NAN), samples, message: format!("chi-square could not be formed: {e}"), ..Default::default() },
-    }
+    })
 }
-
-
 
 /// Parameters of a chi-square check.
 #[derive(Debug, Clone, PartialEq)]
@@ -113,19 +113,18 @@ impl Kind for Chi2 {
         })
     }
 
-    /// Runs the chi-square check over every registered sampling routine.
+    /// Runs the chi-square check over every sampling routine of the models under test.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let (samples, bins) = (p.samples, p.bins);
-        let parts = catalogue::samplers()
-            .into_iter()
-            .enumerate()
-            .map(|(i, (name, make))| {
-                (
-                    name,
-                    measure_sampler(make().as_ref(), samples, bins, mix64(ctx.seed ^ i as u64)),
-                )
-            })
-            .collect();
+        let mut parts = Vec::new();
+        for (i, (name, sampler)) in samplers(ctx.models()?)?.into_iter().enumerate() {
+            let m = measure_sampler(
+                sampler.as_ref(),
+                p.samples,
+                p.bins,
+                mix64(ctx.seed ^ i as u64),
+            )?;
+            parts.push((name, m));
+        }
         Ok(combine(parts))
     }
 }
@@ -133,12 +132,14 @@ impl Kind for Chi2 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::harness::model::local::LocalModels;
 
     #[test]
-    fn every_registered_sampler_passes_alone() {
+    fn every_catalogue_sampler_passes_alone() {
         let mut bad = Vec::new();
-        for (i, (name, make)) in catalogue::samplers().into_iter().enumerate() {
-            let m = measure_sampler(make().as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64));
+        for (i, (name, sampler)) in samplers(&LocalModels).unwrap().into_iter().enumerate() {
+            let m =
+                measure_sampler(sampler.as_ref(), 200_000, [24, 48], mix64(7 ^ i as u64)).unwrap();
             if m.p_value.unwrap_or(0.0) < 1e-4 {
                 bad.push(format!("{name}: {} p {:?}", m.message, m.p_value));
             }

@@ -29,7 +29,7 @@ use crate::harness::keys::{common, Key, Keys};
 use crate::harness::kind::scope_rule;
 use crate::harness::outcome::Statistic;
 use crate::harness::region::{region_of, settings_for};
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Renderer, Scope};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
 use crate::math::rng::Sampler;
@@ -409,14 +409,14 @@ impl Kind for Convergence {
 
     /// An external renderer's sampler and estimator are its own: only a check stating the
     /// independent-sampling, MIS rate applies to it.
-    fn not_applicable(check: &Check, p: &Params, renderer: &dyn Renderer) -> Option<String> {
-        if let Some(why) = scope_rule(Self::NAME, Self::SCOPE, renderer) {
+    fn not_applicable(_: &Check, p: &Params, subject: &Subject) -> Option<String> {
+        let renderer = subject.renderer;
+        if let Some(why) = scope_rule(Self::NAME, Self::SCOPE, subject) {
             return Some(why);
         }
         if renderer.is_reference() {
             return None;
         }
-        let _ = check;
         (p.sampler != Sampler::Independent || p.strategy != Strategy::Mis).then(|| {
             format!(
                 "this convergence check states the rate of furnace's {} sampler with {:?}; {} uses its own sampler and estimator",

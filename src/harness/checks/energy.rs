@@ -15,27 +15,28 @@ use crate::harness::model::albedo::{
 };
 use crate::harness::model::catalogue;
 use crate::harness::outcome::Statistic;
+use crate::harness::under_test::{BsdfModel, ModelError, Named};
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::{rng::SampleStream, Vec3};
-use crate::scattering::Bxdf;
 use crate::stats::{normal_sf, z_test, ROUNDING};
 
 /// Measures energy conservation of each named model.
 pub fn measure(
-    models: &[(String, &dyn Bxdf)],
+    models: &[Named<dyn BsdfModel>],
     theta_max_deg: f64,
     abs_tol: f64,
     samples: u64,
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut quad_max = (0.0f64, String::from("no model resolved by the grid"));
-    let mut worst: Option<(f64, &dyn Bxdf, Vec3, usize, String)> = None;
+    let mut worst: Option<(f64, &dyn BsdfModel, Vec3, usize, String)> = None;
     let mut rng = SampleStream::new(seed, 2, 0);
     let mut scanned = 0u64;
     let mut non_finite = 0u64;
-    for (name, b) in models {
+    for Named { name, model } in models {
+        let b = model.as_ref();
         for wo in outgoing(theta_max_deg) {
             let at = |k: usize| {
                 format!(
@@ -44,32 +45,32 @@ pub fn measure(
                     wl.lambda[k]
                 )
             };
-            if quadrature_resolves(*b, wo) {
-                let acc = power_albedo_quadrature(*b, wo, 512, 64);
+            if quadrature_resolves(b, wo) {
+                let acc = power_albedo_quadrature(b, wo, 512, 64)?;
                 for (k, &v) in acc.iter().enumerate() {
                     if v > quad_max.0 || v.is_nan() {
                         quad_max = (v, at(k));
                     }
                 }
             }
-            let (mean, _, bad) = albedo_mc(*b, wo, samples / 5, &mut rng);
+            let (mean, _, bad) = albedo_mc(b, wo, samples / 5, &mut rng)?;
             scanned += samples / 5;
             non_finite += bad;
             for (k, &v) in mean.iter().enumerate() {
                 if worst.as_ref().is_none_or(|w| v > w.0) {
-                    worst = Some((v, *b, wo, k, at(k)));
+                    worst = Some((v, b, wo, k, at(k)));
                 }
             }
         }
     }
     let Some((_, b, wo, k, where_)) = worst else {
-        return Measurement {
+        return Ok(Measurement {
             message: "no models".into(),
             deterministic_pass: Some(true),
             ..Default::default()
-        };
+        });
     };
-    let (mean, se, bad) = albedo_mc(b, wo, samples, &mut SampleStream::new(seed, 1, 0));
+    let (mean, se, bad) = albedo_mc(b, wo, samples, &mut SampleStream::new(seed, 1, 0))?;
     non_finite += bad;
     let (mean, se) = (mean[k], se[k]);
     let t = z_test(mean, se, 1.0);
@@ -85,7 +86,7 @@ pub fn measure(
         1.0
     };
     let a_max = quad_max.0;
-    Measurement {
+    Ok(Measurement {
         estimate: Some(mean),
         std_error: Some(se),
         expected: Some(1.0),
@@ -104,7 +105,7 @@ pub fn measure(
             fmt_sig(se),
             t.z
         ),
-    }
+    })
 }
 
 /// Parameters of an energy check.
@@ -140,16 +141,14 @@ impl Kind for Energy {
         })
     }
 
-    /// Runs the energy check over every registered BSDF.
+    /// Runs the energy check over every BSDF of the models under test.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let models = catalogue::bsdfs();
-        let refs = catalogue::as_bxdfs(&models);
         Ok(measure(
-            &refs,
+            &ctx.models()?.bsdfs()?,
             p.theta_max_deg,
             p.abs_tol,
             p.samples,
             ctx.seed,
-        ))
+        )?)
     }
 }

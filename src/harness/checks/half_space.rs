@@ -109,8 +109,6 @@ fn constant(s: &Spectrum, what: &str) -> Result<f64, CheckError> {
     }
 }
 
-
-
 /// The `half_space` kind.
 pub struct HalfSpace;
 
@@ -127,7 +125,7 @@ impl Kind for HalfSpace {
         common::SEED,
         common::REL_TOLERANCE,
     ];
-    const SCOPE: Scope = Scope::Furnace;
+    const SCOPE: Scope = Scope::Image;
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())

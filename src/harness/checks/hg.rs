@@ -1,13 +1,19 @@
-//! `hg`: Henyey–Greenstein for each g (Henyey & Greenstein 1941, ApJ 93, eq. 1): ∫ p dω = 1 and
-//! the mean cosine ∫ μ p dω = g by graded quadrature, and the sampling routine against p by
-//! chi-square and a z test of the sampled mean cosine (`model/phase.rs`), Šidák-combined.
+//! `hg`: the renderer's Henyey–Greenstein phase function (Henyey & Greenstein 1941, ApJ 93,
+//! eq. 1), served as "hg g=G", for each g of the check: ∫ p dω = 1 and the mean cosine
+//! ∫ μ p dω = g by graded quadrature, and the sampling routine against p by chi-square and a z
+//! test of the sampled mean cosine (`model/phase.rs`), Šidák-combined.
 
 use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::kind::scope_rule;
 use crate::harness::measurement::combine;
 use crate::harness::model::phase::measure_phase;
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
+
+/// The name a Henyey–Greenstein phase function of asymmetry `g` is served under.
+pub fn hg_name(g: f64) -> String {
+    format!("hg g={g}")
+}
 use crate::io::LocatedError;
-use crate::media::HenyeyGreenstein;
 
 /// Parameters of an hg check.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,25 +69,48 @@ impl Kind for Hg {
     }
 
     /// Runs the HG check for every g in the manifest (default −0.999 … 0.999).
+    fn not_applicable(_: &Check, p: &Params, subject: &Subject) -> Option<String> {
+        if let Some(why) = scope_rule(Self::NAME, Self::SCOPE, subject) {
+            return Some(why);
+        }
+        let phases = subject.models?.phases().ok()?;
+        (!p.g
+            .iter()
+            .any(|g| phases.iter().any(|m| m.name == hg_name(*g))))
+        .then(|| {
+            format!(
+                "{} serves no Henyey-Greenstein phase function named \"hg g=G\" for G in {:?}",
+                subject.renderer.name(),
+                p.g
+            )
+        })
+    }
+
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let [mu_bins, phi_bins] = p.bins;
-        let parts =
-            p.g.iter()
-                .enumerate()
-                .map(|(i, &g)| {
-                    let hg = HenyeyGreenstein { g };
-                    let m = measure_phase(
-                        &hg,
-                        g,
-                        p.abs_tol,
-                        p.samples,
-                        mu_bins,
-                        phi_bins,
-                        crate::math::rng::mix64(ctx.seed ^ i as u64),
-                    );
-                    (format!("g = {g}"), m)
-                })
-                .collect();
-        Ok(combine(parts))
+        let phases = ctx.models()?.phases()?;
+        let mut parts = Vec::new();
+        let mut missing = Vec::new();
+        for (i, &g) in p.g.iter().enumerate() {
+            let Some(hg) = phases.iter().find(|m| m.name == hg_name(g)) else {
+                missing.push(g);
+                continue;
+            };
+            let m = measure_phase(
+                hg.model.as_ref(),
+                g,
+                p.abs_tol,
+                p.samples,
+                mu_bins,
+                phi_bins,
+                crate::math::rng::mix64(ctx.seed ^ i as u64),
+            )?;
+            parts.push((format!("g = {g}"), m));
+        }
+        let mut m = combine(parts);
+        if !missing.is_empty() {
+            m.message = format!("not served: g = {missing:?}; {}", m.message);
+        }
+        Ok(m)
     }
 }

@@ -9,32 +9,42 @@ use crate::harness::measurement::fmt_sig;
 use crate::harness::model::catalogue;
 use crate::harness::model::directions::direction;
 use crate::harness::outcome::Statistic;
+use crate::harness::under_test::{BsdfModel, ModelError, Named};
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::rng::SampleStream;
-use crate::scattering::Bxdf;
+use crate::math::Vec3;
 use crate::spectrum::SampledSpectrum;
 
 /// Measures reciprocity of each named model over `pairs` random pairs.
 pub fn measure(
-    models: &[(String, &dyn Bxdf)],
+    models: &[Named<dyn BsdfModel>],
     pairs: u64,
     theta_max_deg: f64,
     abs_tol: f64,
     rel_tol: f64,
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut worst = (0.0f64, 0.0f64, String::new());
     let mut pass = true;
-    for (name, b) in models {
+    for Named { name, model: b } in models {
         let mut rng = SampleStream::new(seed, 0, 0);
-        for i in 0..pairs {
-            let a = direction(&mut rng, theta_max_deg, i);
-            let c = direction(&mut rng, theta_max_deg, i + 3);
-            let (ea, ec) = (b.eta(a, &wl), b.eta(c, &wl));
-            let f1 = b.eval(a, c, &wl);
-            let f2 = b.eval(c, a, &wl);
+        let dirs: Vec<(Vec3, Vec3)> = (0..pairs)
+            .map(|i| {
+                let a = direction(&mut rng, theta_max_deg, i);
+                let c = direction(&mut rng, theta_max_deg, i + 3);
+                (a, c)
+            })
+            .collect();
+        let swapped: Vec<(Vec3, Vec3)> = dirs.iter().map(|&(a, c)| (c, a)).collect();
+        let (ea, ec) = (
+            b.eta(&dirs.iter().map(|d| d.0).collect::<Vec<_>>(), &wl)?,
+            b.eta(&dirs.iter().map(|d| d.1).collect::<Vec<_>>(), &wl)?,
+        );
+        let (f1s, f2s) = (b.eval(&dirs, &wl)?, b.eval(&swapped, &wl)?);
+        for (i, &(a, c)) in dirs.iter().enumerate() {
+            let (ea, ec, f1, f2) = (ea[i], ec[i], f1s[i], f2s[i]);
             let f1 = SampledSpectrum(std::array::from_fn(|k| f1.0[k] / (ea.0[k] * ea.0[k])));
             let f2 = SampledSpectrum(std::array::from_fn(|k| f2.0[k] / (ec.0[k] * ec.0[k])));
             for k in 0..4 {
@@ -59,7 +69,7 @@ pub fn measure(
             }
         }
     }
-    Measurement {
+    Ok(Measurement {
         estimate: Some(worst.0),
         expected: Some(0.0),
         statistic: Some(Statistic::Tolerance { max_error: worst.0, abs_tol, rel_tol }),
@@ -71,7 +81,7 @@ pub fn measure(
             if worst.2.is_empty() { "0".to_string() } else { worst.2 }
         ),
         ..Default::default()
-    }
+    })
 }
 
 /// Parameters of a reciprocity check.
@@ -112,17 +122,15 @@ impl Kind for Reciprocity {
         })
     }
 
-    /// Runs the reciprocity check over every registered BSDF.
+    /// Runs the reciprocity check over every BSDF of the models under test.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let models = catalogue::bsdfs();
-        let refs = catalogue::as_bxdfs(&models);
         Ok(measure(
-            &refs,
+            &ctx.models()?.bsdfs()?,
             p.pairs,
             p.theta_max_deg,
             p.abs_tol,
             p.rel_tol,
             ctx.seed,
-        ))
+        )?)
     }
 }

@@ -25,7 +25,7 @@ use crate::harness::compare::{
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::region::settings_for;
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Renderer, Scope};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
 use crate::math::rng::mix64;
@@ -46,8 +46,6 @@ pub fn grid_regions(k: usize) -> Vec<Region> {
         })
         .collect()
 }
-
-
 
 /// Parameters of a reciprocity_image check.
 #[derive(Debug, Clone, PartialEq)]
@@ -109,10 +107,10 @@ impl Kind for ReciprocityImage {
         })
     }
 
-    fn not_applicable(_: &Check, _: &Params, renderer: &dyn Renderer) -> Option<String> {
-        (!renderer.is_reference()).then(|| format!(
+    fn not_applicable(_: &Check, _: &Params, subject: &Subject) -> Option<String> {
+        (!subject.renderer.is_reference()).then(|| format!(
             "kind reciprocity_image compares furnace's path tracer with furnace's light tracer; {} cannot run furnace's light tracer",
-            renderer.name()
+            subject.renderer.name()
         ))
     }
 

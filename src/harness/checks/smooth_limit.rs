@@ -6,15 +6,16 @@
 //! sampled directions must lie within 0.01 rad of the smooth direction for ≥ 99 % of samples.
 
 use crate::harness::keys::{common, model, Key, Keys};
+use crate::harness::kind::scope_rule;
 use crate::harness::measurement::{combine, fmt_sig};
-use crate::harness::model::albedo::power_factor;
+use crate::harness::model::albedo::power_factors;
 use crate::harness::model::catalogue;
 use crate::harness::outcome::Statistic;
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::harness::under_test::{BsdfModel, ModelError};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
 use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
 use crate::math::Vec3;
-use crate::scattering::Bxdf;
 use crate::stats::z_with_tolerance;
 use crate::stats::MeanVar;
 
@@ -25,31 +26,33 @@ pub const PAIRS: [(&str, &str); 2] = [
 ];
 
 /// The smooth model's exact (reflected, transmitted) power and lobe directions at `wo`.
-fn smooth_lobes(b: &dyn Bxdf, wo: Vec3) -> ([f64; 2], [Option<Vec3>; 2]) {
+fn smooth_lobes(b: &dyn BsdfModel, wo: Vec3) -> Result<([f64; 2], [Option<Vec3>; 2]), ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut power = [0.0; 2];
     let mut dirs = [None; 2];
     // uc just above 0 picks reflection when it has any probability, just below 1 transmission.
-    for uc in [1e-300, 1.0 - 1e-16] {
-        if let Some(s) = b.sample(wo, [0.5, 0.5], uc, &wl) {
-            let lobe = usize::from(s.wi.z * wo.z < 0.0);
-            if dirs[lobe].is_none() {
-                power[lobe] = s.pdf * s.weight.0[0] * power_factor(b, wo, s.wi)[0];
-                dirs[lobe] = Some(s.wi);
-            }
+    let drawn = b.sample(
+        &[(wo, [0.5, 0.5], 1e-300), (wo, [0.5, 0.5], 1.0 - 1e-16)],
+        &wl,
+    )?;
+    for s in drawn.into_iter().flatten() {
+        let lobe = usize::from(s.wi.z * wo.z < 0.0);
+        if dirs[lobe].is_none() {
+            power[lobe] = s.pdf * s.weight.0[0] * power_factors(b, wo, &[s.wi])?[0][0];
+            dirs[lobe] = Some(s.wi);
         }
     }
-    (power, dirs)
+    Ok((power, dirs))
 }
 
 /// Measures one rough/smooth pair.
 pub fn measure(
-    rough: &dyn Bxdf,
-    smooth: &dyn Bxdf,
+    rough: &dyn BsdfModel,
+    smooth: &dyn BsdfModel,
     samples: u64,
     rel_tol: f64,
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut rng = SampleStream::new(seed, 8, 0);
     let mut parts = Vec::new();
@@ -57,14 +60,20 @@ pub fn measure(
     for theta in [0.0f64, 30.0, 60.0, 80.0, 89.0] {
         let t = theta.to_radians();
         let wo = Vec3::new(t.sin(), 0.0, t.cos());
-        let (expected, dirs) = smooth_lobes(smooth, wo);
+        let (expected, dirs) = smooth_lobes(smooth, wo)?;
         let mut mv = [MeanVar::default(); 2];
         let mut far = 0u64;
-        for _ in 0..samples {
+        let rows: Vec<_> = (0..samples)
+            .map(|_| (wo, rng.next_2d(), rng.next_f64()))
+            .collect();
+        let drawn = rough.sample(&rows, &wl)?;
+        let wi: Vec<Vec3> = drawn.iter().flatten().map(|s| s.wi).collect();
+        let mut factors = power_factors(rough, wo, &wi)?.into_iter();
+        for s in &drawn {
             let mut v = [0.0; 2];
-            if let Some(s) = rough.sample(wo, rng.next_2d(), rng.next_f64(), &wl) {
+            if let Some(s) = s {
                 let lobe = usize::from(s.wi.z * wo.z < 0.0);
-                v[lobe] = s.weight.0[0] * power_factor(rough, wo, s.wi)[0];
+                v[lobe] = s.weight.0[0] * factors.next().unwrap_or([1.0; 4])[0];
                 let near = dirs[lobe].is_some_and(|d| d.dot(s.wi).clamp(-1.0, 1.0).acos() <= 0.01);
                 if !near || !v[lobe].is_finite() {
                     far += 1;
@@ -105,7 +114,7 @@ pub fn measure(
         fmt_sig(worst_far),
         m.message
     );
-    m
+    Ok(m)
 }
 
 /// Parameters of a smooth-limit check.
@@ -137,28 +146,44 @@ impl Kind for SmoothLimit {
         })
     }
 
-    /// Runs the smooth-limit check over the registered pairs.
+    /// Applies where the models under test include at least one rough/smooth pair by name.
+    fn not_applicable(_: &Check, _: &Params, subject: &Subject) -> Option<String> {
+        if let Some(why) = scope_rule(Self::NAME, Self::SCOPE, subject) {
+            return Some(why);
+        }
+        let models = subject.models?.bsdfs().ok()?;
+        let has = |n: &str| models.iter().any(|m| m.name == n);
+        (!PAIRS.iter().any(|(r, s)| has(r) && has(s))).then(|| {
+            format!(
+                "{} serves none of the pairs {PAIRS:?} by these names",
+                subject.renderer.name()
+            )
+        })
+    }
+
+    /// Runs the smooth-limit check over the pairs the models under test have.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let (samples, rel_tol) = (p.samples, p.rel_tol);
-        let models = catalogue::bsdfs();
+        let models = ctx.models()?.bsdfs()?;
         let find = |n: &str| {
             models
                 .iter()
-                .find(|(name, _)| name == n)
-                .map(|(_, b)| b)
-                .ok_or_else(|| format!("the catalogue has no model {n:?}"))
+                .find(|m| m.name == n)
+                .map(|m| m.model.as_ref())
         };
         let mut parts = Vec::new();
         for (i, (r, s)) in PAIRS.iter().enumerate() {
+            let (Some(rough), Some(smooth)) = (find(r), find(s)) else {
+                continue;
+            };
             parts.push((
                 format!("{r} vs {s}"),
                 measure(
-                    find(r)?,
-                    find(s)?,
-                    samples,
-                    rel_tol,
+                    rough,
+                    smooth,
+                    p.samples,
+                    p.rel_tol,
                     mix64(ctx.seed ^ i as u64),
-                ),
+                )?,
             ));
         }
         Ok(combine(parts))

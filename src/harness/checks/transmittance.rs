@@ -96,7 +96,7 @@ impl Kind for Transmittance {
         common::SEED,
         common::REL_TOLERANCE,
     ];
-    const SCOPE: Scope = Scope::Furnace;
+    const SCOPE: Scope = Scope::Image;
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())

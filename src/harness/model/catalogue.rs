@@ -5,13 +5,12 @@
 use crate::geometry::{
     mesh::TriangleMesh, quad::Quad, sphere::Sphere, triangle::ShearedRay, Ray, Shape,
 };
+use crate::harness::under_test::BsdfFlags;
 use crate::lights::Light;
 use crate::math::{warp, Vec3};
-use crate::media::{HenyeyGreenstein, Phase, PhaseFunction};
+use crate::media::{HenyeyGreenstein, PhaseFunction};
 use crate::scattering::microfacet::Ggx;
-use crate::scattering::{
-    Bsdf, Bxdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward,
-};
+use crate::scattering::{Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward};
 use crate::spectrum::{Outside, Spectrum, Wavelengths};
 
 /// Wavelengths (nm) at which BSDF-level checks evaluate spectral models.
@@ -151,11 +150,11 @@ pub enum AlbedoExpectation {
     },
 }
 
-/// The albedo expectation of a registered model (`name` from [`bsdfs`]): lossless models are
-/// recognised from the model itself, the loss bands of the white GGX models by name.
-pub fn albedo_expectation(name: &str, bsdf: &Bsdf) -> Option<AlbedoExpectation> {
+/// The albedo expectation of a model (`name` as in [`bsdfs`]): lossless models are recognised
+/// from their flags, the loss bands of the white GGX models by name.
+pub fn albedo_expectation(name: &str, flags: &BsdfFlags) -> Option<AlbedoExpectation> {
     use AlbedoExpectation::*;
-    if bsdf.is_lossless() {
+    if flags.lossless {
         return Some(Lossless);
     }
     let loss = |min_loss, max_loss| Some(SingleScatteringLoss { min_loss, max_loss });
@@ -169,48 +168,14 @@ pub fn albedo_expectation(name: &str, bsdf: &Bsdf) -> Option<AlbedoExpectation> 
     }
 }
 
-/// Borrows named BSDFs as trait objects, the form the model-level checks take (so that
-/// negative controls can pass their own types).
-pub fn as_bxdfs(models: &[(String, Bsdf)]) -> Vec<(String, &dyn Bxdf)> {
-    models
-        .iter()
-        .map(|(n, b)| (n.clone(), b as &dyn Bxdf))
-        .collect()
-}
-
-/// A routine that samples directions, with the pdf it claims (per steradian).
-pub trait DirectionSampler {
-    /// A direction from uniform numbers, or None when the routine produces no sample.
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3>;
-    /// The claimed pdf of `w`, per steradian.
-    fn pdf(&self, w: Vec3) -> f64;
-}
-
-/// A BSDF's sampling routine for a fixed `wo` (local frame).
-pub struct BsdfSampler {
-    /// The BSDF.
-    pub bsdf: Bsdf,
-    /// Outgoing direction.
-    pub wo: Vec3,
-}
-
-impl DirectionSampler for BsdfSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        self.bsdf
-            .sample(self.wo, u, uc, &check_wavelengths())
-            .filter(|s| !s.delta)
-            .map(|s| s.wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        self.bsdf.pdf(self.wo, w, &check_wavelengths())
-    }
-}
-
 /// Every phase function a medium can use, with its known mean scattering cosine: isotropic,
-/// Henyey–Greenstein from g = −0.9999 to 0.9999, and Rayleigh (mean cosine 0 by symmetry).
+/// Henyey–Greenstein from g = −0.9999 to 0.9999 (the `hg` kind's default g among them), and
+/// Rayleigh (mean cosine 0 by symmetry).
 pub fn phases() -> Vec<(String, PhaseFunction, f64)> {
     let mut v = vec![("isotropic".to_string(), PhaseFunction::Isotropic, 0.0)];
-    for g in [-0.9999, -0.9, -0.3, 0.0, 0.5, 0.9, 0.9999] {
+    for g in [
+        -0.9999, -0.999, -0.9, -0.5, -0.3, 0.0, 0.3, 0.5, 0.9, 0.999, 0.9999,
+    ] {
         v.push((
             format!("hg g={g}"),
             PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g }),
@@ -219,23 +184,6 @@ pub fn phases() -> Vec<(String, PhaseFunction, f64)> {
     }
     v.push(("rayleigh".to_string(), PhaseFunction::Rayleigh, 0.0));
     v
-}
-
-/// A phase function's sampling routine for a fixed `wo`.
-pub struct PhaseSampler {
-    /// The phase function.
-    pub phase: PhaseFunction,
-    /// Outgoing direction.
-    pub wo: Vec3,
-}
-
-impl DirectionSampler for PhaseSampler {
-    fn sample(&self, u: [f64; 2], _uc: f64) -> Option<Vec3> {
-        Some(self.phase.sample(self.wo, u).wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
-        self.phase.pdf(self.wo, w)
-    }
 }
 
 /// A light's sampling routine as seen from point `p`, with the pdf obtained independently by
@@ -249,13 +197,10 @@ pub struct LightSampler {
     pub p: Vec3,
 }
 
-impl DirectionSampler for LightSampler {
-    fn sample(&self, u: [f64; 2], uc: f64) -> Option<Vec3> {
-        self.light
-            .sample(self.p, uc, u, &self.shapes, &check_wavelengths())
-            .map(|s| s.wi)
-    }
-    fn pdf(&self, w: Vec3) -> f64 {
+impl LightSampler {
+    /// The density of producing `w` from `p`, per steradian, by intersecting the light's shape
+    /// (every crossing along `w`), not by asking the light's sampling code.
+    pub fn pdf_of(&self, w: Vec3) -> f64 {
         match &self.light {
             Light::Area { shape, .. } => {
                 let s = &self.shapes[*shape as usize];
@@ -288,43 +233,9 @@ impl DirectionSampler for LightSampler {
     }
 }
 
-/// Builds a sampler on demand (samplers own their models).
-pub type MakeSampler = Box<dyn Fn() -> Box<dyn DirectionSampler>>;
-
-/// Every direction-sampling routine, by name: BSDFs at several outgoing angles, HG phase
-/// functions, area lights of each shape type seen from a point, and the environment.
-pub fn samplers() -> Vec<(String, MakeSampler)> {
-    let mut v: Vec<(String, MakeSampler)> = Vec::new();
-    for (name, bsdf) in bsdfs() {
-        if bsdf.roughness() < CHI2_MIN_ROUGHNESS {
-            continue;
-        }
-        for theta in [0.0f64, 45.0, 80.0, 89.0] {
-            let wo = Vec3::new(theta.to_radians().sin(), 0.0, theta.to_radians().cos());
-            let b = bsdf.clone();
-            v.push((
-                format!("bsdf {name} θo={theta}°"),
-                Box::new(move || {
-                    Box::new(BsdfSampler {
-                        bsdf: b.clone(),
-                        wo,
-                    })
-                }),
-            ));
-        }
-    }
-    // |g| = 0.9999 concentrates the lobe in ~1e-4 sr, below what the direction bins resolve;
-    // the phase kind tests those in the scattering cosine with graded bins instead.
-    for (name, phase, g) in phases() {
-        if g.abs() > 0.95 {
-            continue;
-        }
-        let wo = Vec3::new(0.3, -0.2, 0.9).normalize();
-        v.push((
-            format!("phase {name}"),
-            Box::new(move || Box::new(PhaseSampler { phase, wo })),
-        ));
-    }
+/// Every light shape type in a canonical scene, seen from the origin: a sphere around it (the
+/// furnace-sphere case), a quad and a two-triangle mesh in front of it, and the environment.
+pub fn lights() -> Vec<(String, LightSampler)> {
     let radiance = Spectrum::Constant(1.0);
     let lights: Vec<(&str, Shape)> = vec![
         // Seen from inside (the furnace-sphere case). From outside, the uniform-area pdf in solid
@@ -361,34 +272,32 @@ pub fn samplers() -> Vec<(String, MakeSampler)> {
             )),
         ),
     ];
-    for (name, shape) in lights {
-        let light = Light::Area {
-            shape: 0,
-            radiance: radiance.clone(),
-            two_sided: true,
-        };
-        v.push((
-            format!("light {name}"),
-            Box::new(move || {
-                Box::new(LightSampler {
-                    light: light.clone(),
-                    shapes: vec![shape.clone()],
+    let mut v: Vec<(String, LightSampler)> = lights
+        .into_iter()
+        .map(|(name, shape)| {
+            (
+                format!("light {name}"),
+                LightSampler {
+                    light: Light::Area {
+                        shape: 0,
+                        radiance: radiance.clone(),
+                        two_sided: true,
+                    },
+                    shapes: vec![shape],
                     p: Vec3::ZERO,
-                })
-            }),
-        ));
-    }
+                },
+            )
+        })
+        .collect();
     v.push((
         "light environment".into(),
-        Box::new(|| {
-            Box::new(LightSampler {
-                light: Light::Environment {
-                    radiance: Spectrum::Constant(1.0),
-                },
-                shapes: vec![],
-                p: Vec3::ZERO,
-            })
-        }),
+        LightSampler {
+            light: Light::Environment {
+                radiance: Spectrum::Constant(1.0),
+            },
+            shapes: vec![],
+            p: Vec3::ZERO,
+        },
     ));
     v
 }

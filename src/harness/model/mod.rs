@@ -1,8 +1,11 @@
 //! The models under test and how model-level kinds measure them: the catalogue of furnace's
-//! BSDFs, phase functions and direction samplers, test directions, directional albedo, and
-//! the shared phase-function test.
+//! BSDFs, phase functions and lights, their in-process answers to the batched interface, the
+//! model protocol's client and stand-in server, test directions, directional albedo, the
+//! sampling routines the chi-square kind bins, and the shared phase-function test.
 
 pub mod albedo;
 pub mod catalogue;
 pub mod directions;
+pub mod local;
 pub mod phase;
+pub mod samplers;

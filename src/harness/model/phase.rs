@@ -6,9 +6,11 @@
 
 use crate::harness::measurement::{fmt_sig, Measurement};
 use crate::harness::outcome::Statistic;
+use crate::harness::under_test::{ModelError, PhaseModel};
+use crate::math::warp;
 use crate::math::{rng::SampleStream, Vec3, PI};
-use crate::media::Phase;
 use crate::stats::{chi2::chi2_gof, z_test, MeanVar};
+use std::cell::{Cell, RefCell};
 
 // 8-point Gauss–Legendre nodes and weights on [−1, 1] (Abramowitz & Stegun, Table 25.4).
 const GL_X: [f64; 4] = [
@@ -54,33 +56,59 @@ pub fn integrate_mu(f: &dyn Fn(f64) -> f64, a: f64, b: f64, edges: &[f64]) -> f6
     sum
 }
 
-/// p as a function of the scattering cosine μ, through the `Phase` interface (wo = −z).
-fn p_of_mu(phase: &dyn Phase, mu: f64) -> f64 {
+/// Runs `compute`, which integrates p(μ) (the phase function at scattering cosine μ, wo = −z)
+/// through the function it is given, twice: once to record the cosines it asks for, then with
+/// the model's values for them from one batch. `compute`'s control flow must not depend on the
+/// values; it then sees the same values in the same order as direct calls would give.
+fn with_p_of_mu<T>(
+    phase: &dyn PhaseModel,
+    compute: impl Fn(&dyn Fn(f64) -> f64) -> T,
+) -> Result<T, ModelError> {
+    let wanted = RefCell::new(Vec::new());
+    compute(&|mu| {
+        wanted.borrow_mut().push(mu);
+        0.0
+    });
     let wo = Vec3::new(0.0, 0.0, -1.0);
-    let r = (1.0 - mu * mu).max(0.0).sqrt();
-    phase.eval(wo, Vec3::new(r, 0.0, mu))
+    let rows: Vec<(Vec3, Vec3)> = wanted
+        .into_inner()
+        .iter()
+        .map(|&mu| (wo, Vec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu)))
+        .collect();
+    let values = phase.eval(&rows)?;
+    let next = Cell::new(0);
+    Ok(compute(&|_| {
+        let i = next.get();
+        next.set(i + 1);
+        values.get(i).copied().unwrap_or(f64::NAN)
+    }))
 }
 
 /// Measures one phase function claimed to be HG with asymmetry `g`.
 pub fn measure_phase(
-    phase: &dyn Phase,
+    phase: &dyn PhaseModel,
     g: f64,
     abs_tol: f64,
     samples: u64,
     mu_bins: usize,
     phi_bins: usize,
     seed: u64,
-) -> Measurement {
+) -> Result<Measurement, ModelError> {
     let edges = graded_edges();
-    let norm = 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), -1.0, 1.0, &edges);
-    let mean_cos = 2.0 * PI * integrate_mu(&|m| m * p_of_mu(phase, m), -1.0, 1.0, &edges);
+    // ∫p dω, ∫μ p dω and the cumulative table on the graded grid, from one batch of p(μ)
+    let (norm, mean_cos, second, cum) = with_p_of_mu(phase, |p| {
+        let norm = 2.0 * PI * integrate_mu(&|m| p(m), -1.0, 1.0, &edges);
+        let mean_cos = 2.0 * PI * integrate_mu(&|m| m * p(m), -1.0, 1.0, &edges);
+        let second = 2.0 * PI * integrate_mu(&|m| m * m * p(m), -1.0, 1.0, &edges);
+        let mut cum = vec![0.0];
+        for w in edges.windows(2) {
+            let last = *cum.last().unwrap_or(&0.0);
+            cum.push(last + 2.0 * PI * integrate_mu(&|m| p(m), w[0], w[1], &[]));
+        }
+        (norm, mean_cos, second, cum)
+    })?;
     let det_err = (norm - 1.0).abs().max((mean_cos - g).abs());
-    // μ bins: edges at near-equal mass from a cumulative table on the graded grid.
-    let mut cum = vec![0.0];
-    for w in edges.windows(2) {
-        let last = *cum.last().unwrap_or(&0.0);
-        cum.push(last + 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), w[0], w[1], &[]));
-    }
+    // μ bins: edges at near-equal mass from the cumulative table.
     let total = *cum.last().unwrap_or(&1.0);
     let mut bin_edges = vec![-1.0];
     for q in 1..mu_bins {
@@ -95,19 +123,19 @@ pub fn measure_phase(
         }
     }
     bin_edges.push(1.0);
-    let expected: Vec<f64> = bin_edges
-        .windows(2)
-        .map(|w| {
-            samples as f64 * 2.0 * PI * integrate_mu(&|m| p_of_mu(phase, m), w[0], w[1], &edges)
-        })
-        .collect();
+    let expected: Vec<f64> = with_p_of_mu(phase, |p| {
+        bin_edges
+            .windows(2)
+            .map(|w| samples as f64 * 2.0 * PI * integrate_mu(&|m| p(m), w[0], w[1], &edges))
+            .collect()
+    })?;
     let mut counts = vec![0u64; expected.len()];
     let mut phi_counts = vec![0u64; phi_bins];
     let mut mv = MeanVar::default();
     let mut rng = SampleStream::new(seed, 2, 0);
     let wo = Vec3::new(0.0, 0.0, -1.0);
-    for _ in 0..samples {
-        let s = phase.sample(wo, rng.next_2d());
+    let rows: Vec<_> = (0..samples).map(|_| (wo, rng.next_2d())).collect();
+    for s in phase.sample(&rows)? {
         let mu = s.wi.z.clamp(-1.0, 1.0);
         mv.push(mu);
         let b = bin_edges
@@ -124,7 +152,12 @@ pub fn measure_phase(
         &vec![samples as f64 / phi_bins as f64; phi_bins],
         5.0,
     );
-    let t = z_test(mv.mean(), mv.std_error(), g);
+    // Under H0 (draws from the claimed p) the sampled mean cosine has variance Var_p(μ)/N,
+    // known by quadrature; near |g| = 1 the sample variance of 10^5 draws underestimates it
+    // (its mass is in rare back-scattered draws), so the larger of the two is used.
+    let se_null = ((second - mean_cos * mean_cos).max(0.0) / samples as f64).sqrt();
+    let se = mv.std_error().max(se_null);
+    let t = z_test(mv.mean(), se, g);
     // A chi-square that cannot be formed gives a NaN p-value: the check is an ERROR, not a FAIL.
     let (chi, dof, p_mu) = match &chi_mu {
         Ok(c) => (c.chi2, c.dof, c.p_value),
@@ -139,9 +172,9 @@ pub fn measure_phase(
     } else {
         (3.0 * ps.iter().copied().fold(1.0, f64::min)).min(1.0)
     };
-    Measurement {
+    Ok(Measurement {
         estimate: Some(mv.mean()),
-        std_error: Some(mv.std_error()),
+        std_error: Some(se),
         expected: Some(g),
         statistic: Some(Statistic::ChiSquare { chi2: chi, dof }),
         p_value: Some(p_combined),
@@ -151,14 +184,58 @@ pub fn measure_phase(
         one_sided: false,
         samples,
         message: format!(
-            "g = {g}: ∫p dω = {} and mean cosine {} by quadrature (|error| {:.1e} vs abs_tol {abs_tol:.0e}); sampled mean cosine {} ± {}; χ²(μ) p {}, χ²(φ) p {}",
+            "g = {g}: ∫p dω = {} and mean cosine {} by quadrature (|error| {:.1e} vs abs_tol {abs_tol:.0e}); sampled mean cosine {} ± {} (larger of sample {} and null √(Var_p μ/N) {}); χ²(μ) p {}, χ²(φ) p {}",
             fmt_sig(norm),
             fmt_sig(mean_cos),
             det_err,
             fmt_sig(mv.mean()),
+            fmt_sig(se),
             fmt_sig(mv.std_error()),
+            fmt_sig(se_null),
             fmt_sig(p_mu),
             fmt_sig(p_phi)
         ),
-    }
+    })
 }
+
+/// Largest relative asymmetry |p(wo, wi) − p(wi, wo)|/p, and largest relative mismatch
+/// |pdf(wo, wi) − sample.pdf|/pdf, over `pairs` random directions (infinite for a non-finite
+/// value or a non-unit sampled direction).
+pub fn reciprocity_error(
+    phase: &dyn PhaseModel,
+    pairs: u64,
+    seed: u64,
+) -> Result<(f64, f64), ModelError> {
+    let mut rng = SampleStream::new(seed, 3, 0);
+    let (mut worst, mut worst_pdf) = (0.0f64, 0.0f64);
+    let mut fwd = Vec::new();
+    let mut rows = Vec::new();
+    for _ in 0..pairs {
+        let wo = warp::uniform_sphere(rng.next_2d());
+        let wi = warp::uniform_sphere(rng.next_2d());
+        fwd.push((wo, wi));
+        rows.push((wo, rng.next_2d()));
+    }
+    let back: Vec<(Vec3, Vec3)> = fwd.iter().map(|&(wo, wi)| (wi, wo)).collect();
+    let (pa, pb) = (phase.eval(&fwd)?, phase.eval(&back)?);
+    let drawn = phase.sample(&rows)?;
+    let at: Vec<(Vec3, Vec3)> = rows.iter().zip(&drawn).map(|(r, s)| (r.0, s.wi)).collect();
+    let pdfs = phase.pdf(&at)?;
+    for (((a, b), s), p) in pa.iter().zip(&pb).zip(&drawn).zip(&pdfs) {
+        worst = worst.max((a - b).abs() / a.abs().max(b.abs()).max(f64::MIN_POSITIVE));
+        worst_pdf = worst_pdf.max((p - s.pdf).abs() / p.max(f64::MIN_POSITIVE));
+        if !(a.is_finite()
+            && b.is_finite()
+            && s.wi.is_finite()
+            && (s.wi.length() - 1.0).abs() < 1e-9)
+        {
+            return Ok((f64::INFINITY, f64::INFINITY));
+        }
+    }
+    Ok((worst, worst_pdf))
+}
+
+/// Allowed relative mismatch between a sample's pdf (computed from the sampled cosine) and
+/// `pdf` of the returned direction (from the direction vector): at g = 0.9999 the rounding of
+/// μ (~1e-16) is amplified by d ln p/dμ ≈ 3/(1 − g)² = 3e8.
+pub const PDF_REL_TOL: f64 = 1e-6;

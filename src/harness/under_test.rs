@@ -1,0 +1,141 @@
+//! What the model-level kinds judge: a renderer's own BSDFs, phase functions and emitters,
+//! answering many queries at once (in process for furnace, through the model protocol of
+//! `docs/model-protocol.md` for other renderers). Conventions: local shading frame, z = normal,
+//! `wo` and `wi` point away from the surface; `eval` without the cosine; pdfs per steradian.
+
+use super::renderer::Renderer;
+use crate::math::Vec3;
+use crate::media::PhaseSample;
+use crate::scattering::BsdfSample;
+use crate::spectrum::{SampledSpectrum, Wavelengths};
+use std::sync::Arc;
+
+/// A model could not answer: the server failed, timed out or broke the protocol.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("{0}")]
+pub struct ModelError(pub String);
+
+impl From<ModelError> for super::error::CheckError {
+    fn from(e: ModelError) -> Self {
+        super::error::CheckError::Renderer(e.0)
+    }
+}
+
+/// What a BSDF says about itself; the physics expectations that apply follow from it.
+#[derive(Debug, Clone, PartialEq)]
+pub struct BsdfFlags {
+    /// Has a Dirac lobe.
+    pub delta: bool,
+    /// Answers for `wo` below the surface as for its mirror image above.
+    pub two_sided: bool,
+    /// Has transmitted lobes.
+    pub transmission: bool,
+    /// η(inside)/η(outside) at 589.3 nm for transmissive models, else 1.
+    pub eta: f64,
+    /// Scatters all power at every angle (smooth glass, a perfect mirror).
+    pub lossless: bool,
+    /// η depends on wavelength: a sampled direction is right only for the hero.
+    pub dispersive: bool,
+    /// Smallest microfacet α of any lobe: 0 for a Dirac lobe, +∞ for lobes without a width.
+    pub min_roughness: f64,
+}
+
+/// A BSDF answering batches of queries at the wavelengths `wl` (the same for every row).
+pub trait BsdfModel: Send + Sync {
+    /// Its flags.
+    fn flags(&self) -> &BsdfFlags;
+    /// f(wo, wi) per wavelength, sr⁻¹, without the cosine (0 for Dirac lobes).
+    fn eval(
+        &self,
+        q: &[(Vec3, Vec3)],
+        wl: &Wavelengths,
+    ) -> Result<Vec<SampledSpectrum>, ModelError>;
+    /// pdf(wo, wi) per steradian (0 for Dirac lobes).
+    fn pdf(&self, q: &[(Vec3, Vec3)], wl: &Wavelengths) -> Result<Vec<f64>, ModelError>;
+    /// A sample per (wo, u, uc), or None where the model produces none.
+    fn sample(
+        &self,
+        q: &[(Vec3, [f64; 2], f64)],
+        wl: &Wavelengths,
+    ) -> Result<Vec<Option<BsdfSample>>, ModelError>;
+    /// The refractive index on the side of each direction (1 on the normal's side).
+    fn eta(&self, w: &[Vec3], wl: &Wavelengths) -> Result<Vec<SampledSpectrum>, ModelError>;
+}
+
+/// A phase function answering batches; directions point away from the scattering point.
+pub trait PhaseModel: Send + Sync {
+    /// ⟨cos θ⟩ of the scattering angle, when the model states it.
+    fn mean_cosine(&self) -> Option<f64>;
+    /// p(wo, wi) per steradian.
+    fn eval(&self, q: &[(Vec3, Vec3)]) -> Result<Vec<f64>, ModelError>;
+    /// The sampling pdf per steradian.
+    fn pdf(&self, q: &[(Vec3, Vec3)]) -> Result<Vec<f64>, ModelError>;
+    /// A sample per (wo, u).
+    fn sample(&self, q: &[(Vec3, [f64; 2])]) -> Result<Vec<PhaseSample>, ModelError>;
+}
+
+/// A direction sampled towards an emitter from its receiving point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct EmitterSample {
+    /// Unit direction towards the sampled point.
+    pub wi: Vec3,
+    /// Radiance arriving along `wi` (a point light: intensity/distance²).
+    pub radiance: SampledSpectrum,
+    /// Pdf per steradian at the receiving point (1 for a point light).
+    pub pdf: f64,
+    /// Distance to the sampled point (∞ at infinity).
+    pub dist: f64,
+    /// A point light: no density.
+    pub delta: bool,
+}
+
+/// An emitter in a small canonical scene, sampled from that scene's receiving point.
+pub trait EmitterModel: Send + Sync {
+    /// A sample per (u, uc), or None where the emitter produces none.
+    fn sample(
+        &self,
+        q: &[([f64; 2], f64)],
+        wl: &Wavelengths,
+    ) -> Result<Vec<Option<EmitterSample>>, ModelError>;
+    /// The solid-angle density of producing each direction, summed over the emitter's points
+    /// along it.
+    fn pdf(&self, w: &[Vec3], wl: &Wavelengths) -> Result<Vec<f64>, ModelError>;
+}
+
+/// A model with its name.
+pub struct Named<M: ?Sized> {
+    /// Name, unique within its kind.
+    pub name: String,
+    /// The model.
+    pub model: Arc<M>,
+}
+
+impl<M: ?Sized> Clone for Named<M> {
+    fn clone(&self) -> Self {
+        Named {
+            name: self.name.clone(),
+            model: Arc::clone(&self.model),
+        }
+    }
+}
+
+/// The models a renderer exposes to the model-level kinds.
+pub trait ModelSource: Send + Sync {
+    /// Who serves them, for reports ("furnace 0.1.0 in process", "mitsuba3 3.9.1 ...").
+    fn describe(&self) -> String;
+    /// Every BSDF.
+    fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError>;
+    /// Every phase function.
+    fn phases(&self) -> Result<Vec<Named<dyn PhaseModel>>, ModelError>;
+    /// Every emitter.
+    fn emitters(&self) -> Result<Vec<Named<dyn EmitterModel>>, ModelError>;
+}
+
+/// What a run judges: a renderer's images and, when it serves them, its models.
+#[derive(Clone, Copy)]
+pub struct Subject<'a> {
+    /// The renderer.
+    pub renderer: &'a dyn Renderer,
+    /// Its models, or None when it serves none.
+    pub models: Option<&'a dyn ModelSource>,
+}
