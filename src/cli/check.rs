@@ -3,10 +3,14 @@
 use super::{write_file, Failure};
 use anyhow::Context;
 use clap::Args;
+use furnace::harness::adapter::{self, RendererDesc};
+use furnace::harness::model::client::{RemoteModels, Unavailable};
+use furnace::harness::model::local::LocalModels;
 use furnace::harness::outcome::{Outcome, Verdict};
-use furnace::harness::{self, manifest, BuiltIn, Correction, RunOptions};
+use furnace::harness::{self, manifest, BuiltIn, Correction, ModelSource, RunOptions};
 use furnace::report::{html, json, junit, text};
 use indicatif::{ProgressBar, ProgressStyle};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
@@ -43,9 +47,9 @@ pub struct CheckArgs {
     /// Renderer to judge: furnace (built in) or NAME[:VARIANT] from --renderers; repeatable. External renderers run the renderer-agnostic scene-level kinds; the rest are reported as skipped.
     #[arg(long = "renderer", default_value = "furnace")]
     renderers: Vec<String>,
-    /// Adapter descriptions of external renderers (TOML [renderer.NAME] tables).
-    #[arg(long = "renderers", default_value = "renderers.toml")]
-    renderers_file: PathBuf,
+    /// Renderer table (TOML [renderer.NAME] tables) [default: ~/.config/furnace/renderers.toml if it exists, else the table built into furnace]. Never read implicitly from the working directory.
+    #[arg(long = "renderers")]
+    renderers_file: Option<PathBuf>,
 }
 
 /// Runs `furnace check`; returns the exit code.
@@ -98,10 +102,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     let externals = if a.renderers.iter().any(|r| r != "furnace") {
-        Some(
-            harness::adapter::load_renderers(&a.renderers_file)
-                .map_err(|e| anyhow::anyhow!("invalid renderers file: {e}"))?,
-        )
+        Some(renderer_table(a.renderers_file.as_deref())?)
     } else {
         None
     };
@@ -109,7 +110,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     for label in &a.renderers {
         let external = match &externals {
             Some(map) if label != "furnace" => Some(
-                harness::adapter::External::from_spec(label, map, Path::new("."))
+                adapter::External::from_spec(label, map, Path::new("."))
                     .map_err(|e| anyhow::anyhow!(e))?,
             ),
             _ => None,
@@ -119,6 +120,22 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             None => &BuiltIn,
         };
         let unavailable = external.as_ref().and_then(|e| e.probe().err());
+        let local = LocalModels;
+        let served: Option<Box<dyn ModelSource>> = match (&external, &unavailable) {
+            (None, _) => Some(Box::new(local)),
+            (Some(_), Some(_)) => None,
+            (Some(e), None) => e.model_server().map(|cmd| match RemoteModels::start(&cmd) {
+                Ok(m) => Box::new(m) as Box<dyn ModelSource>,
+                Err(why) => {
+                    eprintln!("renderer {label}: its model server did not start: {why}");
+                    Box::new(Unavailable(why.0))
+                }
+            }),
+        };
+        let subject = harness::Subject {
+            renderer,
+            models: served.as_deref(),
+        };
         let mut report = match &unavailable {
             Some(why) => {
                 eprintln!("renderer {label} is not available, its checks are skipped: {why}");
@@ -137,7 +154,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg}")
                         .context("progress bar template")?,
                 );
-                let r = harness::run(&specs, &opts, renderer, names.clone(), &mut |name| {
+                let r = harness::run_with(&specs, &opts, subject, names.clone(), &mut |name| {
                     bar.inc(1);
                     bar.set_message(format!("{label}: {name}"));
                 });
@@ -213,4 +230,19 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             0
         },
     )
+}
+
+/// The renderer table: `--renderers`, else the user's (~/.config/furnace/renderers.toml, or
+/// under $XDG_CONFIG_HOME), else the one built into furnace; never the working directory's.
+fn renderer_table(explicit: Option<&Path>) -> Result<BTreeMap<String, RendererDesc>, Failure> {
+    let user = std::env::var_os("XDG_CONFIG_HOME")
+        .map(PathBuf::from)
+        .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))
+        .map(|c| c.join("furnace").join("renderers.toml"))
+        .filter(|p| p.is_file());
+    let table = match explicit.map(Path::to_path_buf).or(user) {
+        Some(p) => adapter::load_renderers(&p),
+        None => adapter::parse_renderers(adapter::BUILT_IN, Path::new("(built-in renderers.toml)")),
+    };
+    Ok(table.map_err(|e| anyhow::anyhow!("invalid renderers file: {e}"))?)
 }

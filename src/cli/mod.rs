@@ -8,6 +8,7 @@ mod converge;
 mod export;
 mod render;
 mod report;
+mod serve_models;
 
 use anyhow::Context;
 use clap::{Parser, Subcommand};
@@ -37,6 +38,8 @@ enum Command {
     Report(report::ReportArgs),
     /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
     Export(export::ExportArgs),
+    /// Serve furnace's own BSDFs, phase functions and emitters over the model protocol on stdin/stdout (docs/model-protocol.md).
+    ServeModels(serve_models::ServeModelsArgs),
 }
 
 /// An error with the exit code it maps to.
@@ -66,6 +69,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Export(args) => export::run(args),
         Command::Report(args) => report::run(args),
         Command::Converge(args) => converge::run(args),
+        Command::ServeModels(args) => serve_models::run(args),
     }
 }
 

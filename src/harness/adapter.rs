@@ -1,35 +1,9 @@
-//! External renderers: a renderer described in TOML (`renderers.toml`) is driven through a
-//! command template, fed a scene exported to its format, and its EXR output is turned into a
-//! [`Film`] so that every renderer-agnostic check applies exactly the same statistics to it.
-//!
-//! ```toml
-//! [renderer.mitsuba3]
-//! description = "Mitsuba 3 from PyPI through reference/mitsuba/render.py"
-//! exporter = "mitsuba3"                 # scene format (furnace export --format)
-//! observer = "mitsuba3"                 # colour pipeline of its RGB output
-//! channels = ["R", "G", "B"]            # linear-sRGB channel names in its EXR
-//! variant = "scalar_spectral"           # default for {variant}; `--renderer mitsuba3:VARIANT`
-//! batches = 4                           # independent runs per image (standard error)
-//! probe = ["python3", "-c", "import mitsuba"]   # availability test
-//! env = { DRJIT_LIBLLVM_PATH = "/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1" }  # for llvm_* variants
-//! command = ["python3", "reference/mitsuba/render.py", "--xml", "{scene}", "--out", "{out}",
-//!            "--spp", "{spp}", "--seed", "{seed}", "--width", "{width}", "--height", "{height}",
-//!            "--max-depth", "{max_depth}", "--variant", "{variant}", "--threads", "{threads}"]
-//! ```
-//!
-//! Statistics for a black box: one run gives one image, not per-sample moments, so each image
-//! is rendered as `batches` independent runs (seeds derived from the check's seed) of
-//! spp/batches samples; each pixel's K run values are its samples, so the per-pixel variance of
-//! the mean has K − 1 degrees of freedom. The checks' variance diagnosis (batch means over
-//! pixels and a Hill tail index, `stats::stability`) and, for uniform regions, the between-pixel
-//! standard error (the larger of the two is used) apply unchanged.
-//!
-//! Colour: the output's R, G, B are taken in the renderer's declared pipeline (`observer`);
-//! X, Y, Z are recovered with that pipeline's inverse matrix and rescaled by the ratio of the
-//! white points' Y (furnace's 1 nm ∫ȳ over the renderer's normalisation; 1/1.00100 for
-//! Mitsuba 3), so a flat spectrum reads the same Y in both and the analytic checks' closed
-//! forms apply exactly to grey scenes. When a check asks for another pipeline's RGB, the RGB
-//! is converted through XYZ (exact for flat spectra only).
+//! External renderers described in a renderer table (`[renderer.NAME]` in TOML): images through
+//! a command template fed the scene exported to the renderer's format, models through a model
+//! server (`docs/model-protocol.md`). Commands run with a cleared environment (PATH, HOME, LANG,
+//! TMPDIR and the table's `env`), a time limit, bounded captured output, and a temporary folder
+//! removed on every way out. A black box's image variance comes from `batches` independent runs
+//! (docs/renderers.md).
 
 use super::renderer::{Renderer, RendererError};
 use crate::export;
@@ -41,9 +15,11 @@ use crate::scene::{Scene, Source};
 use crate::spectrum::Observer;
 use serde::Deserialize;
 use std::collections::BTreeMap;
+use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::{Duration, Instant};
 
 /// One `[renderer.NAME]` table.
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -68,13 +44,26 @@ pub struct RendererDesc {
     /// A command that succeeds when the renderer is installed.
     #[serde(default)]
     pub probe: Option<Vec<String>>,
-    /// Environment variables set for the probe and the command (a variable already set in
-    /// furnace's environment wins, so a user can override without editing the file).
+    /// Environment variables set for the probe, the command and the model server (a variable
+    /// already set in furnace's environment wins, so a user can override without editing the
+    /// file); the rest of the environment is cleared but for PATH, HOME, LANG and TMPDIR.
     #[serde(default)]
     pub env: BTreeMap<String, String>,
-    /// The argv template; placeholders {scene} {out} {spp} {seed} {width} {height}
-    /// {max_depth} {variant} {threads}.
-    pub command: Vec<String>,
+    /// The image command's argv template; placeholders {scene} {out} {spp} {seed} {width}
+    /// {height} {max_depth} {variant} {threads} {furnace}. Without it the renderer serves
+    /// models only.
+    #[serde(default)]
+    pub command: Option<Vec<String>>,
+    /// The model server's argv template ({variant}, {furnace}); without it the renderer
+    /// serves images only.
+    #[serde(default)]
+    pub models: Option<Vec<String>>,
+    /// Longest run of the image command or the probe, seconds (default 600).
+    #[serde(default)]
+    pub timeout: Option<f64>,
+    /// Longest wait for one model-server reply, seconds (default 60).
+    #[serde(default)]
+    pub model_timeout: Option<f64>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -85,7 +74,7 @@ struct RenderersFile {
 }
 
 /// Placeholders a command template may use.
-pub const PLACEHOLDERS: [&str; 9] = [
+pub const PLACEHOLDERS: [&str; 10] = [
     "scene",
     "out",
     "spp",
@@ -95,13 +84,26 @@ pub const PLACEHOLDERS: [&str; 9] = [
     "max_depth",
     "variant",
     "threads",
+    "furnace",
 ];
+
+/// Bytes of a command's stdout and stderr kept (the rest is read and dropped).
+const OUTPUT_KEPT: usize = 64 * 1024;
 
 /// Reads a renderers file; errors give file:line:column or name the renderer and key.
 pub fn load_renderers(path: &Path) -> Result<BTreeMap<String, RendererDesc>, String> {
     let text = crate::io::read_text(path, "the renderers file").map_err(|e| e.to_string())?;
+    parse_renderers(&text, path)
+}
+
+/// The renderer table built into furnace (its `renderers.toml` at build time): Mitsuba 3 and
+/// furnace's own models served through the protocol.
+pub const BUILT_IN: &str = include_str!("../../renderers.toml");
+
+/// Parses a renderers table (`path` names it in errors).
+pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, RendererDesc>, String> {
     let f: RenderersFile =
-        crate::io::parse_toml(&Source { path, text: &text }).map_err(|e| e.to_string())?;
+        crate::io::parse_toml(&Source { path, text }).map_err(|e| e.to_string())?;
     for (name, d) in &f.renderer {
         let at = |k: &str, m: String| format!("{}: renderer.{name}.{k}: {m}", path.display());
         if d.exporter != "mitsuba3" {
@@ -125,27 +127,41 @@ pub fn load_renderers(path: &Path) -> Result<BTreeMap<String, RendererDesc>, Str
                 ),
             ));
         }
-        if d.command.is_empty() {
-            return Err(at("command", "empty; give the argv template".into()));
+        if d.command.is_none() && d.models.is_none() {
+            return Err(at(
+                "command",
+                "missing; give `command` (images), `models` (a model server) or both".into(),
+            ));
         }
-        for arg in &d.command {
-            let mut rest = arg.as_str();
-            while let Some(i) = rest.find('{') {
-                let j = rest[i..]
-                    .find('}')
-                    .map(|j| i + j)
-                    .ok_or_else(|| at("command", format!("{arg:?} has an unclosed '{{'")))?;
-                let key = &rest[i + 1..j];
-                if !PLACEHOLDERS.contains(&key) {
-                    return Err(at(
-                        "command",
-                        format!(
-                            "unknown placeholder {{{key}}} in {arg:?}; allowed: {}",
-                            PLACEHOLDERS.map(|p| format!("{{{p}}}")).join(" ")
-                        ),
-                    ));
+        for (key, limit) in [("timeout", d.timeout), ("model_timeout", d.model_timeout)] {
+            if limit.is_some_and(|t| !(t.is_finite() && t > 0.0 && t <= 86_400.0)) {
+                return Err(at(key, format!("{limit:?}: give seconds in (0, 86400]")));
+            }
+        }
+        for (key, argv) in [("command", &d.command), ("models", &d.models)] {
+            let Some(argv) = argv else { continue };
+            if argv.is_empty() {
+                return Err(at(key, "empty; give the argv template".into()));
+            }
+            for arg in argv {
+                let mut rest = arg.as_str();
+                while let Some(i) = rest.find('{') {
+                    let j = rest[i..]
+                        .find('}')
+                        .map(|j| i + j)
+                        .ok_or_else(|| at(key, format!("{arg:?} has an unclosed '{{'")))?;
+                    let p = &rest[i + 1..j];
+                    if !PLACEHOLDERS.contains(&p) {
+                        return Err(at(
+                            key,
+                            format!(
+                                "unknown placeholder {{{p}}} in {arg:?}; allowed: {}",
+                                PLACEHOLDERS.map(|p| format!("{{{p}}}")).join(" ")
+                            ),
+                        ));
+                    }
+                    rest = &rest[j + 1..];
                 }
-                rest = &rest[j + 1..];
             }
         }
     }
@@ -205,31 +221,81 @@ impl External {
         let Some(p) = &self.desc.probe else {
             return Ok(());
         };
-        let out = self
-            .command(p)
-            .output()
-            .map_err(|e| format!("cannot run {:?}: {e}", p.join(" ")))?;
-        if out.status.success() {
+        let p = self.expand(p, &|_| None);
+        let out = run_bounded(self.command(&p), self.timeout())
+            .map_err(|e| format!("{:?}: {e}", p.join(" ")))?;
+        if out.success {
             Ok(())
         } else {
-            Err(format!(
-                "{:?} failed: {}",
-                p.join(" "),
-                tail(&String::from_utf8_lossy(&out.stderr))
-            ))
+            Err(format!("{:?} failed: {}", p.join(" "), tail(&out.stderr)))
         }
+    }
+
+    /// The environment of its commands: the table's `env` (unless furnace's own environment
+    /// sets the variable), on top of PATH, HOME, LANG and TMPDIR.
+    pub fn environment(&self) -> Vec<(String, String)> {
+        self.desc
+            .env
+            .iter()
+            .map(|(k, v)| {
+                let v = std::env::var(k).unwrap_or_else(|_| v.clone());
+                (k.clone(), v)
+            })
+            .collect()
     }
 
     /// A process for `argv` in the working directory with the renderer's environment.
     fn command(&self, argv: &[String]) -> Command {
         let mut c = Command::new(&argv[0]);
-        c.args(&argv[1..]).current_dir(&self.workdir);
-        for (k, v) in &self.desc.env {
-            if std::env::var_os(k).is_none() {
+        c.args(&argv[1..]).current_dir(&self.workdir).env_clear();
+        for k in ["PATH", "HOME", "LANG", "TMPDIR"] {
+            if let Some(v) = std::env::var_os(k) {
                 c.env(k, v);
             }
         }
+        for (k, v) in self.environment() {
+            c.env(k, v);
+        }
         c
+    }
+
+    /// Longest run of a command.
+    pub fn timeout(&self) -> Duration {
+        Duration::from_secs_f64(self.desc.timeout.unwrap_or(600.0))
+    }
+
+    /// `argv` with its placeholders replaced ({variant} and {furnace} always, the rest by `value`).
+    fn expand(&self, argv: &[String], value: &dyn Fn(&str) -> Option<String>) -> Vec<String> {
+        let furnace = std::env::current_exe()
+            .map(|p| p.display().to_string())
+            .unwrap_or_else(|_| "furnace".into());
+        argv.iter()
+            .map(|a| {
+                let mut a = a.clone();
+                for p in PLACEHOLDERS {
+                    let v = match p {
+                        "variant" => Some(self.variant.clone()),
+                        "furnace" => Some(furnace.clone()),
+                        _ => value(p),
+                    };
+                    if let Some(v) = v {
+                        a = a.replace(&format!("{{{p}}}"), &v);
+                    }
+                }
+                a
+            })
+            .collect()
+    }
+
+    /// How to start its model server, when it has one.
+    pub fn model_server(&self) -> Option<super::under_test::ServerCommand> {
+        let argv = self.desc.models.as_ref()?;
+        Some(super::under_test::ServerCommand {
+            argv: self.expand(argv, &|_| None),
+            workdir: self.workdir.clone(),
+            env: self.environment(),
+            timeout: Duration::from_secs_f64(self.desc.model_timeout.unwrap_or(60.0)),
+        })
     }
 
     /// Independent runs per image.
@@ -240,7 +306,98 @@ impl External {
 
 fn tail(s: &str) -> String {
     let lines: Vec<&str> = s.lines().rev().take(3).collect();
-    lines.into_iter().rev().collect::<Vec<_>>().join(" | ")
+    let t = lines.into_iter().rev().collect::<Vec<_>>().join(" | ");
+    let cut: String = t.chars().take(600).collect();
+    if cut.len() < t.len() {
+        format!("{cut}…")
+    } else {
+        cut
+    }
+}
+
+/// A temporary folder, removed when dropped (on every way out of a render, errors included).
+struct TempDir(PathBuf);
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        let _ = std::fs::remove_dir_all(&self.0);
+    }
+}
+
+/// What a bounded run printed and how it ended.
+#[derive(Debug, Clone)]
+pub struct RunOutput {
+    /// It exited with status 0.
+    pub success: bool,
+    /// Its exit status, for messages.
+    pub status: String,
+    /// The last [`OUTPUT_KEPT`] bytes of its stderr (lossy UTF-8).
+    pub stderr: String,
+}
+
+/// Runs `cmd` with stdin closed, stdout and stderr read to their ends but only their last
+/// [`OUTPUT_KEPT`] bytes kept, and killed after `timeout`.
+pub fn run_bounded(mut cmd: Command, timeout: Duration) -> Result<RunOutput, String> {
+    let mut child = cmd
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map_err(|e| format!("cannot start {:?}: {e}", cmd.get_program()))?;
+    let keep = |r: Option<Box<dyn Read + Send>>| {
+        std::thread::spawn(move || {
+            let mut kept: Vec<u8> = Vec::new();
+            let Some(mut r) = r else { return kept };
+            let mut buf = [0u8; 8192];
+            while let Ok(n) = r.read(&mut buf) {
+                if n == 0 {
+                    break;
+                }
+                kept.extend_from_slice(&buf[..n]);
+                if kept.len() > 2 * OUTPUT_KEPT {
+                    kept.drain(..kept.len() - OUTPUT_KEPT);
+                }
+            }
+            let excess = kept.len().saturating_sub(OUTPUT_KEPT);
+            kept.drain(..excess);
+            kept
+        })
+    };
+    let out = keep(
+        child
+            .stdout
+            .take()
+            .map(|r| Box::new(r) as Box<dyn Read + Send>),
+    );
+    let err = keep(
+        child
+            .stderr
+            .take()
+            .map(|r| Box::new(r) as Box<dyn Read + Send>),
+    );
+    let start = Instant::now();
+    let status = loop {
+        match child.try_wait() {
+            Ok(Some(status)) => break status,
+            Ok(None) if start.elapsed() > timeout => {
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(format!(
+                    "did not finish within {:.0} s (renderers table `timeout`); killed",
+                    timeout.as_secs_f64()
+                ));
+            }
+            Ok(None) => std::thread::sleep(Duration::from_millis(20)),
+            Err(e) => return Err(format!("cannot wait for the process: {e}")),
+        }
+    };
+    let _ = out.join();
+    let stderr = err.join().unwrap_or_default();
+    Ok(RunOutput {
+        success: status.success(),
+        status: status.to_string(),
+        stderr: String::from_utf8_lossy(&stderr).into_owned(),
+    })
 }
 
 impl Renderer for External {
@@ -250,6 +407,10 @@ impl Renderer for External {
 
     fn is_reference(&self) -> bool {
         false
+    }
+
+    fn renders_images(&self) -> bool {
+        self.desc.command.is_some()
     }
 
     fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, RendererError> {
@@ -281,14 +442,18 @@ impl External {
             ));
         }
         let spp = s.spp / k;
-        let dir = std::env::temp_dir().join(format!(
+        let Some(command) = &self.desc.command else {
+            return Err(format!("{} serves models only (no `command`)", self.label));
+        };
+        let dir = TempDir(std::env::temp_dir().join(format!(
             "furnace-{}-{}-{}",
             self.label.replace([':', '/'], "_"),
             std::process::id(),
             self.counter.fetch_add(1, Ordering::Relaxed)
-        ));
+        )));
+        let dir = &dir.0;
         let xml = match self.desc.exporter.as_str() {
-            "mitsuba3" => export::mitsuba::write(scene, &dir).map_err(|e| e.to_string())?,
+            "mitsuba3" => export::mitsuba::write(scene, dir).map_err(|e| e.to_string())?,
             other => return Err(format!("unknown exporter {other:?}")),
         };
         let channels = self
@@ -308,8 +473,8 @@ impl External {
             let out = dir.join(format!("batch-{b}.exr"));
             // Seeds below 2^31 (Mitsuba's sampler seed is a 32-bit integer).
             let seed = crate::math::rng::mix64(s.seed ^ b) % (1 << 31);
-            let value = |key: &str| -> String {
-                match key {
+            let value = |key: &str| -> Option<String> {
+                Some(match key {
                     "scene" => xml.display().to_string(),
                     "out" => out.display().to_string(),
                     "spp" => spp.to_string(),
@@ -320,33 +485,19 @@ impl External {
                         .integrator
                         .max_depth
                         .map_or("-1".into(), |d| d.to_string()),
-                    "variant" => self.variant.clone(),
                     "threads" => threads.to_string(),
-                    _ => String::new(),
-                }
-            };
-            let argv: Vec<String> = self
-                .desc
-                .command
-                .iter()
-                .map(|a| {
-                    let mut a = a.clone();
-                    for p in PLACEHOLDERS {
-                        a = a.replace(&format!("{{{p}}}"), &value(p));
-                    }
-                    a
+                    _ => return None,
                 })
-                .collect();
-            let run = self
-                .command(&argv)
-                .output()
-                .map_err(|e| format!("cannot run {}: {e}", argv[0]))?;
-            if !run.status.success() {
+            };
+            let argv = self.expand(command, &value);
+            let run = run_bounded(self.command(&argv), self.timeout())
+                .map_err(|e| format!("{}: {e}", self.label))?;
+            if !run.success {
                 return Err(format!(
                     "{} exited with {}: {}",
                     self.label,
                     run.status,
-                    tail(&String::from_utf8_lossy(&run.stderr))
+                    tail(&run.stderr)
                 ));
             }
             let layers = io::read_exr(&out).map_err(|e| e.to_string())?;
@@ -378,7 +529,6 @@ impl External {
                 px.add(xyz, out_rgb);
             }
         }
-        let _ = std::fs::remove_dir_all(&dir);
         Ok(film)
     }
 }

@@ -96,6 +96,14 @@ pub mod common {
         doc: "stated relative model tolerance added to the acceptance rule",
     };
 
+    /// The models under test a model-level check takes, by name.
+    pub const MODELS: Key = Key {
+        name: "models",
+        ty: "list of name patterns (* and ?)",
+        default: "every model the renderer serves",
+        doc: "names of the models under test this check takes (furnace's catalogue names, or those a model server lists)",
+    };
+
     /// The `regions` key: a regions file (TOML `[[region]]`), relative to the manifest.
     pub const REGIONS: Key = Key {
         name: "regions",

@@ -53,7 +53,10 @@ pub trait Kind: Send + Sync + 'static {
 pub fn scope_rule(kind: &str, scope: Scope, subject: &Subject) -> Option<String> {
     let name = subject.renderer.name();
     match scope {
-        Scope::Image => None,
+        Scope::Image if subject.renderer.renders_images() => None,
+        Scope::Image => Some(format!(
+            "kind {kind} judges images; {name} serves models only (no `command` in its renderers table)"
+        )),
         Scope::Model if subject.models.is_some() => None,
         Scope::Model => Some(format!(
             "kind {kind} queries the renderer's own models; {name} serves none (give it a `models` command in renderers.toml, docs/model-protocol.md)"
@@ -164,6 +167,8 @@ pub struct Check {
     pub seed: Option<u64>,
     /// Stated relative model tolerance.
     pub rel_tolerance: f64,
+    /// Names (patterns) of the models under test a model-level check takes; empty: all.
+    pub models: Vec<String>,
     /// The kind's own parameters (its [`Kind::Params`]).
     pub params: Arc<dyn Any + Send + Sync>,
     /// Where the check is defined, for messages: `file:line`.

@@ -153,6 +153,10 @@ fn expand_check(
         return Err(keys.error_at("rel_tolerance", format!("{rel_tolerance} is too large: a model tolerance of 10 % or more lets real bugs pass; allowed [0, 0.1)")));
     }
     let seed = keys.int("seed", 0, i64::MAX)?;
+    let models = keys
+        .get::<Vec<String>>("models")?
+        .map(|m| m.into_inner())
+        .unwrap_or_default();
     let params = kind.parse(&mut keys)?;
     let vary = keys.get::<BTreeMap<String, Vec<f64>>>("vary")?;
     if let Some(v) = &vary {
@@ -172,6 +176,7 @@ fn expand_check(
         render,
         seed,
         rel_tolerance,
+        models,
         params,
         origin: format!("{}:{line}", src.path.display()),
     };

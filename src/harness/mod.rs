@@ -2,7 +2,7 @@
 //! judge, and the runner that applies the family-wise error correction.
 //!
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
-//! `outcome`, `error` → `measurement` → `renderer` → `under_test` → `context`, `keys` → `kind` →
+//! `names`, `outcome`, `error` → `measurement` → `renderer` → `under_test` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `runner`.
@@ -18,6 +18,7 @@ pub mod kind;
 pub mod manifest;
 pub mod measurement;
 pub mod model;
+pub mod names;
 pub mod outcome;
 pub mod region;
 pub mod registry;
@@ -29,6 +30,7 @@ pub use context::{check_seed, Context, Correction, RunOptions};
 pub use error::CheckError;
 pub use kind::{Check, Kind, Scope};
 pub use measurement::Measurement;
+pub use names::glob_match;
 pub use renderer::{BuiltIn, Renderer, RendererError};
-pub use runner::{glob_match, judge, run, run_with};
+pub use runner::{judge, run, run_with};
 pub use under_test::{ModelSource, Subject};

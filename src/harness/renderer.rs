@@ -34,6 +34,10 @@ pub trait Renderer: Sync {
     fn is_reference(&self) -> bool {
         true
     }
+    /// False for a renderer that serves only models (no image command).
+    fn renders_images(&self) -> bool {
+        true
+    }
     /// Renders `scene` by light tracing `n_paths` paths (settings as for [`Renderer::render`];
     /// `spp` unused), with exact statistics of the per-path sums over `regions` ([x0, y0, x1,
     /// y1) pixel rectangles). Only furnace's own renderer has a light tracer: the default is an

@@ -7,32 +7,9 @@ use super::measurement::Measurement;
 use super::model::local::LocalModels;
 use super::outcome::{Outcome, RunReport, Statistic, Verdict};
 use super::renderer::Renderer;
-use super::under_test::{ModelSource, Subject};
+use super::under_test::{Filtered, ModelSource, Subject};
 use crate::stats::{multiple, power};
 use std::time::Instant;
-
-/// Simple glob: `*` matches any run of characters, `?` one character.
-pub fn glob_match(pattern: &str, name: &str) -> bool {
-    let (p, n): (Vec<char>, Vec<char>) = (pattern.chars().collect(), name.chars().collect());
-    let (mut pi, mut ni, mut star, mut mark) = (0, 0, None, 0);
-    while ni < n.len() {
-        if pi < p.len() && (p[pi] == '?' || p[pi] == n[ni]) {
-            pi += 1;
-            ni += 1;
-        } else if pi < p.len() && p[pi] == '*' {
-            star = Some(pi);
-            mark = ni;
-            pi += 1;
-        } else if let Some(s) = star {
-            pi = s + 1;
-            mark += 1;
-            ni = mark;
-        } else {
-            return false;
-        }
-    }
-    p[pi..].iter().all(|&c| c == '*')
-}
 
 /// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
 /// UNSTABLE if the variance did not settle, FAIL if the deterministic part fails or p ≤ α.
@@ -98,9 +75,16 @@ pub fn run_with(
             measured.push(None);
             continue;
         }
+        let filtered = subject.models.map(|inner| Filtered {
+            inner,
+            globs: &check.models,
+        });
         let ctx = Context {
             renderer,
-            models: subject.models,
+            models: match &filtered {
+                Some(f) if !check.models.is_empty() => Some(f as &dyn ModelSource),
+                _ => subject.models,
+            },
             seed: check_seed(check.seed, &check.name, opts.seed),
             threads: opts.threads,
             alpha,
@@ -201,19 +185,5 @@ pub fn run_with(
         stochastic_tests: m,
         outcomes,
         seconds: start.elapsed().as_secs_f64(),
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn glob() {
-        assert!(glob_match("furnace/*", "furnace/sphere[albedo=0.5]"));
-        assert!(glob_match("*sphere*", "furnace/sphere"));
-        assert!(!glob_match("lambert/*", "furnace/sphere"));
-        assert!(glob_match("f?rnace", "furnace"));
-        assert!(glob_match("*", ""));
     }
 }

@@ -3,12 +3,14 @@
 //! `docs/model-protocol.md` for other renderers). Conventions: local shading frame, z = normal,
 //! `wo` and `wi` point away from the surface; `eval` without the cosine; pdfs per steradian.
 
+use super::names::glob_match;
 use super::renderer::Renderer;
 use crate::math::Vec3;
 use crate::media::PhaseSample;
 use crate::scattering::BsdfSample;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 use std::sync::Arc;
+use std::time::Duration;
 
 /// A model could not answer: the server failed, timed out or broke the protocol.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -138,4 +140,49 @@ pub struct Subject<'a> {
     pub renderer: &'a dyn Renderer,
     /// Its models, or None when it serves none.
     pub models: Option<&'a dyn ModelSource>,
+}
+
+/// The models of `inner` whose names match one of `globs`.
+pub struct Filtered<'a> {
+    /// The source.
+    pub inner: &'a dyn ModelSource,
+    /// Name patterns (`*`, `?`).
+    pub globs: &'a [String],
+}
+
+impl Filtered<'_> {
+    fn keep<M: ?Sized>(&self, v: Vec<Named<M>>) -> Vec<Named<M>> {
+        v.into_iter()
+            .filter(|m| self.globs.iter().any(|g| glob_match(g, &m.name)))
+            .collect()
+    }
+}
+
+impl ModelSource for Filtered<'_> {
+    fn describe(&self) -> String {
+        format!("{} (models {:?})", self.inner.describe(), self.globs)
+    }
+    fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError> {
+        Ok(self.keep(self.inner.bsdfs()?))
+    }
+    fn phases(&self) -> Result<Vec<Named<dyn PhaseModel>>, ModelError> {
+        Ok(self.keep(self.inner.phases()?))
+    }
+    fn emitters(&self) -> Result<Vec<Named<dyn EmitterModel>>, ModelError> {
+        Ok(self.keep(self.inner.emitters()?))
+    }
+}
+
+/// How to start a server and how long to wait for each reply.
+#[derive(Debug, Clone)]
+pub struct ServerCommand {
+    /// argv.
+    pub argv: Vec<String>,
+    /// Working directory.
+    pub workdir: std::path::PathBuf,
+    /// Environment variables set for it (the environment is otherwise cleared but for PATH,
+    /// HOME, LANG and TMPDIR).
+    pub env: Vec<(String, String)>,
+    /// Longest wait for one reply.
+    pub timeout: Duration,
 }

@@ -9,6 +9,7 @@ mod layering;
 mod manifest_errors;
 mod manifests;
 mod measured;
+mod models;
 mod negative;
 mod references;
 mod render;

@@ -109,6 +109,7 @@ impl Kind for Albedo {
         model::theta_max_deg("89.99"),
         model::rel_tol("1e-12"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

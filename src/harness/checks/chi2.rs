@@ -103,6 +103,7 @@ impl Kind for Chi2 {
         model::samples("200000"),
         model::bins("[24, 48]"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

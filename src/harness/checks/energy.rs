@@ -130,6 +130,7 @@ impl Kind for Energy {
         model::theta_max_deg("89.9"),
         model::abs_tol("1e-6"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

@@ -45,6 +45,7 @@ impl Kind for Hg {
         model::abs_tol("1e-6"),
         model::bins("[40, 16]"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

@@ -36,6 +36,7 @@ impl Kind for PhaseKind {
         model::rel_tol("1e-12"),
         model::bins("[40, 16]"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

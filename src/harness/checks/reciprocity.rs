@@ -109,6 +109,7 @@ impl Kind for Reciprocity {
         model::abs_tol("0"),
         model::rel_tol("1e-12"),
         common::SEED,
+        common::MODELS,
     ];
     const STOCHASTIC: bool = false;
     const SCOPE: Scope = Scope::Model;

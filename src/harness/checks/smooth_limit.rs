@@ -136,6 +136,7 @@ impl Kind for SmoothLimit {
         model::samples("20000"),
         model::rel_tol("1e-3"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

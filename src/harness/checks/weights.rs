@@ -174,6 +174,7 @@ impl Kind for SampleWeights {
         model::theta_max_deg("89.9"),
         model::rel_tol("1e-9"),
         common::SEED,
+        common::MODELS,
     ];
     const SCOPE: Scope = Scope::Model;
 

@@ -5,7 +5,11 @@
 
 pub mod albedo;
 pub mod catalogue;
+pub mod client;
+pub mod controls;
 pub mod directions;
 pub mod local;
 pub mod phase;
+pub mod protocol;
 pub mod samplers;
+pub mod server;
