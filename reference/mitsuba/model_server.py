@@ -734,8 +734,11 @@ class Server:
         if op == "hello":
             if header.get("protocol") != PROTOCOL:
                 log("client speaks protocol %r, this server %d" % (header.get("protocol"), PROTOCOL))
+            # Mitsuba's variants compute in float32 unless their name says double
+            precision = "float64" if "double" in self.variant else "float32"
             return {"ok": True, "protocol": PROTOCOL, "renderer": "mitsuba3",
-                    "version": self.version(), "models": self.hello_models}, None
+                    "version": self.version(), "precision": precision,
+                    "models": self.hello_models}, None
         if op not in REQUEST_WIDTH:
             return {"ok": False, "error": "unknown op %r" % (op,)}, None
         model = header.get("model")

@@ -52,18 +52,7 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
         .iter()
         .filter_map(|(n, m)| m.unstable.as_ref().map(|u| format!("{n}: {u}")))
         .collect();
-    let summary: Vec<String> = parts
-        .iter()
-        .map(|(n, m)| {
-            format!(
-                "{n}: {} ± {} vs {} (p {})",
-                fmt_sig(m.estimate.unwrap_or(f64::NAN)),
-                fmt_sig(m.std_error.unwrap_or(f64::NAN)),
-                fmt_sig(m.expected.unwrap_or(f64::NAN)),
-                fmt_sig(m.p_value.unwrap_or(f64::NAN))
-            )
-        })
-        .collect();
+    let summary: Vec<String> = parts.iter().map(|(n, m)| part_summary(n, m)).collect();
     let det = parts
         .iter()
         .filter_map(|(_, m)| m.deterministic_pass)
@@ -87,6 +76,34 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
         summary.join("; ")
     );
     m
+}
+
+/// One sub-test's numbers for a combined message: estimate (± its standard error when it has
+/// one) against the expected value with its p-value, or its own message when it has no numbers.
+fn part_summary(name: &str, m: &Measurement) -> String {
+    match (m.estimate, m.expected) {
+        (Some(e), Some(x)) => {
+            let se = m
+                .std_error
+                .map_or(String::new(), |s| format!(" ± {}", fmt_sig(s)));
+            let p = m
+                .p_value
+                .map_or(String::new(), |p| format!(" (p {})", fmt_sig(p)));
+            format!("{name}: {}{se} vs {}{p}", fmt_sig(e), fmt_sig(x))
+        }
+        _ if m.message.is_empty() => format!("{name}: no numbers"),
+        _ => format!("{name}: {}", m.message),
+    }
+}
+
+/// A sub-test that could not be run (a model server's error, a model the check cannot use):
+/// its p-value is NaN, so the check ends as ERROR, with `why` among its sub-results.
+pub fn failed_part(why: impl std::fmt::Display) -> Measurement {
+    Measurement {
+        p_value: Some(f64::NAN),
+        message: format!("could not be run: {why}"),
+        ..Default::default()
+    }
 }
 
 /// A number with 4 significant digits.

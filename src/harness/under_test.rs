@@ -121,10 +121,65 @@ impl<M: ?Sized> Clone for Named<M> {
     }
 }
 
+/// The arithmetic a model computes in, which bounds how exactly it can meet an identity.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Precision {
+    /// IEEE double precision (furnace's own models).
+    #[default]
+    F64,
+    /// IEEE single precision (most GPU and SIMD renderers, Mitsuba 3's default variants).
+    F32,
+}
+
+impl Precision {
+    /// Relative allowance for rounding when a statistic is compared with its expected value:
+    /// 1e-12 for f64 (about 4500 ulp, `stats::ROUNDING`), 1e-5 for f32 (about 80 ulp: the
+    /// weights and albedos of an f32 model differ from their f64 quadrature by a few ulp).
+    pub fn rounding(self) -> f64 {
+        match self {
+            Precision::F64 => crate::stats::ROUNDING,
+            Precision::F32 => 1e-5,
+        }
+    }
+
+    /// The smallest relative tolerance of a deterministic identity (reciprocity, weight =
+    /// f·cos/pdf): the manifest's for f64; 1e-3 for f32, where identities whose two sides are
+    /// computed along different paths (a Fresnel term from either side, a half vector near
+    /// grazing) lose three to four digits of the seven an f32 carries, while the bugs these
+    /// identities catch (a missing η², a wrong weight) are O(1).
+    pub fn min_rel_tol(self) -> f64 {
+        match self {
+            Precision::F64 => 0.0,
+            Precision::F32 => 1e-3,
+        }
+    }
+
+    /// The narrowest histogram bin in the scattering cosine μ the model's directions resolve
+    /// near μ = ±1: 0 for f64; 1e-5 for f32 (about 170 ulp of 1).
+    pub fn mu_resolution(self) -> f64 {
+        match self {
+            Precision::F64 => 0.0,
+            Precision::F32 => 1e-5,
+        }
+    }
+
+    /// Its name on the wire and in messages.
+    pub fn name(self) -> &'static str {
+        match self {
+            Precision::F64 => "float64",
+            Precision::F32 => "float32",
+        }
+    }
+}
+
 /// The models a renderer exposes to the model-level kinds.
 pub trait ModelSource: Send + Sync {
     /// Who serves them, for reports ("furnace 0.1.0 in process", "mitsuba3 3.9.1 ...").
     fn describe(&self) -> String;
+    /// The arithmetic its models compute in.
+    fn precision(&self) -> Precision {
+        Precision::F64
+    }
     /// Every BSDF.
     fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError>;
     /// Every phase function.
@@ -161,6 +216,9 @@ impl Filtered<'_> {
 impl ModelSource for Filtered<'_> {
     fn describe(&self) -> String {
         format!("{} (models {:?})", self.inner.describe(), self.globs)
+    }
+    fn precision(&self) -> Precision {
+        self.inner.precision()
     }
     fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError> {
         Ok(self.keep(self.inner.bsdfs()?))

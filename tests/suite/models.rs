@@ -159,7 +159,7 @@ fn a_misbehaving_server_makes_the_check_an_error_with_its_words() {
     for (fault, want) in [
         ("crash", "exited"),
         ("hang", "no reply"),
-        ("nan", "NaN in reply"),
+        ("nan", "answered NaN"),
         ("short", "payload shorter"),
     ] {
         let remote = RemoteModels::start(&server(&["--fault", fault], 2.0)).unwrap();

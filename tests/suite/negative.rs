@@ -463,6 +463,7 @@ fn energy_rejects_a_lambert_missing_one_over_pi() {
         1e-6,
         10_000,
         1,
+        furnace::stats::ROUNDING,
     )
     .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
@@ -476,6 +477,7 @@ fn sample_weights_reject_a_weight_inconsistent_with_eval() {
         89.9,
         1e-9,
         1,
+        0.0,
     )
     .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);

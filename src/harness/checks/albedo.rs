@@ -6,7 +6,7 @@
 //! Šidák-combined). Non-finite weights fail the check.
 
 use crate::harness::keys::{common, model, Key, Keys};
-use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::measurement::{combine, failed_part, fmt_sig};
 use crate::harness::model::albedo::{albedo_mc, outgoing};
 use crate::harness::model::catalogue::{self, AlbedoExpectation};
 use crate::harness::outcome::Statistic;
@@ -123,21 +123,21 @@ impl Kind for Albedo {
 
     /// Runs the albedo check over every BSDF under test with a stated expectation.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let (samples, theta, rel_tol) = (p.samples, p.theta_max_deg, p.rel_tol);
+        let models = ctx.models()?;
+        let rel_tol = p.rel_tol.max(models.precision().rounding());
+        let (samples, theta) = (p.samples, p.theta_max_deg);
         let mut parts = Vec::new();
-        for (i, Named { name, model }) in ctx.models()?.bsdfs()?.iter().enumerate() {
+        for (i, Named { name, model }) in models.bsdfs()?.iter().enumerate() {
             if let Some(e) = catalogue::albedo_expectation(name, model.flags()) {
-                parts.push((
-                    name.clone(),
-                    measure(
-                        model.as_ref(),
-                        e,
-                        theta,
-                        samples,
-                        rel_tol,
-                        mix64(ctx.seed ^ i as u64),
-                    )?,
-                ));
+                let m = measure(
+                    model.as_ref(),
+                    e,
+                    theta,
+                    samples,
+                    rel_tol,
+                    mix64(ctx.seed ^ i as u64),
+                );
+                parts.push((name.clone(), m.unwrap_or_else(failed_part)));
             }
         }
         let mut m = combine(parts);

@@ -4,7 +4,7 @@
 //! One Pearson test per routine, Šidák-combined into the check's p-value.
 
 use crate::harness::keys::{common, model, Key, Keys};
-use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::measurement::{combine, failed_part, fmt_sig};
 use crate::harness::model::samplers::{samplers, DirectionSampler};
 use crate::harness::outcome::Statistic;
 use crate::harness::under_test::ModelError;
@@ -123,7 +123,8 @@ impl Kind for Chi2 {
                 p.samples,
                 p.bins,
                 mix64(ctx.seed ^ i as u64),
-            )?;
+            )
+            .unwrap_or_else(failed_part);
             parts.push((name, m));
         }
         Ok(combine(parts))

@@ -19,7 +19,7 @@ use crate::harness::under_test::{BsdfModel, ModelError, Named};
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::{rng::SampleStream, Vec3};
-use crate::stats::{normal_sf, z_test, ROUNDING};
+use crate::stats::{normal_sf, z_test};
 
 /// Measures energy conservation of each named model.
 pub fn measure(
@@ -28,6 +28,7 @@ pub fn measure(
     abs_tol: f64,
     samples: u64,
     seed: u64,
+    rounding: f64,
 ) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut quad_max = (0.0f64, String::from("no model resolved by the grid"));
@@ -35,37 +36,50 @@ pub fn measure(
     let mut rng = SampleStream::new(seed, 2, 0);
     let mut scanned = 0u64;
     let mut non_finite = 0u64;
+    let mut failed = Vec::new();
     for Named { name, model } in models {
         let b = model.as_ref();
-        for wo in outgoing(theta_max_deg) {
-            let at = |k: usize| {
-                format!(
-                    "{name} at θo = {:.2}°, λ = {} nm",
-                    wo.z.acos().to_degrees(),
-                    wl.lambda[k]
-                )
-            };
-            if quadrature_resolves(b, wo) {
-                let acc = power_albedo_quadrature(b, wo, 512, 64)?;
-                for (k, &v) in acc.iter().enumerate() {
-                    if v > quad_max.0 || v.is_nan() {
-                        quad_max = (v, at(k));
+        let mut one = || -> Result<(), ModelError> {
+            for wo in outgoing(theta_max_deg) {
+                let at = |k: usize| {
+                    format!(
+                        "{name} at θo = {:.2}°, λ = {} nm",
+                        wo.z.acos().to_degrees(),
+                        wl.lambda[k]
+                    )
+                };
+                if quadrature_resolves(b, wo) {
+                    let acc = power_albedo_quadrature(b, wo, 512, 64)?;
+                    for (k, &v) in acc.iter().enumerate() {
+                        if v > quad_max.0 || v.is_nan() {
+                            quad_max = (v, at(k));
+                        }
+                    }
+                }
+                let (mean, _, bad) = albedo_mc(b, wo, samples / 5, &mut rng)?;
+                scanned += samples / 5;
+                non_finite += bad;
+                for (k, &v) in mean.iter().enumerate() {
+                    if worst.as_ref().is_none_or(|w| v > w.0) {
+                        worst = Some((v, b, wo, k, at(k)));
                     }
                 }
             }
-            let (mean, _, bad) = albedo_mc(b, wo, samples / 5, &mut rng)?;
-            scanned += samples / 5;
-            non_finite += bad;
-            for (k, &v) in mean.iter().enumerate() {
-                if worst.as_ref().is_none_or(|w| v > w.0) {
-                    worst = Some((v, b, wo, k, at(k)));
-                }
-            }
+            Ok(())
+        };
+        if let Err(e) = one() {
+            failed.push(format!("{name}: could not be run: {e}"));
         }
     }
     let Some((_, b, wo, k, where_)) = worst else {
+        // nothing measured: no models, or none that could be run (then an ERROR)
         return Ok(Measurement {
-            message: "no models".into(),
+            p_value: (!failed.is_empty()).then_some(f64::NAN),
+            message: if failed.is_empty() {
+                "no models".into()
+            } else {
+                failed.join("; ")
+            },
             deterministic_pass: Some(true),
             ..Default::default()
         });
@@ -74,8 +88,8 @@ pub fn measure(
     non_finite += bad;
     let (mean, se) = (mean[k], se[k]);
     let t = z_test(mean, se, 1.0);
-    // One-sided: only an albedo above 1 (beyond f64 rounding) is a violation.
-    let excess = mean - 1.0 - ROUNDING;
+    // One-sided: only an albedo above 1 (beyond the model's rounding) is a violation.
+    let excess = mean - 1.0 - rounding;
     let p = if non_finite > 0 {
         0.0
     } else if se > 0.0 {
@@ -91,19 +105,21 @@ pub fn measure(
         std_error: Some(se),
         expected: Some(1.0),
         statistic: Some(Statistic::Tolerance { max_error: (a_max - 1.0).max(0.0), abs_tol, rel_tol: 0.0 }),
-        p_value: Some(p),
+        // a model that could not be run makes the check an ERROR, with its reason below
+        p_value: Some(if failed.is_empty() { p } else { f64::NAN }),
         deterministic_pass: Some(a_max <= 1.0 + abs_tol),
         unstable: None,
         variants: 1,
         one_sided: true,
         samples: samples + scanned,
         message: format!(
-            "largest albedo by quadrature {} ({}); largest Monte Carlo albedo at {where_}: {} ± {} (fresh {samples} samples, one-sided z {:.2} against 1); {non_finite} non-finite weights",
+            "largest albedo by quadrature {} ({}); largest Monte Carlo albedo at {where_}: {} ± {} (fresh {samples} samples, one-sided z {:.2} against 1 + {rounding:e}); {non_finite} non-finite weights{}",
             fmt_sig(a_max),
             quad_max.1,
             fmt_sig(mean),
             fmt_sig(se),
-            t.z
+            t.z,
+            failed.iter().map(|f| format!("; {f}")).collect::<String>()
         ),
     })
 }
@@ -144,12 +160,15 @@ impl Kind for Energy {
 
     /// Runs the energy check over every BSDF of the models under test.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let models = ctx.models()?;
+        let pr = models.precision();
         Ok(measure(
-            &ctx.models()?.bsdfs()?,
+            &models.bsdfs()?,
             p.theta_max_deg,
-            p.abs_tol,
+            p.abs_tol.max(pr.rounding()),
             p.samples,
             ctx.seed,
+            pr.rounding(),
         )?)
     }
 }

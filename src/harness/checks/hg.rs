@@ -5,8 +5,8 @@
 
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::kind::scope_rule;
-use crate::harness::measurement::combine;
-use crate::harness::model::phase::measure_phase;
+use crate::harness::measurement::{combine, failed_part};
+use crate::harness::model::phase::measure_phase_at;
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
 
 /// The name a Henyey–Greenstein phase function of asymmetry `g` is served under.
@@ -89,7 +89,9 @@ impl Kind for Hg {
 
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let [mu_bins, phi_bins] = p.bins;
-        let phases = ctx.models()?.phases()?;
+        let models = ctx.models()?;
+        let resolution = models.precision().mu_resolution();
+        let phases = models.phases()?;
         let mut parts = Vec::new();
         let mut missing = Vec::new();
         for (i, &g) in p.g.iter().enumerate() {
@@ -97,16 +99,16 @@ impl Kind for Hg {
                 missing.push(g);
                 continue;
             };
-            let m = measure_phase(
+            let m = measure_phase_at(
                 hg.model.as_ref(),
                 g,
                 p.abs_tol,
                 p.samples,
-                mu_bins,
-                phi_bins,
+                [mu_bins, phi_bins],
                 crate::math::rng::mix64(ctx.seed ^ i as u64),
-            )?;
-            parts.push((format!("g = {g}"), m));
+                resolution,
+            );
+            parts.push((format!("g = {g}"), m.unwrap_or_else(failed_part)));
         }
         let mut m = combine(parts);
         if !missing.is_empty() {

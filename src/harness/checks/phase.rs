@@ -5,8 +5,9 @@
 //! pairs (deterministic, relative tolerance).
 
 use crate::harness::keys::{common, model, Key, Keys};
-use crate::harness::measurement::combine;
-use crate::harness::model::phase::{measure_phase, reciprocity_error, PDF_REL_TOL};
+use crate::harness::measurement::{combine, failed_part};
+use crate::harness::model::phase::{measure_phase_at, reciprocity_error, PDF_REL_TOL};
+use crate::harness::under_test::ModelError;
 use crate::harness::under_test::Named;
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
@@ -51,30 +52,37 @@ impl Kind for PhaseKind {
 
     /// Runs the phase check over the catalogue.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let [mu_bins, phi_bins] = p.bins;
-        let rel_tol = p.rel_tol;
+        let models = ctx.models()?;
+        let pr = models.precision();
+        let rel_tol = p.rel_tol.max(pr.min_rel_tol());
+        let pdf_tol = PDF_REL_TOL.max(pr.min_rel_tol());
         let mut parts = Vec::new();
-        for (i, Named { name, model }) in ctx.models()?.phases()?.into_iter().enumerate() {
+        for (i, Named { name, model }) in models.phases()?.into_iter().enumerate() {
             let seed = crate::math::rng::mix64(ctx.seed ^ (0x9e37 + i as u64));
-            let (rec, pdf_err) = reciprocity_error(model.as_ref(), 1000, seed)?;
-            let ok = rec <= rel_tol && pdf_err <= PDF_REL_TOL;
-            let mut m = match model.mean_cosine() {
-                Some(g) => measure_phase(
-                    model.as_ref(),
-                    g,
-                    p.abs_tol,
-                    p.samples,
-                    mu_bins,
-                    phi_bins,
-                    seed,
-                )?,
-                None => Measurement {
-                    message: "no stated mean cosine: normalisation and sampling not tested".into(),
-                    ..Default::default()
-                },
+            let one = || -> Result<Measurement, ModelError> {
+                let (rec, pdf_err) = reciprocity_error(model.as_ref(), 1000, seed)?;
+                let ok = rec <= rel_tol && pdf_err <= pdf_tol;
+                let mut m = match model.mean_cosine() {
+                    Some(g) => measure_phase_at(
+                        model.as_ref(),
+                        g,
+                        p.abs_tol,
+                        p.samples,
+                        p.bins,
+                        seed,
+                        pr.mu_resolution(),
+                    )?,
+                    None => Measurement {
+                        message: "no stated mean cosine: normalisation and sampling not tested"
+                            .into(),
+                        ..Default::default()
+                    },
+                };
+                m.deterministic_pass = Some(m.deterministic_pass.unwrap_or(true) && ok);
+                m.message = format!("{name}: {}; reciprocity to {rec:.1e} (rel_tol {rel_tol:.0e}), sampled pdf = pdf to {pdf_err:.1e} (tolerance {pdf_tol:.0e})", m.message);
+                Ok(m)
             };
-            m.deterministic_pass = Some(m.deterministic_pass.unwrap_or(true) && ok);
-            m.message = format!("{name}: {}; reciprocity to {rec:.1e} (rel_tol {rel_tol:.0e}), sampled pdf = pdf to {pdf_err:.1e} (tolerance {PDF_REL_TOL:.0e})", m.message);
+            let m = one().unwrap_or_else(failed_part);
             parts.push((name, m));
         }
         Ok(combine(parts))

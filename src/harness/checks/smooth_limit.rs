@@ -7,7 +7,7 @@
 
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::kind::scope_rule;
-use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::measurement::{combine, failed_part, fmt_sig};
 use crate::harness::model::albedo::power_factors;
 use crate::harness::model::catalogue;
 use crate::harness::outcome::Statistic;
@@ -184,7 +184,8 @@ impl Kind for SmoothLimit {
                     p.samples,
                     p.rel_tol,
                     mix64(ctx.seed ^ i as u64),
-                )?,
+                )
+                .unwrap_or_else(failed_part),
             ));
         }
         Ok(combine(parts))

@@ -4,13 +4,13 @@
 //! cannot see a wrong eval or a wrong weight.
 
 use crate::harness::keys::{common, model, Key, Keys};
-use crate::harness::measurement::{combine, fmt_sig};
+use crate::harness::measurement::{combine, failed_part, fmt_sig};
 use crate::harness::model::albedo::{albedo_quadrature, quadrature_resolves};
 use crate::harness::model::catalogue;
 use crate::harness::model::directions::direction;
 use crate::harness::model::phase::PDF_REL_TOL;
 use crate::harness::outcome::Statistic;
-use crate::harness::under_test::{BsdfModel, ModelError, Named, PhaseModel};
+use crate::harness::under_test::{BsdfModel, ModelError, Named, PhaseModel, Precision};
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::io::LocatedError;
 use crate::math::rng::{mix64, SampleStream};
@@ -34,6 +34,7 @@ pub fn measure_bsdf(
     theta_max_deg: f64,
     rel_tol: f64,
     seed: u64,
+    rounding: f64,
 ) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut rng = SampleStream::new(seed, 4, 0);
@@ -97,7 +98,7 @@ pub fn measure_bsdf(
         let Some(albedo) = albedo else {
             continue;
         };
-        let (z, p) = z_with_tolerance(mv.mean(), mv.std_error(), albedo, 0.0);
+        let (z, p) = z_with_tolerance(mv.mean(), mv.std_error(), albedo, rounding);
         parts.push((
             format!("θo {:.1}°", wo.z.acos().to_degrees()),
             Measurement {
@@ -188,34 +189,40 @@ impl Kind for SampleWeights {
 
     /// Runs the sample-weight check over every registered BSDF and a set of HG phase functions.
     fn run(_: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let (samples, rel_tol, theta) = (p.samples, p.rel_tol, p.theta_max_deg);
-        let mut parts = Vec::new();
         let models = ctx.models()?;
+        let pr = models.precision();
+        let (samples, theta) = (p.samples, p.theta_max_deg);
+        let rel_tol = p.rel_tol.max(pr.min_rel_tol());
+        // f64 models: the z test of the mean weight allows no model tolerance (0); f32 ones
+        // their rounding
+        let rounding = if pr == Precision::F64 {
+            0.0
+        } else {
+            pr.rounding()
+        };
+        let mut parts = Vec::new();
         for (i, Named { name, model }) in models.bsdfs()?.iter().enumerate() {
-            parts.push((
-                format!("bsdf {name}"),
-                measure_bsdf(
-                    model.as_ref(),
-                    samples,
-                    theta,
-                    rel_tol,
-                    mix64(ctx.seed ^ i as u64),
-                )?,
-            ));
+            let m = measure_bsdf(
+                model.as_ref(),
+                samples,
+                theta,
+                rel_tol,
+                mix64(ctx.seed ^ i as u64),
+                rounding,
+            );
+            parts.push((format!("bsdf {name}"), m.unwrap_or_else(failed_part)));
         }
         // A phase sample's pdf comes from its scattering cosine, pdf(wo, wi) from the direction
         // vector: near |g| = 1 their rounding differs by up to PDF_REL_TOL (the phase kind's).
         let phase_tol = rel_tol.max(PDF_REL_TOL);
         for (i, Named { name, model }) in models.phases()?.iter().enumerate() {
-            parts.push((
-                format!("phase {name}"),
-                measure_phase(
-                    model.as_ref(),
-                    samples,
-                    phase_tol,
-                    mix64(ctx.seed ^ (100 + i) as u64),
-                )?,
-            ));
+            let m = measure_phase(
+                model.as_ref(),
+                samples,
+                phase_tol,
+                mix64(ctx.seed ^ (100 + i) as u64),
+            );
+            parts.push((format!("phase {name}"), m.unwrap_or_else(failed_part)));
         }
         Ok(combine(parts))
     }

@@ -5,7 +5,7 @@
 use super::protocol::{self, preview, read_message, write_message, Message, Op};
 use crate::harness::under_test::{
     BsdfFlags, BsdfModel, EmitterModel, EmitterSample, ModelError, ModelSource, Named, PhaseModel,
-    ServerCommand,
+    Precision, ServerCommand,
 };
 use crate::math::Vec3;
 use crate::media::PhaseSample;
@@ -132,6 +132,7 @@ impl Drop for Connection {
 pub struct RemoteModels {
     conn: Arc<Mutex<Connection>>,
     describe: String,
+    precision: Precision,
     bsdfs: Vec<Named<dyn BsdfModel>>,
     phases: Vec<Named<dyn PhaseModel>>,
     emitters: Vec<Named<dyn EmitterModel>>,
@@ -240,10 +241,15 @@ impl RemoteModels {
             h.get("version").and_then(Value::as_str).unwrap_or("?"),
             cmd.argv.join(" ")
         );
+        let precision = match h.get("precision").and_then(Value::as_str) {
+            Some("float32") => Precision::F32,
+            _ => Precision::F64,
+        };
         let conn = Arc::new(Mutex::new(conn));
         let mut out = RemoteModels {
             conn: Arc::clone(&conn),
             describe,
+            precision,
             bsdfs: Vec::new(),
             phases: Vec::new(),
             emitters: Vec::new(),
@@ -314,6 +320,9 @@ impl RemoteModels {
 impl ModelSource for RemoteModels {
     fn describe(&self) -> String {
         self.describe.clone()
+    }
+    fn precision(&self) -> Precision {
+        self.precision
     }
     fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError> {
         self.dead()?;
@@ -388,8 +397,9 @@ impl Remote {
             for (i, row) in reply.payload.chunks_exact(op.reply).enumerate() {
                 let empty = flags_col.is_some_and(|c| row[c] == 0.0);
                 if !empty && row.iter().any(|v| v.is_nan()) {
-                    return Err(conn.fail(format!(
-                        "{} on {:?}: NaN in reply row {} ({row:?})",
+                    // the model's answer, not a broken connection: the server stays up
+                    return Err(ModelError(format!(
+                        "model server answered NaN to {} on {:?} (reply row {}: {row:?})",
                         op.name,
                         self.name,
                         out.len() / op.reply + i

@@ -94,6 +94,22 @@ pub fn measure_phase(
     phi_bins: usize,
     seed: u64,
 ) -> Result<Measurement, ModelError> {
+    measure_phase_at(phase, g, abs_tol, samples, [mu_bins, phi_bins], seed, 0.0)
+}
+
+/// [`measure_phase`] of a model whose directions resolve the scattering cosine μ only to
+/// `resolution` near ±1 (its arithmetic: [`crate::harness::under_test::Precision::mu_resolution`]):
+/// no μ bin is made narrower than that, so that rounding that piles samples onto μ = ±1 is not
+/// taken for a wrong distribution.
+pub fn measure_phase_at(
+    phase: &dyn PhaseModel,
+    g: f64,
+    abs_tol: f64,
+    samples: u64,
+    [mu_bins, phi_bins]: [usize; 2],
+    seed: u64,
+    resolution: f64,
+) -> Result<Measurement, ModelError> {
     let edges = graded_edges();
     // ∫p dω, ∫μ p dω and the cumulative table on the graded grid, from one batch of p(μ)
     let (norm, mean_cos, second, cum) = with_p_of_mu(phase, |p| {
@@ -118,7 +134,7 @@ pub fn measure_phase(
             .clamp(1, edges.len() - 1);
         let t = (target - cum[i - 1]) / (cum[i] - cum[i - 1]).max(f64::MIN_POSITIVE);
         let e = edges[i - 1] + t.clamp(0.0, 1.0) * (edges[i] - edges[i - 1]);
-        if e > *bin_edges.last().unwrap_or(&-1.0) {
+        if e > *bin_edges.last().unwrap_or(&-1.0) + resolution && e < 1.0 - resolution {
             bin_edges.push(e);
         }
     }

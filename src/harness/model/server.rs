@@ -80,7 +80,8 @@ pub fn hello(source: &dyn ModelSource, renderer: &str, fault: Fault) -> Result<V
     };
     Ok(json!({
         "ok": true, "protocol": version, "renderer": renderer,
-        "version": env!("CARGO_PKG_VERSION"), "models": models,
+        "version": env!("CARGO_PKG_VERSION"), "precision": source.precision().name(),
+        "models": models,
     }))
 }
 
