@@ -35,6 +35,7 @@ fn cornell_frame(c: &mut Criterion) {
         observer: Default::default(),
         sampler: Default::default(),
         spectral: Default::default(),
+        deadline: None,
     };
     let mut g = c.benchmark_group("cornell_frame");
     g.sample_size(20);

@@ -12,7 +12,7 @@ use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::{Observer, SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Tile edge, pixels.
 pub const TILE: usize = 16;
@@ -38,6 +38,9 @@ pub struct RenderSettings {
     pub sampler: Sampler,
     /// Wavelength handling.
     pub spectral: SpectralSampling,
+    /// Stop with [`RenderError::OutOfTime`] once this instant has passed (checked per pixel,
+    /// and per 1024 light paths).
+    pub deadline: Option<std::time::Instant>,
 }
 
 /// How wavelengths are handled (both choices are unbiased; they trade time and variance).
@@ -69,6 +72,16 @@ pub enum RenderError {
     /// The settings do not fit the scene (e.g. image aspect vs film aspect).
     #[error("{0}")]
     Settings(String),
+    /// The render passed its deadline.
+    #[error("stopped at its time limit after {seconds:.1} s, {done} of {total} samples done")]
+    OutOfTime {
+        /// Wall time spent, seconds.
+        seconds: f64,
+        /// Samples (camera or light paths) finished.
+        done: u64,
+        /// Samples asked for.
+        total: u64,
+    },
     /// The thread pool could not be built.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {
@@ -195,6 +208,9 @@ pub fn render(
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
         .collect();
     let done = AtomicU64::new(0);
+    let truncated = AtomicU64::new(0);
+    let out_of_time = AtomicBool::new(false);
+    let start = std::time::Instant::now();
     let work = || {
         tiles
             .par_iter()
@@ -202,9 +218,19 @@ pub fn render(
                 let (x0, y0) = (tx * TILE, ty * TILE);
                 let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
                 let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0));
+                let mut cut = 0;
                 for y in y0..y1 {
                     for x in x0..x1 {
                         let mut px = crate::film::Pixel::default();
+                        if out_of_time.load(Ordering::Relaxed)
+                            || settings
+                                .deadline
+                                .is_some_and(|d| std::time::Instant::now() >= d)
+                        {
+                            out_of_time.store(true, Ordering::Relaxed);
+                            pixels.push(px);
+                            continue;
+                        }
                         let pixel_index = (y * w + x) as u64;
                         for s in 0..settings.spp {
                             let mut rng = SampleStream::with_sampler(
@@ -218,13 +244,16 @@ pub fn render(
                             let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
                             let [jx, jy] = rng.next_2d();
                             let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                            let l = settings.integrator.radiance(scene, ray, &mut wl, &mut rng);
+                            let (l, was_cut) =
+                                settings.integrator.trace(scene, ray, &mut wl, &mut rng);
+                            cut += u64::from(was_cut);
                             let xyz = response.xyz(&l, &wl);
                             px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
                         pixels.push(px);
                     }
                 }
+                truncated.fetch_add(cut, Ordering::Relaxed);
                 let n = done.fetch_add(pixels.len() as u64 * settings.spp, Ordering::Relaxed)
                     + pixels.len() as u64 * settings.spp;
                 progress(n);
@@ -233,7 +262,16 @@ pub fn render(
             .collect::<Vec<_>>()
     };
     let results = in_pool(settings.threads, work)?;
+    if out_of_time.load(Ordering::Relaxed) {
+        let per_pixel = |p: &crate::film::Pixel| p.channels[0].count();
+        return Err(RenderError::OutOfTime {
+            seconds: start.elapsed().as_secs_f64(),
+            done: results.iter().flat_map(|r| &r.2).map(per_pixel).sum(),
+            total: (w * h) as u64 * settings.spp,
+        });
+    }
     let mut film = Film::new(w, h);
+    film.truncated_paths = truncated.load(Ordering::Relaxed);
     for (tx, ty, pixels) in results {
         let (x0, y0) = (tx * TILE, ty * TILE);
         let tw = (x0 + TILE).min(w) - x0;

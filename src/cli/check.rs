@@ -7,11 +7,15 @@ use furnace::harness::adapter::{self, RendererDesc};
 use furnace::harness::model::client::{RemoteModels, Unavailable};
 use furnace::harness::model::local::LocalModels;
 use furnace::harness::outcome::{Outcome, Verdict};
+use furnace::harness::runner::Progress;
 use furnace::harness::{self, manifest, BuiltIn, Correction, ModelSource, RunOptions};
 use furnace::report::{html, json, junit, text};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 #[derive(Debug, Args)]
 pub struct CheckArgs {
@@ -29,6 +33,18 @@ pub struct CheckArgs {
     /// Multiple-testing correction: sidak or holm.
     #[arg(long, default_value = "sidak", value_parser = ["sidak", "holm"])]
     correction: String,
+    /// Output: text (a line per check as it ends, then a summary) or json (one JSON object per line: each check's outcome as it ends, then a summary).
+    #[arg(long, default_value = "text", value_parser = ["text", "json"])]
+    format: String,
+    /// Print no per-check lines and no progress bar, only errors (the exit code still tells).
+    #[arg(short, long)]
+    quiet: bool,
+    /// Exit 0 when the manifests or --filter select no check (by default that is an error).
+    #[arg(long)]
+    allow_empty: bool,
+    /// Wall-time limit of each check without its own `time_limit`, seconds: a check that reaches it ends as ERROR, saying how far it got.
+    #[arg(long, default_value_t = harness::context::DEFAULT_TIME_LIMIT)]
+    time_limit: f64,
     /// Render threads; 0 uses every core (results are identical for any count).
     #[arg(long, default_value_t = 0)]
     threads: usize,
@@ -54,6 +70,11 @@ pub struct CheckArgs {
 
 /// Runs `furnace check`; returns the exit code.
 pub fn run(a: CheckArgs) -> Result<i32, Failure> {
+    if !(a.time_limit > 0.0 && a.time_limit <= 1e6) {
+        return Err(
+            anyhow::anyhow!("--time-limit {} must be seconds in (0, 1e6]", a.time_limit).into(),
+        );
+    }
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
     }
@@ -90,6 +111,16 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         specs = keep;
         skipped = drop;
     }
+    if specs.is_empty() && !a.allow_empty {
+        return Err(anyhow::anyhow!(
+            "no checks to run: {} (a suite that runs nothing passes nothing; give --allow-empty if that is what you want)",
+            match &a.filter {
+                Some(g) => format!("--filter {g:?} matches none of the {} checks", skipped.len()),
+                None => "the manifests define no checks".into(),
+            }
+        )
+        .into());
+    }
     let opts = RunOptions {
         seed: a.seed,
         family_alpha: a.alpha,
@@ -99,6 +130,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             Correction::Sidak
         },
         threads: a.threads,
+        time_limit: a.time_limit,
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     let externals = if a.renderers.iter().any(|r| r != "furnace") {
@@ -144,30 +176,56 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     let mut o = Outcome::new(&s.name, s.kind_name());
                     o.verdict = Verdict::Skipped;
                     o.message = format!("renderer {label} is not available: {why}");
+                    if !a.quiet {
+                        emit(&ProgressBar::hidden(), &a.format, label, &o);
+                    }
                     r.outcomes.push(o);
                 }
                 r
             }
             None => {
-                let bar = ProgressBar::new(specs.len() as u64);
+                // With a terminal: a progress bar with an ETA, the lines printed above it as
+                // checks end. Without one (CI): each line as its check ends. Under Holm's
+                // correction verdicts settle only at the end, so the lines wait for it.
+                let tty = std::io::stdout().is_terminal() && !a.quiet && a.format == "text";
+                let bar = if tty {
+                    ProgressBar::new(specs.len() as u64)
+                } else {
+                    ProgressBar::hidden()
+                };
                 bar.set_style(
-                    ProgressStyle::with_template("{spinner} [{pos}/{len}] {msg}")
+                    ProgressStyle::with_template("{spinner} [{pos}/{len}] eta {eta} {msg}")
                         .context("progress bar template")?,
                 );
-                let r = harness::run_with(&specs, &opts, subject, names.clone(), &mut |name| {
-                    bar.inc(1);
-                    bar.set_message(format!("{label}: {name}"));
+                let streaming = opts.correction == Correction::Sidak;
+                if a.renderers.len() > 1 && a.format == "text" {
+                    bar.println(format!("== {}", subject.renderer.name()));
+                }
+                let running = Watchdog::start(label);
+                let r = harness::run_with(&specs, &opts, subject, names.clone(), &mut |event| {
+                    match event {
+                        Progress::Started(name) => {
+                            running.now(name);
+                            bar.set_message(format!("{label}: {name}"));
+                        }
+                        Progress::Finished(o) => {
+                            bar.inc(1);
+                            if streaming && !a.quiet {
+                                emit(&bar, &a.format, label, o);
+                            }
+                        }
+                    }
                 });
+                running.stop();
                 bar.finish_and_clear();
+                if !streaming && !a.quiet {
+                    for o in &r.outcomes {
+                        emit(&bar, &a.format, label, o);
+                    }
+                }
                 r
             }
         };
-        if a.renderers.len() > 1 {
-            println!("== {}", report.renderer);
-        }
-        for o in &report.outcomes {
-            println!("{}", text::line(o));
-        }
         // checks excluded by --filter are reported as skipped
         for s in &skipped {
             let mut o = Outcome::new(&s.name, s.kind_name());
@@ -175,7 +233,18 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             o.message = "not matching --filter".into();
             report.outcomes.push(o);
         }
-        println!("{}", text::summary(&report));
+        if a.format == "json" {
+            let summary = serde_json::json!({
+                "event": "summary", "renderer": report.renderer, "seed": report.seed,
+                "passed": report.outcomes.iter().filter(|o| o.verdict == Verdict::Pass).count(),
+                "failed": report.outcomes.iter().filter(|o| o.is_failure()).count(),
+                "skipped": report.outcomes.iter().filter(|o| o.verdict == Verdict::Skipped).count(),
+                "seconds": report.seconds,
+            });
+            println!("{summary}");
+        } else if !a.quiet {
+            println!("{}", text::summary(&report));
+        }
         reports.push(report);
     }
     // One JSON / JUnit / Markdown file per renderer: the first at the given path, the others
@@ -245,4 +314,61 @@ fn renderer_table(explicit: Option<&Path>) -> Result<BTreeMap<String, RendererDe
         None => adapter::parse_renderers(adapter::BUILT_IN, Path::new("(built-in renderers.toml)")),
     };
     Ok(table.map_err(|e| anyhow::anyhow!("invalid renderers file: {e}"))?)
+}
+
+/// Prints one finished check: its text line (above the progress bar) or its JSON object.
+fn emit(bar: &ProgressBar, format: &str, renderer: &str, o: &Outcome) {
+    if format == "json" {
+        let v = serde_json::json!({"event": "outcome", "renderer": renderer, "outcome": o});
+        bar.suspend(|| println!("{v}"));
+    } else if !bar.is_hidden() {
+        bar.println(text::line(o));
+    } else {
+        println!("{}", text::line(o));
+    }
+}
+
+/// Notes on stderr, at most once a minute, which check has been running for over a minute, so
+/// that a slow or stuck check is named while it runs.
+struct Watchdog {
+    state: Arc<Mutex<Option<(String, Instant)>>>,
+    stop: Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl Watchdog {
+    fn start(renderer: &str) -> Watchdog {
+        let state: Arc<Mutex<Option<(String, Instant)>>> = Arc::new(Mutex::new(None));
+        let stop = Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let (s, halt, renderer) = (Arc::clone(&state), Arc::clone(&stop), renderer.to_string());
+        std::thread::spawn(move || {
+            let mut last_note = Instant::now();
+            while !halt.load(std::sync::atomic::Ordering::Relaxed) {
+                std::thread::sleep(Duration::from_millis(250));
+                let current = s.lock().ok().and_then(|g| g.clone());
+                if let Some((name, since)) = current {
+                    let running = since.elapsed();
+                    if running > Duration::from_secs(60)
+                        && last_note.elapsed() > Duration::from_secs(60)
+                    {
+                        eprintln!(
+                            "{renderer}: {name} still running after {:.0} s",
+                            running.as_secs_f64()
+                        );
+                        last_note = Instant::now();
+                    }
+                }
+            }
+        });
+        Watchdog { state, stop }
+    }
+
+    fn now(&self, check: &str) {
+        if let Ok(mut g) = self.state.lock() {
+            *g = Some((check.to_string(), Instant::now()));
+        }
+    }
+
+    fn stop(&self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
 }

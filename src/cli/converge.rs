@@ -52,6 +52,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
             let ctx = harness::Context {
                 renderer: &BuiltIn,
                 models: None,
+                deadline: None,
                 seed: harness::check_seed(check.seed, &check.name, a.seed),
                 threads: a.threads,
                 alpha: 0.01,

@@ -116,6 +116,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             grey_mode: !a.no_grey_mode,
             wavelengths: a.wavelengths as usize,
         },
+        deadline: None,
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
@@ -211,6 +212,13 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     if bad > 0 {
         eprintln!("warning: {bad} pixels hold NaN or Inf");
     }
+    if film.truncated_paths > 0 {
+        eprintln!(
+            "warning: {} paths reached the path-length guard ({} events) and were cut: the scene does not let paths end (a lossless enclosure or medium), so the image is biased low",
+            film.truncated_paths,
+            furnace::integrators::MAX_PATH_EVENTS
+        );
+    }
     if light {
         println!(
             "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
@@ -240,5 +248,9 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
         1.0 / (rel_var * secs)
     );
-    Ok(if bad > 0 { 1 } else { 0 })
+    Ok(if bad > 0 || film.truncated_paths > 0 {
+        1
+    } else {
+        0
+    })
 }

@@ -37,6 +37,9 @@ pub struct Film {
     pub height: usize,
     /// Pixels, row-major.
     pub pixels: Vec<Pixel>,
+    /// Paths cut by the path-length guard (`integrators::MAX_PATH_EVENTS`): 0 for a scene
+    /// whose paths end; any other count means the estimate is biased low.
+    pub truncated_paths: u64,
 }
 
 impl Film {
@@ -46,6 +49,7 @@ impl Film {
             width,
             height,
             pixels: vec![Pixel::default(); width * height],
+            truncated_paths: 0,
         }
     }
 

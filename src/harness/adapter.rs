@@ -490,7 +490,12 @@ impl External {
                 })
             };
             let argv = self.expand(command, &value);
-            let run = run_bounded(self.command(&argv), self.timeout())
+            // the table's time limit, or what is left of the check's, whichever is shorter
+            let left = s
+                .deadline
+                .map(|d| d.saturating_duration_since(Instant::now()));
+            let limit = left.map_or(self.timeout(), |l| l.min(self.timeout()));
+            let run = run_bounded(self.command(&argv), limit)
                 .map_err(|e| format!("{}: {e}", self.label))?;
             if !run.success {
                 return Err(format!(

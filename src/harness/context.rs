@@ -36,7 +36,13 @@ pub struct RunOptions {
     pub correction: Correction,
     /// Render threads (0 = all cores).
     pub threads: usize,
+    /// Wall-time limit of a check without its own `time_limit`, seconds.
+    pub time_limit: f64,
 }
+
+/// The default wall-time limit of one check, seconds: 20× the longest check of the default
+/// suite on the 2-core CI machine (about 30 s), so only a check that cannot end meets it.
+pub const DEFAULT_TIME_LIMIT: f64 = 600.0;
 
 impl Default for RunOptions {
     fn default() -> Self {
@@ -45,6 +51,7 @@ impl Default for RunOptions {
             family_alpha: 0.01,
             correction: Correction::Sidak,
             threads: 0,
+            time_limit: DEFAULT_TIME_LIMIT,
         }
     }
 }
@@ -61,6 +68,8 @@ pub struct Context<'a> {
     pub threads: usize,
     /// Per-test significance (Šidák level), for power and diagnostics.
     pub alpha: f64,
+    /// When the check's time limit runs out (renders stop there with an error).
+    pub deadline: Option<std::time::Instant>,
 }
 
 impl Context<'_> {

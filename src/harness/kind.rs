@@ -173,6 +173,8 @@ pub struct Check {
     pub params: Arc<dyn Any + Send + Sync>,
     /// Where the check is defined, for messages: `file:line`.
     pub origin: String,
+    /// Its own wall-time limit, seconds (None: the run's).
+    pub time_limit: Option<f64>,
 }
 
 impl Check {

@@ -153,6 +153,19 @@ fn expand_check(
         return Err(keys.error_at("rel_tolerance", format!("{rel_tolerance} is too large: a model tolerance of 10 % or more lets real bugs pass; allowed [0, 0.1)")));
     }
     let seed = keys.int("seed", 0, i64::MAX)?;
+    let time_limit = match keys.get::<f64>("time_limit")? {
+        None => None,
+        Some(t) if t.get_ref().is_finite() && *t.get_ref() > 0.0 && *t.get_ref() <= 1e6 => {
+            Some(*t.get_ref())
+        }
+        Some(t) => {
+            return Err(keys.error(
+                t.span(),
+                "time_limit",
+                format!("{} must be seconds in (0, 1e6]", t.get_ref()),
+            ))
+        }
+    };
     let models = keys
         .get::<Vec<String>>("models")?
         .map(|m| m.into_inner())
@@ -179,6 +192,7 @@ fn expand_check(
         models,
         params,
         origin: format!("{}:{line}", src.path.display()),
+        time_limit,
     };
     let Some(scene) = keys.raw("scene") else {
         return Ok(vec![base_check]);

@@ -60,6 +60,7 @@ pub fn settings_for(
         observer: Default::default(),
         sampler: Default::default(),
         spectral: Default::default(),
+        deadline: ctx.deadline,
     }
 }
 

@@ -65,7 +65,12 @@ impl Renderer for BuiltIn {
         format!("furnace {}", env!("CARGO_PKG_VERSION"))
     }
     fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, RendererError> {
-        render(scene, settings, &|_| {}).map_err(|e| RendererError(e.to_string()))
+        let film = render(scene, settings, &|_| {}).map_err(|e| RendererError(e.to_string()))?;
+        guarded(
+            film.truncated_paths,
+            (film.width * film.height) as u64 * settings.spp,
+        )?;
+        Ok(film)
     }
     fn render_light_paths(
         &self,
@@ -80,7 +85,21 @@ impl Renderer for BuiltIn {
             width: settings.width,
             height: settings.height,
         };
-        trace_light_image(scene, settings, n_paths, regions, &sensor, &|_| {})
-            .map_err(|e| RendererError(e.to_string()))
+        let image = trace_light_image(scene, settings, n_paths, regions, &sensor, &|_| {})
+            .map_err(|e| RendererError(e.to_string()))?;
+        guarded(image.film.truncated_paths, n_paths)?;
+        Ok(image)
     }
+}
+
+/// An error when the path-length guard cut any of `total` paths: the estimate is biased, and
+/// the scene (or the renderer) does not let paths end.
+fn guarded(cut: u64, total: u64) -> Result<(), RendererError> {
+    if cut == 0 {
+        return Ok(());
+    }
+    Err(RendererError(format!(
+        "{cut} of {total} paths reached the path-length guard ({} events) and were cut: paths that do not end (a lossless enclosure or medium, a roulette that never stops) make the estimate biased",
+        crate::integrators::MAX_PATH_EVENTS
+    )))
 }

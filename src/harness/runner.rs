@@ -26,14 +26,58 @@ pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
     }
 }
 
+/// What the runner reports while it runs.
+#[derive(Debug, Clone, Copy)]
+pub enum Progress<'a> {
+    /// A check starts.
+    Started(&'a str),
+    /// A check ended, with its verdict (final under Šidák; under Holm's step-down the
+    /// verdicts of stochastic checks are settled only when all have run, and this is the
+    /// outcome before them).
+    Finished(&'a Outcome),
+}
+
+/// Sets `o`'s threshold, detection power and verdict from its measurement, given whether
+/// the correction rejected its p-value at `threshold`.
+fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
+    let mut pass = ms.deterministic_pass.unwrap_or(true);
+    if let Some((rejected, threshold)) = test {
+        o.alpha = Some(threshold);
+        pass &= !rejected;
+    }
+    // Detection power at the level this test actually ran at: the corrected threshold,
+    // split over the sub-tests folded into the p-value, one- or two-sided, plus the
+    // stated model tolerance.
+    if let (Some(se), Some(exp), Some(thr)) = (ms.std_error, ms.expected, o.alpha) {
+        if exp != 0.0 {
+            let k = ms.variants.max(1) as f64;
+            // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
+            let per = -((-thr).ln_1p() / k).exp_m1();
+            let level = if ms.one_sided { 2.0 * per } else { per };
+            o.detection_power =
+                Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
+        }
+    }
+    o.verdict = if ms.unstable.is_some() {
+        if !o.message.starts_with(ms.unstable.as_deref().unwrap_or("")) {
+            o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
+        }
+        Verdict::Unstable
+    } else if pass {
+        Verdict::Pass
+    } else {
+        Verdict::Fail
+    };
+}
+
 /// Runs `checks` against `renderer` and, for furnace's own renderer, its models in process;
-/// `progress` sees each check's name as it starts.
+/// `progress` sees each check start and end.
 pub fn run(
     checks: &[Check],
     opts: &RunOptions,
     renderer: &dyn Renderer,
     manifests: Vec<String>,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(Progress),
 ) -> RunReport {
     let local = LocalModels;
     let models: Option<&dyn ModelSource> = renderer.is_reference().then_some(&local as _);
@@ -52,7 +96,7 @@ pub fn run_with(
     opts: &RunOptions,
     subject: Subject,
     manifests: Vec<String>,
-    progress: &mut dyn FnMut(&str),
+    progress: &mut dyn FnMut(Progress),
 ) -> RunReport {
     let renderer = subject.renderer;
     let start = Instant::now();
@@ -66,11 +110,12 @@ pub fn run_with(
     let mut outcomes = Vec::new();
     let mut measured = Vec::new();
     for check in checks {
-        progress(&check.name);
+        progress(Progress::Started(&check.name));
         if let Some(why) = check.kind.not_applicable(check, &subject) {
             let mut o = Outcome::new(&check.name, check.kind_name());
             o.verdict = Verdict::Skipped;
             o.message = why;
+            progress(Progress::Finished(&o));
             outcomes.push(o);
             measured.push(None);
             continue;
@@ -79,7 +124,9 @@ pub fn run_with(
             inner,
             globs: &check.models,
         });
+        let limit = check.time_limit.unwrap_or(opts.time_limit);
         let ctx = Context {
+            deadline: Some(Instant::now() + std::time::Duration::from_secs_f64(limit)),
             renderer,
             models: match &filtered {
                 Some(f) if !check.models.is_empty() => Some(f as &dyn ModelSource),
@@ -121,10 +168,14 @@ pub fn run_with(
                     );
                     measured.push(None);
                 } else {
+                    if let (Correction::Sidak, p) = (opts.correction, ms.p_value) {
+                        settle(&mut o, &ms, p.map(|p| (p <= alpha, alpha)));
+                    }
                     measured.push(Some(ms));
                 }
             }
         }
+        progress(Progress::Finished(&o));
         outcomes.push(o);
     }
     // Verdicts: the deterministic part, then the stochastic part under the correction.
@@ -140,40 +191,15 @@ pub fn run_with(
         )),
         Correction::Sidak => None,
     };
-    for (i, ms) in measured.iter().enumerate() {
-        let Some(ms) = ms else { continue };
-        let o = &mut outcomes[i];
-        let mut pass = ms.deterministic_pass.unwrap_or(true);
-        if let Some(p) = ms.p_value {
-            let k = p_values.iter().position(|x| x.0 == i).unwrap_or(0);
-            let (rejected, threshold) = match &holm {
-                Some(h) => h.get(k).copied().unwrap_or((p <= alpha, alpha)),
-                None => (p <= alpha, alpha),
-            };
-            o.alpha = Some(threshold);
-            pass &= !rejected;
+    if let Some(h) = &holm {
+        for (i, ms) in measured.iter().enumerate() {
+            let Some(ms) = ms else { continue };
+            let test = ms.p_value.map(|p| {
+                let k = p_values.iter().position(|x| x.0 == i).unwrap_or(0);
+                h.get(k).copied().unwrap_or((p <= alpha, alpha))
+            });
+            settle(&mut outcomes[i], ms, test);
         }
-        // Detection power at the level this test actually ran at: the corrected threshold,
-        // split over the sub-tests folded into the p-value, one- or two-sided, plus the
-        // stated model tolerance.
-        if let (Some(se), Some(exp), Some(thr)) = (ms.std_error, ms.expected, o.alpha) {
-            if exp != 0.0 {
-                let k = ms.variants.max(1) as f64;
-                // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
-                let per = -((-thr).ln_1p() / k).exp_m1();
-                let level = if ms.one_sided { 2.0 * per } else { per };
-                o.detection_power =
-                    Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
-            }
-        }
-        o.verdict = if ms.unstable.is_some() {
-            o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
-            Verdict::Unstable
-        } else if pass {
-            Verdict::Pass
-        } else {
-            Verdict::Fail
-        };
     }
     RunReport {
         furnace_version: env!("CARGO_PKG_VERSION").to_string(),

@@ -120,7 +120,8 @@ impl LightTracer {
     /// (unordered; several may land in one pixel). Environment light enters through the disk
     /// of the scene's bounding sphere facing its direction ([`Light::sample_emission`]); the
     /// camera seeing the environment directly (like a specular surface seen by the camera)
-    /// has no light-tracing estimate.
+    /// has no light-tracing estimate. True when the path-length guard
+    /// ([`super::MAX_PATH_EVENTS`]) cut the path.
     pub fn trace(
         &self,
         scene: &Scene,
@@ -128,7 +129,7 @@ impl LightTracer {
         wl: &mut Wavelengths,
         rng: &mut SampleStream,
         splats: &mut Vec<Splat>,
-    ) {
+    ) -> bool {
         let shapes = scene.aggregate.shapes();
         let n_lights = scene.lights.len() as f64;
         let select_pdf = 1.0 / n_lights;
@@ -142,10 +143,10 @@ impl LightTracer {
         let bounds = scene.aggregate.bounding_sphere();
         let Some(es) = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, bounds, wl)
         else {
-            return;
+            return false;
         };
         if es.emitted.is_black() {
-            return;
+            return false;
         }
 
         // Depth 0: the emitter point seen directly, c₀ = L_e/(p_sel p_A)·|cos θ_x₀|·W_e cos θ_e/d².
@@ -175,7 +176,7 @@ impl LightTracer {
             }
         }
         if self.max_depth == Some(0) {
-            return;
+            return false;
         }
 
         // The particle's power weight P = L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7, s = 1).
@@ -192,6 +193,9 @@ impl LightTracer {
         // Index of the vertex the ray is about to reach = bounces its camera connection counts.
         let mut k: u32 = 1;
         while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
+            if k > super::MAX_PATH_EVENTS {
+                return true;
+            }
             let sp = hit.point;
             let bsdf = &scene.bsdfs[hit.shape as usize];
             let frame = Frame::from_normal(sp.n);
@@ -246,5 +250,6 @@ impl LightTracer {
             }
             k += 1;
         }
+        false
     }
 }

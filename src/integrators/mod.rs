@@ -10,6 +10,12 @@ pub use path::{power_heuristic, shadow_transmittance, PathTracer, Strategy};
 
 use crate::spectrum::SampledSpectrum;
 
+/// The path-length guard: events (surface hits, boundary crossings, medium scatterings) after
+/// which a path is cut and counted as cut. A correct scene never comes near it (a furnace of
+/// albedo 0.999 reaches it with probability 0.999^100000 ≈ e^-100); a path that would not end
+/// (a lossless enclosure or medium, a roulette that never stops) does, and the render says so.
+pub const MAX_PATH_EVENTS: u32 = 100_000;
+
 /// Unbiased Russian roulette (Arvo & Kirk 1990, "Particle transport and image synthesis",
 /// SIGGRAPH) with survival probability q = min(1, max β), never capped below 1, so the
 /// estimator keeps finite variance at albedo near 1. With uniform `u`, returns false when the

@@ -195,6 +195,18 @@ impl PathTracer {
         wl: &mut Wavelengths,
         rng: &mut SampleStream,
     ) -> SampledSpectrum {
+        self.trace(scene, camera_ray, wl, rng).0
+    }
+
+    /// [`PathTracer::radiance`] and whether the path was cut by the path-length guard
+    /// ([`super::MAX_PATH_EVENTS`]).
+    pub fn trace(
+        &self,
+        scene: &Scene,
+        camera_ray: Ray,
+        wl: &mut Wavelengths,
+        rng: &mut SampleStream,
+    ) -> (SampledSpectrum, bool) {
         if scene.has_media() || self.force_media_code {
             self.radiance_variant::<true>(scene, camera_ray, wl, rng)
         } else {
@@ -211,7 +223,7 @@ impl PathTracer {
         camera_ray: Ray,
         wl: &mut Wavelengths,
         rng: &mut SampleStream,
-    ) -> SampledSpectrum {
+    ) -> (SampledSpectrum, bool) {
         let shapes = scene.aggregate.shapes();
         let n_lights = scene.lights.len() as f64;
         let select_pdf = 1.0 / n_lights;
@@ -229,7 +241,13 @@ impl PathTracer {
         let mut reflectance = ReflectanceCache::default();
         // The planar shape `ray` leaves, which it cannot meet again (see [`Skip`]).
         let mut leaving: Option<u32> = None;
+        let mut events: u32 = 0;
         loop {
+            // path-length guard: every surface, boundary or medium event counts
+            events += 1;
+            if events > super::MAX_PATH_EVENTS {
+                return (l, true);
+            }
             let hit =
                 scene
                     .aggregate
@@ -414,7 +432,7 @@ impl PathTracer {
                 break;
             }
         }
-        l
+        (l, false)
     }
 }
 

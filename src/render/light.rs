@@ -15,7 +15,7 @@ use crate::scene::Scene;
 use crate::spectrum::Wavelengths;
 use crate::stats::MeanVar;
 use rayon::prelude::*;
-use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Number of chunks the light paths are split into (fixed, so results do not depend on the
 /// thread count).
@@ -63,6 +63,8 @@ pub fn render_light_paths(
 /// Per-chunk accumulators: Σc and Σc² per pixel and channel, the same per region.
 struct ChunkSums {
     paths: u64,
+    /// Paths cut by the path-length guard.
+    cut: u64,
     /// [Σc (6 channels), Σc² (6 channels)] per pixel.
     pixels: Vec<[f64; 12]>,
     /// The same for the per-path region sums.
@@ -128,12 +130,15 @@ pub fn trace_light_image<S: Sensor>(
     let tracer = LightTracer::from(&settings.integrator);
     let seed = mix64(settings.seed ^ LIGHT_STREAM);
     let done = AtomicU64::new(0);
+    let out_of_time = AtomicBool::new(false);
+    let start_time = std::time::Instant::now();
     let chunk = |c: u64| -> ChunkSums {
         // Paths [c·N/K, (c+1)·N/K): the split depends only on N and K.
         let bound = |c: u64| (c as u128 * n_paths as u128 / CHUNKS as u128) as u64;
         let (start, end) = (bound(c), bound(c + 1));
         let mut sums = ChunkSums {
             paths: end - start,
+            cut: 0,
             pixels: vec![[0.0; 12]; w * h],
             regions: vec![[0.0; 12]; regions.len()],
         };
@@ -142,11 +147,20 @@ pub fn trace_light_image<S: Sensor>(
         let mut region_sum = vec![[0.0f64; 6]; regions.len()];
         let mut touched = vec![false; regions.len()];
         for i in start..end {
+            if (i - start) % 1024 == 0
+                && (out_of_time.load(Ordering::Relaxed)
+                    || settings
+                        .deadline
+                        .is_some_and(|d| std::time::Instant::now() >= d))
+            {
+                out_of_time.store(true, Ordering::Relaxed);
+                break;
+            }
             let mut rng = SampleStream::new(seed, LIGHT_STREAM, i);
             let u_lambda = rng.next_f64();
             let mut wl = Wavelengths::for_film(u_lambda, settings.spectral.wavelengths, grey);
             splats.clear();
-            tracer.trace(scene, sensor, &mut wl, &mut rng, &mut splats);
+            sums.cut += u64::from(tracer.trace(scene, sensor, &mut wl, &mut rng, &mut splats));
             if splats.is_empty() {
                 continue;
             }
@@ -193,6 +207,7 @@ pub fn trace_light_image<S: Sensor>(
     let work = || {
         let mut pixels = vec![Pixel::default(); w * h];
         let mut region_stats = vec![[MeanVar::default(); 6]; regions.len()];
+        let mut cut = 0;
         // Chunks run a pool's width at a time (bounding memory to that many accumulators) and
         // are merged in chunk order, so the batch width does not change the result.
         let batch = rayon::current_num_threads().max(1) as u64;
@@ -201,6 +216,7 @@ pub fn trace_light_image<S: Sensor>(
             let c1 = (c0 + batch).min(CHUNKS);
             let results: Vec<ChunkSums> = (c0..c1).into_par_iter().map(chunk).collect();
             for r in results {
+                cut += r.cut;
                 for (px, acc) in pixels.iter_mut().zip(&r.pixels) {
                     for (m, s) in px.channels.iter_mut().zip(&stats_of(r.paths, acc)) {
                         m.merge(s);
@@ -213,15 +229,26 @@ pub fn trace_light_image<S: Sensor>(
                 }
             }
             c0 = c1;
+            if out_of_time.load(Ordering::Relaxed) {
+                break;
+            }
         }
-        (pixels, region_stats)
+        (pixels, region_stats, cut)
     };
-    let (pixels, regions) = in_pool(settings.threads, work)?;
+    let (pixels, regions, cut) = in_pool(settings.threads, work)?;
+    if out_of_time.load(Ordering::Relaxed) {
+        return Err(RenderError::OutOfTime {
+            seconds: start_time.elapsed().as_secs_f64(),
+            done: done.load(Ordering::Relaxed),
+            total: n_paths,
+        });
+    }
     Ok(LightImage {
         film: Film {
             width: w,
             height: h,
             pixels,
+            truncated_paths: cut,
         },
         regions,
         paths: n_paths,
@@ -253,6 +280,7 @@ mod tests {
             observer: Default::default(),
             sampler: Sampler::Independent,
             spectral: Default::default(),
+            deadline: None,
         }
     }
 

@@ -71,6 +71,7 @@ fn settings(scene: &Scene) -> RenderSettings {
         observer: Default::default(),
         sampler: Default::default(),
         spectral: Default::default(),
+        deadline: None,
     }
 }
 

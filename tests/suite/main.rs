@@ -1,6 +1,7 @@
 //! furnace integration tests: one binary, one module per concern.
 
 mod adapter;
+mod budgets;
 mod cli;
 mod colorimetry;
 mod digests;

@@ -54,6 +54,7 @@ fn synthesize(dir: &Path) {
             observer: Observer::Responses(Arc::new(Responses::new(curves))),
             sampler: Default::default(),
             spectral: Default::default(),
+            deadline: None,
         };
         let film = render(&scene, &s, &|_| {}).unwrap();
         for (k, c) in chunk.iter().enumerate() {
@@ -94,6 +95,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
     let dir = std::env::temp_dir().join(format!("furnace-measured-{}", std::process::id()));
     let ctx = Context {
         models: None,
+        deadline: None,
         renderer: &BuiltIn,
         seed: 5,
         threads: 0,

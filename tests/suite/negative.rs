@@ -531,6 +531,7 @@ fn convergence_rejects_a_sampler_regression() {
     );
     let ctx = harness::Context {
         models: None,
+        deadline: None,
         renderer: &BuiltIn,
         seed: 3,
         threads: 0,
@@ -573,6 +574,7 @@ fn convergence_rejects_an_error_floor() {
     );
     let ctx = harness::Context {
         models: None,
+        deadline: None,
         renderer: &OnePercentBright,
         seed: 3,
         threads: 0,

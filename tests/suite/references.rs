@@ -76,6 +76,7 @@ fn spec(name: &str) -> CheckSpec {
 fn ctx(renderer: &dyn Renderer) -> Context<'_> {
     Context {
         models: None,
+        deadline: None,
         renderer,
         seed: 7,
         threads: 0,
@@ -174,6 +175,7 @@ fn the_cornell_colour_difference_is_the_colour_conversion() {
             observer,
             sampler: Default::default(),
             spectral: Default::default(),
+            deadline: None,
         };
         render(&scene, &s, &|_| {}).unwrap()
     };

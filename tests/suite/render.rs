@@ -22,6 +22,7 @@ fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSe
         observer: Default::default(),
         sampler: Default::default(),
         spectral: Default::default(),
+        deadline: None,
     }
 }
 
