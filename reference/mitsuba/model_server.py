@@ -105,7 +105,10 @@ reference and the plugin sources named below):
     lobe's (non-zero). We report "no sample" (flags 0) when bs.pdf <= 0, or when the weight is
     0 in every lane and not explained by the model being black there (f = 0 and pdf > 0 at the
     sampled direction, from BSDF.eval_pdf; so diffuse/0 keeps its samples), or the lobe is a
-    Dirac lobe. Without this, ~0.7 % of roughdielectric α=0.5 samples fail weight = f·cos/pdf.
+    Dirac lobe, or the direction is on the far side of a model without transmission (a
+    reflection below the horizon: llvm roughplastic keeps those with bs.pdf > 0 because its
+    pdf() is not masked there, while scalar_spectral returns bs.pdf = 0 for the same draws).
+    Without this, ~0.7 % of roughdielectric α=0.5 samples fail weight = f·cos/pdf.
   * BSDFContext(TransportMode.Radiance): f carries radiance across refraction (roughdielectric
     scales transmission by 1/η², "Missing term in the original paper", matching the protocol's
     f(wo,wi)/η(wo)² = f(wi,wo)/η(wi)², Veach 1997 §5.2).
@@ -137,8 +140,10 @@ reference and the plugin sources named below):
     duplicate of the original stdout.
   * Mitsuba computes in float32, and the f64 inputs are rounded to float32 first. Recomputing a
     sample's pdf or f from its returned (rounded) direction therefore differs from the sample's
-    own values where the lobe is very narrow or a half vector cancels: up to 2 % for GGX
-    α = 1e-4 and 0.4 % for roughdielectric η = 1.0001 in model_client_test.py; 1e-5 elsewhere.
+    own values where the lobe is very narrow or a half vector cancels: about ε32/(2α cos θo)
+    for a reflection (17 % for GGX α = 1e-4 at θo = 89.9°, 3e-4 at 30°), 0.5 % for
+    roughdielectric η = 1.0001 (2ε32/|wo + η·wi|); 1e-5 elsewhere. Float32 conditioning, not a
+    Mitsuba bias: reports/renderers/mitsuba3/models/FINDINGS.md.
   * Henyey–Greenstein at |g| = 0.9999 (hg.cpp, float32 1 + g² + 2g·cos θ): the denominator
     cancels near the peak, so eval is inf at exact forward (backward for g < 0) scattering,
     59 % of samples report pdf = inf (cos θ rounds to ≥ 1 in `sample`; 200 000 samples, both
@@ -695,7 +700,12 @@ class Server:
             # direction agree with it: f = 0 there and pdf > 0 (diffuse/0).
             black = np.all(weight == 0.0, axis=1)
             black_there = np.all(f_again == 0.0, axis=1) & (pdf_again[:, 0] > 0.0)
-            valid = (pdf[:, 0] > 0.0) & ~(black & (delta | ~black_there))
+            # A zero-weight sample on the far side of a model without transmission is a
+            # reflection that fell below the horizon: Mitsuba's path ends there, so it is "no
+            # sample" whatever pdf() answers there (vectorised roughplastic answers > 0 below
+            # the horizon, scalar 0: reports/renderers/mitsuba3/models/FINDINGS.md).
+            wrong_side = (not flags["transmission"]) & (wi[:, 2] * q[:, 2] <= 0.0)
+            valid = (pdf[:, 0] > 0.0) & ~(black & (delta | ~black_there | wrong_side))
             flags_col = np.where(valid, 1 + 2 * delta + 4 * trans, 0).astype(np.float64)
             res = np.concatenate([wi, self.lanes(weight), pdf, flags_col[:, None]], axis=1)
             res[~valid, :8] = 0.0

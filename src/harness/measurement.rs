@@ -70,8 +70,17 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
     m.samples = samples;
     m.deterministic_pass = det;
     m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
+    let broken: Vec<&str> = parts
+        .iter()
+        .filter(|(_, m)| m.deterministic_pass == Some(false))
+        .map(|(n, _)| n.as_str())
+        .collect();
+    let broken = match broken.is_empty() {
+        true => String::new(),
+        false => format!("identity failed in: {}; ", broken.join(", ")),
+    };
     m.message = format!(
-        "{} variants, p Šidák-combined, worst shown; {}",
+        "{broken}{} variants, p Šidák-combined, worst shown; {}",
         parts.len(),
         summary.join("; ")
     );
@@ -89,7 +98,11 @@ fn part_summary(name: &str, m: &Measurement) -> String {
             let p = m
                 .p_value
                 .map_or(String::new(), |p| format!(" (p {})", fmt_sig(p)));
-            format!("{name}: {}{se} vs {}{p}", fmt_sig(e), fmt_sig(x))
+            let own = match m.deterministic_pass {
+                Some(false) if !m.message.is_empty() => format!(" [{}]", m.message),
+                _ => String::new(),
+            };
+            format!("{name}: {}{se} vs {}{p}{own}", fmt_sig(e), fmt_sig(x))
         }
         _ if m.message.is_empty() => format!("{name}: no numbers"),
         _ => format!("{name}: {}", m.message),

@@ -163,6 +163,24 @@ impl Precision {
         }
     }
 
+    /// Unit roundoff ε of the arithmetic: 2⁻⁵³ for f64, 2⁻²⁴ for f32. An expression whose
+    /// condition number is κ cannot be computed closer than about κε.
+    pub fn unit_roundoff(self) -> f64 {
+        match self {
+            Precision::F64 => f64::EPSILON / 2.0,
+            Precision::F32 => f32::EPSILON as f64 / 2.0,
+        }
+    }
+
+    /// How far from 1 the length of a unit direction the model returns may be: 1e-9 for f64,
+    /// 1e-6 for f32 (a normalised f32 vector is 1 ± a few ε, about 1e-7).
+    pub fn unit_length_tol(self) -> f64 {
+        match self {
+            Precision::F64 => 1e-9,
+            Precision::F32 => 1e-6,
+        }
+    }
+
     /// Its name on the wire and in messages.
     pub fn name(self) -> &'static str {
         match self {

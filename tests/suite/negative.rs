@@ -11,7 +11,7 @@ use furnace::harness::manifest;
 use furnace::harness::model::local::{LocalBsdf, LocalPhase};
 use furnace::harness::model::samplers::DirectionSampler;
 use furnace::harness::outcome::Verdict;
-use furnace::harness::under_test::{BsdfModel, ModelError, Named};
+use furnace::harness::under_test::{BsdfModel, ModelError, Named, Precision};
 use furnace::harness::Check as CheckSpec;
 use furnace::harness::{self, judge, BuiltIn, Renderer, RunOptions};
 use furnace::integrators::Strategy;
@@ -393,6 +393,30 @@ impl Bxdf for LambertInconsistentWeight {
     }
 }
 
+/// A Lambertian whose pdf(wo, wi) claims uniform-hemisphere sampling, 1/(2π), while its samples
+/// are cosine-distributed and carry pdf cos θ/π.
+struct LambertPdfMismatch(f64);
+impl Bxdf for LambertPdfMismatch {
+    fn eval(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
+        furnace::scattering::lambert::Lambertian::eval_with(wo, wi, &SampledSpectrum::splat(self.0))
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], uc: f64, wl: &Wavelengths) -> Option<BsdfSample> {
+        let _ = (uc, wl);
+        furnace::scattering::lambert::Lambertian::sample_with(
+            wo,
+            u,
+            &SampledSpectrum::splat(self.0),
+        )
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> f64 {
+        if wo.z * wi.z > 0.0 {
+            0.5 * INV_PI
+        } else {
+            0.0
+        }
+    }
+}
+
 /// A BRDF that prefers light arriving from the zenith: f = R/π (0.5 + cos θi), not symmetric.
 struct NonReciprocal;
 impl Bxdf for NonReciprocal {
@@ -450,6 +474,19 @@ fn reciprocity_rejects_a_non_reciprocal_brdf() {
         0.0,
         1e-12,
         1,
+        Precision::F64,
+    )
+    .unwrap();
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+    // float32 allowances (rel 1e-3, and the one-ulp spread excuse) do not hide it either
+    let m = reciprocity::measure(
+        &[bsdf("non-reciprocal", NonReciprocal)],
+        2000,
+        89.99,
+        1e-6,
+        1e-3,
+        1,
+        Precision::F32,
     )
     .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
@@ -478,9 +515,28 @@ fn sample_weights_reject_a_weight_inconsistent_with_eval() {
         1e-9,
         1,
         0.0,
+        Precision::F64,
     )
     .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn sample_weights_reject_a_pdf_that_disagrees_with_the_samples_even_at_float32() {
+    for (precision, tol) in [(Precision::F64, 1e-9), (Precision::F32, 1e-3)] {
+        let m = weights::measure_bsdf(
+            &LocalBsdf::new(LambertPdfMismatch(0.5)),
+            2_000,
+            89.9,
+            tol,
+            1,
+            0.0,
+            precision,
+        )
+        .unwrap();
+        assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+        assert!(!m.message.contains("excused"), "{}", m.message);
+    }
 }
 
 #[test]
@@ -508,6 +564,40 @@ fn hg_rejects_a_sign_error() {
     )
     .unwrap();
     assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
+}
+
+/// The float32 path of the hg kind (closed-form expected counts where the eval is too
+/// ill-conditioned to give them) still rejects a sampler of the wrong g: draws of g = 0.99
+/// claimed as g = 0.999, while the true g = 0.999 passes.
+#[test]
+fn hg_at_float32_still_rejects_the_wrong_g() {
+    use furnace::harness::checks::hg::hg_closed_form;
+    use furnace::harness::model::phase::measure_phase_at;
+    use furnace::harness::under_test::Precision;
+    let g = 0.999;
+    let closed = |mu: f64| hg_closed_form(g, mu);
+    let run = |model_g: f64| {
+        measure_phase_at(
+            &phase(HenyeyGreenstein { g: model_g }),
+            g,
+            1e-6,
+            50_000,
+            [40, 16],
+            1,
+            Precision::F32,
+            Some(&closed),
+        )
+        .unwrap()
+    };
+    let bad = run(0.99);
+    assert_eq!(judge(&bad, ALPHA), Verdict::Fail, "{}", bad.message);
+    let ok = run(g);
+    assert_eq!(judge(&ok, ALPHA), Verdict::Pass, "{}", ok.message);
+    assert!(
+        ok.message.contains("from the closed form"),
+        "{}",
+        ok.message
+    );
 }
 
 #[test]
@@ -766,11 +856,21 @@ fn reciprocity_rejects_a_btdf_with_swapped_indices() {
         1e-12,
         1e-9,
         1,
+        Precision::F64,
     )
     .unwrap();
     assert_eq!(judge(&good, ALPHA), Verdict::Pass, "{}", good.message);
     let bad = SwappedEtaBtdf(d);
-    let m = reciprocity::measure(&[bsdf("swapped η", bad)], 2000, 89.99, 1e-12, 1e-9, 1).unwrap();
+    let m = reciprocity::measure(
+        &[bsdf("swapped η", bad)],
+        2000,
+        89.99,
+        1e-12,
+        1e-9,
+        1,
+        Precision::F64,
+    )
+    .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
 }
 
@@ -1106,12 +1206,16 @@ impl Phase for RayleighUniformDraw {
 
 #[test]
 fn phase_rejects_a_non_reciprocal_phase_function_and_a_wrong_sampler() {
-    let (rec, _) =
-        furnace::harness::model::phase::reciprocity_error(&phase(NonReciprocalPhase), 1000, 1)
-            .unwrap();
+    let (rec, _) = furnace::harness::model::phase::reciprocity_error(
+        &phase(NonReciprocalPhase),
+        1000,
+        1,
+        1e-9,
+    )
+    .unwrap();
     assert!(rec > 0.1, "asymmetry {rec}");
     let (rec_ok, pdf_ok) =
-        furnace::harness::model::phase::reciprocity_error(&phase(Rayleigh), 1000, 1).unwrap();
+        furnace::harness::model::phase::reciprocity_error(&phase(Rayleigh), 1000, 1, 1e-9).unwrap();
     assert!(
         rec_ok <= 1e-12 && pdf_ok <= furnace::harness::model::phase::PDF_REL_TOL,
         "{rec_ok} {pdf_ok}"

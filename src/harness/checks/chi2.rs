@@ -40,8 +40,8 @@ pub fn measure_sampler(
         .iter()
         .filter(|p| p.is_nan() || **p <= 0.0)
         .count();
-    // 32×32 nodes per bin: pdfs with a hard edge (a light's silhouette) cut bins, and the
-    // midpoint rule's error there is O(1/32) of the bin's mass.
+    // 32×32 nodes per bin; bins cut by a hard edge (a light's silhouette) are refined
+    // adaptively by `integrate_batched`.
     let expected: Vec<f64> = binning
         .integrate_batched(
             |w| sampler.pdf(&w.iter().map(|&w| Vec3::from_array(w)).collect::<Vec<_>>()),

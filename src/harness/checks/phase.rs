@@ -60,7 +60,8 @@ impl Kind for PhaseKind {
         for (i, Named { name, model }) in models.phases()?.into_iter().enumerate() {
             let seed = crate::math::rng::mix64(ctx.seed ^ (0x9e37 + i as u64));
             let one = || -> Result<Measurement, ModelError> {
-                let (rec, pdf_err) = reciprocity_error(model.as_ref(), 1000, seed)?;
+                let (rec, pdf_err) =
+                    reciprocity_error(model.as_ref(), 1000, seed, pr.unit_length_tol())?;
                 let ok = rec <= rel_tol && pdf_err <= pdf_tol;
                 let mut m = match model.mean_cosine() {
                     Some(g) => measure_phase_at(
@@ -70,7 +71,8 @@ impl Kind for PhaseKind {
                         p.samples,
                         p.bins,
                         seed,
-                        pr.mu_resolution(),
+                        pr,
+                        None,
                     )?,
                     None => Measurement {
                         message: "no stated mean cosine: normalisation and sampling not tested"

@@ -1,5 +1,6 @@
 //! Sample-weight consistency for every BSDF and phase function: each sample's weight equals
-//! eval·|cos θi|/pdf and its pdf equals pdf(wo, wi) (deterministic, rel_tol), and the mean
+//! eval·|cos θi|/pdf and its pdf equals pdf(wo, wi) (deterministic, rel_tol, or for the pdf
+//! within four times its spread over one-ulp neighbours of the directions), and the mean
 //! weight equals the directional albedo from quadrature (z test). Chi-square tests alone
 //! cannot see a wrong eval or a wrong weight.
 
@@ -7,6 +8,7 @@ use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::measurement::{combine, failed_part, fmt_sig};
 use crate::harness::model::albedo::{albedo_quadrature, quadrature_resolves};
 use crate::harness::model::catalogue;
+use crate::harness::model::conditioning::{excused, spread, ulp_neighbours};
 use crate::harness::model::directions::direction;
 use crate::harness::model::phase::PDF_REL_TOL;
 use crate::harness::outcome::Statistic;
@@ -27,7 +29,10 @@ fn rel_err(a: f64, b: f64) -> f64 {
     }
 }
 
-/// Measures one BSDF: `samples` samples at each of a few outgoing directions.
+/// Measures one BSDF computing in `precision`: `samples` samples at each of a few outgoing
+/// directions. A pdf(wo, wi) that misses the sample's pdf by more than `rel_tol` is re-queried
+/// at the one-ulp neighbours of wo and wi (`model::conditioning`) and excused when the inputs'
+/// rounding alone explains the difference (a narrow lobe at grazing incidence in f32).
 pub fn measure_bsdf(
     b: &dyn BsdfModel,
     samples: u64,
@@ -35,11 +40,14 @@ pub fn measure_bsdf(
     rel_tol: f64,
     seed: u64,
     rounding: f64,
+    precision: Precision,
 ) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut rng = SampleStream::new(seed, 4, 0);
     let mut worst = 0.0f64;
     let mut worst_at = String::new();
+    let mut excused_values = 0usize;
+    let mut fails = false;
     let mut parts = Vec::new();
     for (j, theta) in [0.0f64, 30.0, 60.0, theta_max_deg].iter().enumerate() {
         let wo = if j == 0 {
@@ -65,6 +73,96 @@ pub fn measure_bsdf(
             .map(|s| (wo, s.wi))
             .collect();
         let (fs, pdfs) = (b.eval(&at, &wl)?, b.pdf(&at, &wl)?);
+        // Identities over tolerance (pdf(wo, wi) = sample pdf; weight = eval·|cos|/pdf) are
+        // re-queried at the one-ulp neighbours of wo and wi: what rounding the inputs explains.
+        let kept: Vec<&crate::scattering::BsdfSample> =
+            drawn.iter().flatten().filter(|s| !s.delta).collect();
+        let weight_of = |f: &crate::spectrum::SampledSpectrum, wi: Vec3, pdf: f64, k: usize| {
+            f.0[k] * wi.z.abs() / pdf
+        };
+        // A transmission whose relative index η is near 1 has a generalised half vector
+        // wo + η·wi of length ~|η − 1| (Walter et al. 2007, eq. 16): rounding moves it by ε of
+        // 1, a relative ε/|η − 1|, and the pdf's Jacobian (eq. 17) goes as its inverse square,
+        // so each sample's tolerance is at least 4ε/|η − 1| in the model's precision.
+        // A microfacet lobe of width α: GGX's ln D changes by up to 2/α per radian of the half
+        // vector (Walter et al. 2007, eq. 33, d ln D/dθm at tan θm = α), and the half vector of
+        // a rounded sample carries a few ε: at least 8ε/α (ε of 1e-4 in f32: 1e-3).
+        let rough = b.flags().min_roughness;
+        let rough_tol = if rough > 0.0 && rough.is_finite() {
+            8.0 * precision.unit_roundoff() / rough
+        } else {
+            0.0
+        };
+        let rel_tol = rel_tol.max(rough_tol);
+        let eta_o = b.eta(&[wo], &wl)?;
+        let eta_i = b.eta(&kept.iter().map(|s| s.wi).collect::<Vec<_>>(), &wl)?;
+        let tol: Vec<f64> = (0..at.len())
+            .map(|i| {
+                if wo.z * kept[i].wi.z >= 0.0 {
+                    return rel_tol;
+                }
+                let closest = (0..4)
+                    .map(|k| (eta_i[i].0[k] / eta_o[0].0[k] - 1.0).abs())
+                    .fold(f64::INFINITY, f64::min);
+                rel_tol.max(4.0 * precision.unit_roundoff() / closest)
+            })
+            .collect();
+        let over: Vec<usize> = (0..at.len())
+            .filter(|&i| {
+                let s = kept[i];
+                !(rel_err(pdfs[i], s.pdf) <= tol[i])
+                    || (0..4).any(|k| {
+                        !(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]) <= tol[i])
+                    })
+            })
+            .collect();
+        let mut near = Vec::with_capacity(over.len() * 12);
+        for &i in &over {
+            let (wo, wi) = at[i];
+            near.extend(ulp_neighbours(wo, precision).map(|n| (n, wi)));
+            near.extend(ulp_neighbours(wi, precision).map(|n| (wo, n)));
+        }
+        let (near_fs, near_pdfs) = if near.is_empty() {
+            (Vec::new(), Vec::new())
+        } else {
+            (b.eval(&near, &wl)?, b.pdf(&near, &wl)?)
+        };
+        // per index in `over`: (pdf over tolerance and excused, weights over and excused)
+        let excuse: std::collections::BTreeMap<usize, (bool, bool)> = over
+            .iter()
+            .enumerate()
+            .map(|(j, &i)| {
+                let (s, r) = (kept[i], j * 12..j * 12 + 12);
+                let pdf_err = (pdfs[i] - s.pdf).abs();
+                let pdf_tol = tol[i] * pdfs[i].abs().max(s.pdf.abs());
+                let pdf_ok = pdf_err > pdf_tol
+                    && excused(
+                        pdf_err,
+                        spread(pdfs[i], near_pdfs[r.clone()].iter().copied()),
+                        pdf_tol,
+                    );
+                let weight_over = (0..4).any(|k| {
+                    !(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]) <= tol[i])
+                });
+                let weight_ok = weight_over
+                    && (0..4).all(|k| {
+                        let w = weight_of(&fs[i], s.wi, s.pdf, k);
+                        let moved = r
+                            .clone()
+                            .map(|n| weight_of(&near_fs[n], near[n].1, s.pdf, k));
+                        excused(
+                            (w - s.weight.0[k]).abs(),
+                            spread(w, moved),
+                            tol[i] * w.abs().max(s.weight.0[k].abs()),
+                        )
+                    });
+                (i, (pdf_ok, weight_ok))
+            })
+            .collect();
+        excused_values += excuse
+            .values()
+            .map(|(p, w)| usize::from(*p) + usize::from(*w))
+            .sum::<usize>();
         let mut k_at = 0;
         for s in &drawn {
             let Some(s) = s else {
@@ -76,15 +174,23 @@ pub fn measure_bsdf(
                 continue;
             }
             let (f, pdf) = (fs[k_at], pdfs[k_at]);
+            let (pdf_ok, weight_ok) = excuse.get(&k_at).copied().unwrap_or((false, false));
+            let t = tol[k_at];
             k_at += 1;
-            let e_pdf = rel_err(pdf, s.pdf);
-            if e_pdf > worst {
+            let e_pdf = if pdf_ok { 0.0 } else { rel_err(pdf, s.pdf) };
+            fails |= !(e_pdf <= t);
+            if e_pdf > worst || e_pdf.is_nan() {
                 worst = e_pdf;
                 worst_at = format!("pdf {} vs sample pdf {}", fmt_sig(pdf), fmt_sig(s.pdf));
             }
             for k in 0..4 {
-                let w = f.0[k] * s.wi.z.abs() / s.pdf;
-                let e = rel_err(w, s.weight.0[k]);
+                let w = weight_of(&f, s.wi, s.pdf, k);
+                let e = if weight_ok {
+                    0.0
+                } else {
+                    rel_err(w, s.weight.0[k])
+                };
+                fails |= !(e <= t);
                 if e > worst || !e.is_finite() {
                     worst = e;
                     worst_at = format!(
@@ -113,8 +219,16 @@ pub fn measure_bsdf(
         ));
     }
     let mut m = combine(parts);
-    m.deterministic_pass = Some(worst <= rel_tol);
-    m.message = format!("per-sample consistency: largest relative error {worst:.2e} (rel_tol {rel_tol:.0e}){}; mean weight (sum over 4 wavelengths) vs quadrature albedo: {}", if worst_at.is_empty() { String::new() } else { format!(", {worst_at}") }, m.message);
+    m.deterministic_pass = Some(!fails);
+    let excuse = if excused_values > 0 {
+        format!(
+            "; {excused_values} pdf or weight mismatches excused: within four times the value's spread over one-ulp ({}) neighbours of wo and wi",
+            precision.name()
+        )
+    } else {
+        String::new()
+    };
+    m.message = format!("{}per-sample consistency: largest relative error {worst:.2e} (rel_tol {rel_tol:.0e}, at least 8ε/α for a lobe of width α and 4ε/|η − 1| for transmission){}{excuse}; mean weight (sum over 4 wavelengths) vs quadrature albedo: {}", if fails { "identity violated: " } else { "" }, if worst_at.is_empty() { String::new() } else { format!(", {worst_at}") }, m.message);
     Ok(m)
 }
 
@@ -124,7 +238,11 @@ pub fn measure_phase(
     samples: u64,
     rel_tol: f64,
     seed: u64,
+    precision: Precision,
 ) -> Result<Measurement, ModelError> {
+    // p near the forward peak of a |g| → 1 lobe is ill-conditioned in the model's precision
+    let g = ph.mean_cosine().unwrap_or(0.0);
+    let rel_tol = rel_tol.max(crate::harness::model::phase::eval_conditioning(g, precision));
     let mut rng = SampleStream::new(seed, 5, 0);
     let wo = crate::math::Vec3::new(0.2, -0.5, 0.8).normalize();
     let mut worst = 0.0f64;
@@ -148,7 +266,7 @@ pub fn measure_phase(
         p_value: Some(p),
         deterministic_pass: Some(worst <= rel_tol),
         samples,
-        message: format!("largest relative weight/pdf error {worst:.2e} (rel_tol {rel_tol:.0e})"),
+        message: format!("largest relative weight/pdf error {worst:.2e} (rel_tol {rel_tol:.0e}, at least 3ε/(1 − |g|)²)"),
         ..Default::default()
     })
 }
@@ -209,6 +327,7 @@ impl Kind for SampleWeights {
                 rel_tol,
                 mix64(ctx.seed ^ i as u64),
                 rounding,
+                pr,
             );
             parts.push((format!("bsdf {name}"), m.unwrap_or_else(failed_part)));
         }
@@ -221,6 +340,7 @@ impl Kind for SampleWeights {
                 samples,
                 phase_tol,
                 mix64(ctx.seed ^ (100 + i) as u64),
+                pr,
             );
             parts.push((format!("phase {name}"), m.unwrap_or_else(failed_part)));
         }
