@@ -128,8 +128,49 @@ fn bsdf_sample_eval(c: &mut Criterion) {
     g.finish();
 }
 
+/// BVH construction over hostile meshes (issue: coincident primitives made it quadratic):
+/// 10^5 and 10^6 triangles all at one place, jittered by 1e-9 of the extent, and spread out.
+fn bvh_build(c: &mut Criterion) {
+    use furnace::geometry::{mesh::TriangleMesh, Aggregate, Shape};
+    let mesh = |n: usize, kind: &str| {
+        let mut s = SampleStream::new(5, 0, 0);
+        let mut p = Vec::with_capacity(3 * n);
+        for _ in 0..n {
+            let (o, e) = match kind {
+                "spread" => (
+                    Vec3::new(s.next_f64(), s.next_f64(), s.next_f64()) * 100.0,
+                    0.0,
+                ),
+                "near" => (Vec3::ZERO, 1e-9),
+                _ => (Vec3::ZERO, 0.0),
+            };
+            let j = |s: &mut SampleStream| Vec3::new(s.next_f64(), s.next_f64(), s.next_f64()) * e;
+            p.push(o + j(&mut s));
+            p.push(o + Vec3::new(1.0, 0.0, 0.0) + j(&mut s));
+            p.push(o + Vec3::new(0.0, 1.0, 0.0) + j(&mut s));
+        }
+        let tris = (0..n as u32)
+            .map(|i| [3 * i, 3 * i + 1, 3 * i + 2])
+            .collect();
+        TriangleMesh::new(p, tris, false)
+    };
+    let mut g = c.benchmark_group("bvh_build");
+    g.sample_size(10);
+    for n in [100_000usize, 1_000_000] {
+        for kind in ["coincident", "near", "spread"] {
+            let m = mesh(n, kind);
+            g.throughput(Throughput::Elements(n as u64));
+            g.bench_function(format!("{kind}_{n}"), |b| {
+                b.iter(|| black_box(Aggregate::new(vec![Shape::Mesh(m.clone())])))
+            });
+        }
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
+    bvh_build,
     cornell_frame,
     bvh_intersect,
     spectrum_eval,

@@ -2,7 +2,7 @@
 //! renderer.
 //!
 //! Module chain (a module uses only those to its left; `tests/suite/layering.rs` enforces it):
-//! `math ← stats ← io ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
+//! `math, limits ← stats ← io ← spectrum ← geometry ← {scattering, media, lights, camera, film} ← scene ←
 //! {integrators, export} ← render ← harness ← report`, with the `furnace` binary (`cli.rs`) on top.
 
 pub mod camera;
@@ -13,6 +13,7 @@ pub mod harness;
 pub mod integrators;
 pub mod io;
 pub mod lights;
+pub mod limits;
 pub mod math;
 pub mod media;
 pub mod render;

@@ -21,10 +21,20 @@ fn main() {
         default_hook(info);
     }));
     let cli = cli::Cli::parse();
+    // Ctrl-C or SIGTERM: remove the temporary files and folders still alive (io::cleanup), then
+    // exit with the conventional 128 + SIGINT. Outputs are renamed into place, so none is torn.
+    let _ = ctrlc::set_handler(|| {
+        furnace::io::cleanup::remove_all();
+        std::process::exit(130);
+    });
     match cli::run(cli) {
         Ok(code) => std::process::exit(code),
         Err(f) => {
-            eprintln!("error: {:#}", f.error);
+            // user input quoted in an error is bounded where it is quoted; this bounds the rest
+            let text = format!("{:#}", f.error);
+            let cut: String = text.chars().take(4000).collect();
+            let more = if cut.len() < text.len() { " …" } else { "" };
+            eprintln!("error: {cut}{more}");
             std::process::exit(f.code);
         }
     }

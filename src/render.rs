@@ -172,6 +172,7 @@ fn check_common(settings: &RenderSettings) -> Result<(), RenderError> {
             "Russian roulette is off and max_depth is unlimited: paths in a closed scene would never end; set a max depth".into(),
         ));
     }
+    crate::limits::image(w as u64, h as u64).map_err(|e| RenderError::Settings(e.to_string()))?;
     let lanes = settings.spectral.wavelengths;
     if !(lanes == 1 || lanes == N_WAVELENGTHS) {
         return Err(RenderError::Settings(format!(

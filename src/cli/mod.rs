@@ -77,7 +77,9 @@ pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
     if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("cannot create {}", dir.display()))?;
     }
-    std::fs::write(path, text).with_context(|| format!("cannot write {}", path.display()))?;
+    // a failed or interrupted write leaves what was there
+    furnace::io::write_atomic(path, |tmp| std::fs::write(tmp, text))
+        .with_context(|| format!("cannot write {}", path.display()))?;
     Ok(())
 }
 
@@ -89,7 +91,7 @@ pub(crate) fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
 /// Reads a regions file; a TOML error names file, line and column.
 pub(crate) fn load_regions(p: &Path) -> Result<Vec<image_compare::Region>, Failure> {
     let text =
-        std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        furnace::io::read_small_text(p).with_context(|| format!("cannot read {}", p.display()))?;
     Ok(image_compare::parse_regions(&text, p)?)
 }
 

@@ -24,7 +24,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads; 0 uses every core.
-    #[arg(long, default_value_t = 0)]
+    #[arg(short = 'j', long, default_value_t = 0)]
     threads: usize,
     /// Image width in pixels [default: the scene's render.width, else 256].
     #[arg(long)]
@@ -63,7 +63,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
     wavelengths: u8,
     /// Output EXR path [default: out/<scene name>.exr].
-    #[arg(long)]
+    #[arg(short, long)]
     out: Option<PathBuf>,
     /// PNG preview path [default: the EXR path with extension .png].
     #[arg(long)]
@@ -71,9 +71,13 @@ pub struct RenderArgs {
     /// Multiplier applied to linear sRGB before the PNG's sRGB encoding.
     #[arg(long, default_value_t = 1.0)]
     exposure: f64,
-    /// No progress bar.
-    #[arg(long)]
+    /// No progress bar (the closing lines on stdout stay; redirect them to silence them).
+    #[arg(short, long)]
     quiet: bool,
+    /// Work budget: the most samples (width × height × spp camera paths, or light paths) a
+    /// render may take; the default is about 5 hours at 1 M samples/s.
+    #[arg(long, default_value_t = furnace::limits::DEFAULT_MAX_SAMPLES, help_heading = "Limits")]
+    max_samples: u64,
 }
 
 /// Russian-roulette start depth, or None for "off".
@@ -136,6 +140,15 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .png
         .clone()
         .unwrap_or_else(|| exr_path.with_extension("png"));
+    if exr_path == png_path {
+        return Err(anyhow::anyhow!(
+            "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
+            exr_path.display()
+        )
+        .into());
+    }
+    furnace::limits::image(settings.width as u64, settings.height as u64)
+        .context("the image is too large")?;
     let light = a.integrator == "light";
     if a.light_paths.is_some() && !light {
         return Err(anyhow::anyhow!(
@@ -143,12 +156,22 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    let camera_paths = settings.width as u64 * settings.height as u64 * settings.spp;
+    let camera_paths = (settings.width as u64)
+        .saturating_mul(settings.height as u64)
+        .saturating_mul(settings.spp);
     let total = if light {
         a.light_paths.unwrap_or(camera_paths)
     } else {
         camera_paths
     };
+    if total > a.max_samples {
+        return Err(anyhow::anyhow!(
+            "the render would take {total} samples (width x height x spp, or light paths); the work budget is {} (about {:.1} h at 1 M samples/s): raise it with --max-samples",
+            a.max_samples,
+            a.max_samples as f64 / 3.6e9
+        )
+        .into());
+    }
     let bar = if a.quiet {
         ProgressBar::hidden()
     } else {
@@ -208,7 +231,6 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         a.exposure,
     )
     .with_context(|| format!("cannot write {}", png_path.display()))?;
-    println!("wrote {} and {}", exr_path.display(), png_path.display());
     if bad > 0 {
         eprintln!("warning: {bad} pixels hold NaN or Inf");
     }
@@ -219,6 +241,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             furnace::integrators::MAX_PATH_EVENTS
         );
     }
+    println!("wrote {} and {}", exr_path.display(), png_path.display());
     if light {
         println!(
             "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",

@@ -42,8 +42,8 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     }
     let mut runs = Vec::new();
     for p in &a.results {
-        let text =
-            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?;
+        let text = furnace::io::read_small_text(p)
+            .with_context(|| format!("cannot read {}", p.display()))?;
         let v: serde_json::Value =
             serde_json::from_str(&text).with_context(|| format!("{}: not JSON", p.display()))?;
         let schema = v["schema"].as_str().unwrap_or("");
@@ -77,7 +77,8 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     let notes = match &a.notes {
         None => None,
         Some(p) => Some(
-            std::fs::read_to_string(p).with_context(|| format!("cannot read {}", p.display()))?,
+            furnace::io::read_small_text(p)
+                .with_context(|| format!("cannot read {}", p.display()))?,
         ),
     };
     write_file(

@@ -31,7 +31,18 @@ enum Candidate {
     Pair { pair: u32, shape: u32 },
     /// Any other primitive, intersected through its shape.
     Other { shape: u32, prim: u32 },
+    /// Primitives of one shape with the same f32 box (coincident or near-coincident ones), as
+    /// one BVH primitive: `len` entries of [`Aggregate::bundled`] from `start`. The BVH builder
+    /// takes time quadratic in the number of equal boxes; a bundle keeps it n log n.
+    Bundle { start: u32, len: u32, shape: u32 },
 }
+
+/// Fewest equal boxes that make a bundle (fewer cost the builder little; leaving them alone
+/// keeps ordinary scenes' BVHs as they were).
+const BUNDLE_MIN: usize = 8;
+
+/// Cells per scene extent in which boxes count as equal for bundling.
+const BUNDLE_GRID: f64 = 1e6;
 
 /// Two triangles of one mesh sharing an edge, (a, b, c) and (a, c, d) (see
 /// [`triangle::intersect_pair_sheared`]): the corners, each triangle's corners as
@@ -107,6 +118,8 @@ pub struct Aggregate {
     candidates: Vec<Candidate>,
     /// Paired triangles, indexed by [`Candidate::Pair`].
     pairs: Vec<Pair>,
+    /// The members of bundles ([`Candidate::Bundle`]).
+    bundled: Vec<Candidate>,
     bvh: CwBvh,
     /// Levels of `bvh` (root = 1): the traversal stack holds at most one entry per level.
     depth: usize,
@@ -161,6 +174,15 @@ impl Aggregate {
                 p += if slot == u32::MAX { 1 } else { 2 };
             }
         }
+        // Bounds beyond f64, or so small that the f32 frame's scale overflows (scenes the
+        // loader refuses): no BVH rather than a panic in its builder; such an aggregate hits
+        // nothing.
+        let span = (hi - lo).max_element();
+        if !(hi - lo).is_finite() || !(FRAME_EXTENT / span).is_finite() {
+            prims.clear();
+            boxes.clear();
+            pairs.clear();
+        }
         let (center, pad, scale) = if prims.is_empty() {
             (Vec3::ZERO, 0.0, 1.0)
         } else {
@@ -174,6 +196,48 @@ impl Aggregate {
                     to_f32_down((*a - center - pad) * scale),
                     to_f32_up((*b - center + pad) * scale),
                 )
+            })
+            .collect();
+        // Boxes of one shape that agree to 1e-6 of the scene's extent (coincident or
+        // near-coincident primitives): bundles of at least BUNDLE_MIN; `slots[j]` are the
+        // primitives (indices into `prims`) behind BVH primitive j.
+        let cell = |b: &Aabb| {
+            let q = |x: f32| (x as f64 * BUNDLE_GRID / FRAME_EXTENT).floor() as i64;
+            [
+                q(b.min.x),
+                q(b.min.y),
+                q(b.min.z),
+                q(b.max.x),
+                q(b.max.y),
+                q(b.max.z),
+            ]
+        };
+        let mut groups: std::collections::HashMap<([i64; 6], u32), Vec<usize>> =
+            std::collections::HashMap::new();
+        for (i, b) in aabbs.iter().enumerate() {
+            groups.entry((cell(b), prims[i].0)).or_default().push(i);
+        }
+        let mut slots: Vec<Vec<usize>> = Vec::with_capacity(aabbs.len());
+        let mut taken = vec![false; aabbs.len()];
+        for (i, b) in aabbs.iter().enumerate() {
+            if taken[i] {
+                continue;
+            }
+            let group = &groups[&(cell(b), prims[i].0)];
+            if group.len() >= BUNDLE_MIN {
+                group.iter().for_each(|&k| taken[k] = true);
+                slots.push(group.clone());
+            } else {
+                taken[i] = true;
+                slots.push(vec![i]);
+            }
+        }
+        let aabbs: Vec<Aabb> = slots
+            .iter()
+            .map(|s| {
+                s.iter()
+                    .skip(1)
+                    .fold(aabbs[s[0]], |u, &k| u.union(&aabbs[k]))
             })
             .collect();
         let bvh = if aabbs.is_empty() {
@@ -190,19 +254,32 @@ impl Aggregate {
             };
             obvhs::cwbvh::builder::build_cwbvh(&aabbs, params, &mut build_time)
         };
+        let candidate = |i: usize| {
+            let (si, p, pair) = prims[i];
+            match &shapes[si as usize] {
+                _ if pair != u32::MAX => Candidate::Pair { pair, shape: si },
+                Shape::Mesh(m) => Candidate::Triangle {
+                    p: m.vertices(p as usize),
+                    n: m.normal(p as usize),
+                    shape: si,
+                },
+                _ => Candidate::Other { shape: si, prim: p },
+            }
+        };
+        let mut bundled = Vec::new();
         let candidates = bvh
             .primitive_indices
             .iter()
-            .map(|&i| {
-                let (si, p, pair) = prims[i as usize];
-                match &shapes[si as usize] {
-                    _ if pair != u32::MAX => Candidate::Pair { pair, shape: si },
-                    Shape::Mesh(m) => Candidate::Triangle {
-                        p: m.vertices(p as usize),
-                        n: m.normal(p as usize),
-                        shape: si,
-                    },
-                    _ => Candidate::Other { shape: si, prim: p },
+            .map(|&j| match slots[j as usize].as_slice() {
+                [i] => candidate(*i),
+                members => {
+                    let start = bundled.len() as u32;
+                    bundled.extend(members.iter().map(|&i| candidate(i)));
+                    Candidate::Bundle {
+                        start,
+                        len: members.len() as u32,
+                        shape: prims[members[0]].0,
+                    }
                 }
             })
             .collect();
@@ -212,6 +289,7 @@ impl Aggregate {
             shapes,
             candidates,
             pairs,
+            bundled,
             bvh,
             depth,
             child_boxes,
@@ -280,7 +358,52 @@ impl Aggregate {
     /// Intersects the primitive in BVH slot `i` for 0 < t < t_max.
     #[inline(always)]
     fn intersect_slot(&self, i: usize, ray: &ShearedRay, t_max: f64) -> Option<(f64, Found<'_>)> {
-        match &self.candidates[i] {
+        self.intersect_candidate(&self.candidates[i], ray, t_max)
+    }
+
+    /// Intersects one candidate (a bundle: its nearest member) for 0 < t < t_max.
+    #[inline(always)]
+    fn intersect_candidate<'a>(
+        &'a self,
+        c: &'a Candidate,
+        ray: &ShearedRay,
+        t_max: f64,
+    ) -> Option<(f64, Found<'a>)> {
+        match c {
+            &Candidate::Bundle { start, len, .. } => self.intersect_bundle(start, len, ray, t_max),
+            c => self.intersect_primitive(c, ray, t_max),
+        }
+    }
+
+    /// The nearest member of a bundle (never inlined: bundles are rare).
+    #[inline(never)]
+    fn intersect_bundle(
+        &self,
+        start: u32,
+        len: u32,
+        ray: &ShearedRay,
+        t_max: f64,
+    ) -> Option<(f64, Found<'_>)> {
+        let mut best: Option<(f64, Found)> = None;
+        for m in &self.bundled[start as usize..(start + len) as usize] {
+            let limit = best.as_ref().map_or(t_max, |b| b.0);
+            if let Some(hit) = self.intersect_primitive(m, ray, limit) {
+                best = Some(hit);
+            }
+        }
+        best
+    }
+
+    /// Intersects a single primitive (not a bundle) for 0 < t < t_max.
+    #[inline(always)]
+    fn intersect_primitive<'a>(
+        &'a self,
+        c: &'a Candidate,
+        ray: &ShearedRay,
+        t_max: f64,
+    ) -> Option<(f64, Found<'a>)> {
+        match c {
+            Candidate::Bundle { .. } => None,
             Candidate::Triangle { p, n, shape } => {
                 triangle::intersect_sheared(ray, *p, t_max).map(|(t, bary)| {
                     let found = Found::Triangle {
@@ -499,7 +622,8 @@ impl Candidate {
         match self {
             Candidate::Triangle { shape, .. }
             | Candidate::Pair { shape, .. }
-            | Candidate::Other { shape, .. } => *shape,
+            | Candidate::Other { shape, .. }
+            | Candidate::Bundle { shape, .. } => *shape,
         }
     }
 }
@@ -697,6 +821,70 @@ mod tests {
             .flat_map(|f| [[f[0], f[1], f[2]], [f[0], f[2], f[3]]])
             .collect();
         TriangleMesh::new(p, tris, false)
+    }
+
+    #[test]
+    fn subnormal_and_overflowing_bounds_build_an_empty_aggregate_not_a_panic() {
+        for radius in [1.01e-320, 1.0e308] {
+            let a = Aggregate::new(vec![Shape::Sphere(Sphere {
+                center: Vec3::ZERO,
+                radius,
+                flip_normals: false,
+            })]);
+            let r = Ray {
+                o: Vec3::new(0.0, 0.0, -1.0),
+                d: Vec3::Z,
+            };
+            assert!(a.intersect(&r, f64::INFINITY).is_none(), "radius {radius}");
+        }
+    }
+
+    #[test]
+    fn coincident_triangles_are_bundled_and_hit_like_one() {
+        // 50 copies of one triangle, jittered by 1e-12, plus a distinct one behind them
+        let mut p = Vec::new();
+        let mut tris = Vec::new();
+        for k in 0..50 {
+            let e = 1e-12 * k as f64;
+            let base = p.len() as u32;
+            p.extend([
+                Vec3::new(e, 0.0, 1.0),
+                Vec3::new(1.0, e, 1.0),
+                Vec3::new(0.0, 1.0, 1.0 + e),
+            ]);
+            tris.push([base, base + 1, base + 2]);
+        }
+        let base = p.len() as u32;
+        p.extend([
+            Vec3::new(-1.0, -1.0, 2.0),
+            Vec3::new(2.0, -1.0, 2.0),
+            Vec3::new(-1.0, 2.0, 2.0),
+        ]);
+        tris.push([base, base + 1, base + 2]);
+        let many = Aggregate::new(vec![Shape::Mesh(TriangleMesh::new(p.clone(), tris, false))]);
+        assert!(many.bundled.len() >= BUNDLE_MIN, "{many:?}");
+        let one = Aggregate::new(vec![Shape::Mesh(TriangleMesh::new(
+            p,
+            vec![[0, 1, 2], [150, 151, 152]],
+            false,
+        ))]);
+        let mut s = SampleStream::new(3, 0, 0);
+        for _ in 0..5_000 {
+            let o = Vec3::new(s.next_f64() * 1.2 - 0.1, s.next_f64() * 1.2 - 0.1, -1.0);
+            let ray = Ray {
+                o,
+                d: Vec3::new(0.0, 0.0, 1.0),
+            };
+            let (a, b) = (
+                many.intersect(&ray, f64::INFINITY),
+                one.intersect(&ray, f64::INFINITY),
+            );
+            assert_eq!(a.is_some(), b.is_some(), "{o:?}");
+            if let (Some(a), Some(b)) = (a, b) {
+                assert!((a.t - b.t).abs() <= 1e-9, "{o:?}: {} vs {}", a.t, b.t);
+            }
+            assert_eq!(many.occluded(&ray, 1.5), one.occluded(&ray, 1.5), "{o:?}");
+        }
     }
 
     #[test]

@@ -316,14 +316,6 @@ fn tail(s: &str) -> String {
 }
 
 /// A temporary folder, removed when dropped (on every way out of a render, errors included).
-struct TempDir(PathBuf);
-
-impl Drop for TempDir {
-    fn drop(&mut self) {
-        let _ = std::fs::remove_dir_all(&self.0);
-    }
-}
-
 /// What a bounded run printed and how it ended.
 #[derive(Debug, Clone)]
 pub struct RunOutput {
@@ -445,13 +437,13 @@ impl External {
         let Some(command) = &self.desc.command else {
             return Err(format!("{} serves models only (no `command`)", self.label));
         };
-        let dir = TempDir(std::env::temp_dir().join(format!(
+        let dir = crate::io::cleanup::Pending::new(std::env::temp_dir().join(format!(
             "furnace-{}-{}-{}",
             self.label.replace([':', '/'], "_"),
             std::process::id(),
             self.counter.fetch_add(1, Ordering::Relaxed)
         )));
-        let dir = &dir.0;
+        let dir = dir.path();
         let xml = match self.desc.exporter.as_str() {
             "mitsuba3" => export::mitsuba::write(scene, dir).map_err(|e| e.to_string())?,
             other => return Err(format!("unknown exporter {other:?}")),

@@ -92,7 +92,7 @@ impl RgbImage {
             RgbImage::from_layers(&layers).map_err(|e| format!("{}: {e}", path.display()))?;
         if img.variance.is_some() && img.variance_dof.is_none() {
             let sidecar = path.with_extension("json");
-            if let Ok(text) = std::fs::read_to_string(&sidecar) {
+            if let Ok(text) = crate::io::read_small_text(&sidecar) {
                 let v: serde_json::Value = serde_json::from_str(&text)
                     .map_err(|e| format!("{}: not JSON: {e}", sidecar.display()))?;
                 if let Some(k) = v["batches"].as_f64().filter(|k| *k >= 2.0) {
@@ -172,7 +172,7 @@ pub fn regions_key(k: &super::keys::Keys, key: &str) -> Result<Vec<Region>, Scen
         return Ok(Vec::new());
     };
     let p = k.base.join(r.get_ref());
-    let text = std::fs::read_to_string(&p)
+    let text = crate::io::read_small_text(&p)
         .map_err(|e| k.error(r.span(), key, format!("cannot read {}: {e}", p.display())))?;
     let regions = parse_regions(&text, &p)?;
     let rsrc = Source {

@@ -37,8 +37,40 @@ pub fn parse(text: &str, path: &Path) -> Result<Vec<Check>, ManifestError> {
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut out: Vec<Check> = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
+    // every expanded check holds its own scene: bound their primitives together
+    let mut primitives: u64 = 0;
     for (i, c) in desc.check.iter().enumerate() {
-        for check in expand_check(&src, &base, i, c)? {
+        let expanded = expand_check(&src, &base, i, c)?;
+        if out.len() + expanded.len() > crate::limits::MAX_CHECKS {
+            return Err(src.error(
+                c.span(),
+                format!("check[{i}]"),
+                format!(
+                    "the manifest expands into more than {} checks",
+                    crate::limits::MAX_CHECKS
+                ),
+            ));
+        }
+        for check in &expanded {
+            primitives += check.scene.as_ref().map_or(0, |s| {
+                s.aggregate
+                    .shapes()
+                    .iter()
+                    .map(|sh| sh.primitive_count() as u64)
+                    .sum()
+            });
+        }
+        if primitives > crate::limits::MAX_TRIANGLES {
+            return Err(src.error(
+                c.span(),
+                format!("check[{i}]"),
+                format!(
+                    "the manifest's scenes hold more than {} primitives in all (each expanded check keeps its own scene)",
+                    crate::limits::MAX_TRIANGLES
+                ),
+            ));
+        }
+        for check in expanded {
             if !seen.insert(check.name.clone()) {
                 let span = c
                     .get_ref()
@@ -173,6 +205,20 @@ fn expand_check(
     let params = kind.parse(&mut keys)?;
     let vary = keys.get::<BTreeMap<String, Vec<f64>>>("vary")?;
     if let Some(v) = &vary {
+        let combos = v
+            .get_ref()
+            .values()
+            .fold(1usize, |n, xs| n.saturating_mul(xs.len()));
+        if combos > crate::limits::MAX_CHECKS {
+            return Err(err(
+                v.span(),
+                "vary",
+                format!(
+                    "would expand into {combos} checks; the limit is {} per manifest",
+                    crate::limits::MAX_CHECKS
+                ),
+            ));
+        }
         if let Some((k, _)) = v.get_ref().iter().find(|(_, xs)| xs.is_empty()) {
             return Err(err(
                 v.span(),
@@ -211,7 +257,7 @@ fn expand_check(
         check.scene = Some(match scene.get_ref() {
             Value::String(rel) => {
                 let p = base.join(rel);
-                let text = std::fs::read_to_string(&p).map_err(|e| {
+                let text = crate::io::read_small_text(&p).map_err(|e| {
                     err(
                         scene.span(),
                         "scene",

@@ -1,5 +1,6 @@
 //! Comma-separated tables of numbers (spectral data: a wavelength column, then value columns),
-//! read by column name. Plain parsing only: units and meaning belong to the caller.
+//! read by column name. Plain parsing only: units and meaning belong to the caller. Errors
+//! give lines and cell numbers, never the file's contents (a scene may name any file).
 
 /// A malformed table: the 1-based line and what is wrong.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -23,9 +24,11 @@ pub fn column(text: &str, column: &str) -> Result<(Vec<f64>, Vec<f64>), CsvError
     let Some(ci) = header.iter().position(|h| *h == column).filter(|&i| i > 0) else {
         return Err(at(
             1,
+            // the file's contents are not quoted: a scene may name any file
             format!(
-                "no column {column:?}; the value columns are: {}",
-                header.get(1..).unwrap_or(&[]).join(", ")
+                "no column {:?}; the header names {} value columns after the wavelength",
+                crate::limits::quote(column),
+                header.len().saturating_sub(1)
             ),
         ));
     };
@@ -47,7 +50,7 @@ pub fn column(text: &str, column: &str) -> Result<(Vec<f64>, Vec<f64>), CsvError
                 )
             })?;
             c.parse::<f64>()
-                .map_err(|_| at(i + 1, format!("{c:?} is not a number")))
+                .map_err(|_| at(i + 1, format!("cell {} is not a number", k + 1)))
         };
         ws.push(cell(0)?);
         vs.push(cell(ci)?);

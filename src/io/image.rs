@@ -291,10 +291,18 @@ pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
     );
 
     create_parent_dirs(path)?;
-    Image::from_layer(layer)
-        .write()
-        .to_file(path)
-        .map_err(|source| exr_error(path, source))
+    let image = Image::from_layer(layer);
+    let mut failure = None;
+    super::located::write_atomic(path, |tmp| {
+        image.write().to_file(tmp).map_err(|e| {
+            failure = Some(e);
+            std::io::Error::other("EXR write failed")
+        })
+    })
+    .map_err(|source| match failure.take() {
+        Some(e) => exr_error(path, e),
+        None => io_error(path, source),
+    })
 }
 
 /// Read the first layer (part) of an OpenEXR file.
@@ -314,6 +322,30 @@ pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
 /// * [`ImageIoError::ChannelLength`]: a channel is subsampled (unsupported) or truncated.
 /// * [`ImageIoError::DuplicateChannel`]: the file repeats a channel name.
 pub fn read_exr(path: &Path) -> Result<Layers, ImageIoError> {
+    // The header first: a data window larger than the film limit, or more channels than any
+    // image furnace reads, is refused before any pixel is allocated; so is a file that is not
+    // a regular file (a FIFO would block).
+    let meta = fs::metadata(path).map_err(|source| io_error(path, source))?;
+    if !meta.is_file() {
+        return Err(io_error(
+            path,
+            std::io::Error::new(std::io::ErrorKind::InvalidInput, "not a regular file"),
+        ));
+    }
+    let header = std::panic::catch_unwind(|| exr::meta::MetaData::read_from_file(path, false));
+    if let Ok(Ok(header)) = header {
+        for h in &header.headers {
+            let (w, hh) = (h.layer_size.width(), h.layer_size.height());
+            if crate::limits::image(w as u64, hh as u64).is_err() || h.channels.list.len() > 64 {
+                return Err(ImageIoError::InvalidSize {
+                    path: path.to_path_buf(),
+                    width: w,
+                    height: hh,
+                    reason: "over furnace's image limit (65536 per side, 2^24 pixels, 64 channels): refused before decoding",
+                });
+            }
+        }
+    }
     let decoded = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
         exr::image::read::read()
             .no_deep_data()
@@ -433,7 +465,8 @@ pub fn write_png_srgb(
 ) -> Result<(), ImageIoError> {
     let encoded = encode_png(path, width, height, linear_rgb, exposure)?;
     create_parent_dirs(path)?;
-    fs::write(path, &encoded).map_err(|source| io_error(path, source))
+    super::located::write_atomic(path, |tmp| fs::write(tmp, &encoded))
+        .map_err(|source| io_error(path, source))
 }
 
 /// The PNG file [`write_png_srgb`] would write, in memory (for self-contained HTML reports);

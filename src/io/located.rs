@@ -66,15 +66,84 @@ impl Source<'_> {
 /// The error of a scene, manifest or other located input.
 pub type SceneError = LocatedError;
 
-/// Reads a whole text file; `what` names it in the error ("the scene file", "the manifest").
+/// Reads a whole text file of at most [`crate::limits::MAX_TEXT_BYTES`]; `what` names it in
+/// the error ("the scene file", "the manifest"). Invalid UTF-8 is an error.
 pub fn read_text(path: &Path, what: &str) -> Result<String, LocatedError> {
-    std::fs::read_to_string(path).map_err(|e| LocatedError {
+    let at = |message: String| LocatedError {
         file: path.to_path_buf(),
         line: 0,
         column: 0,
         key: String::new(),
-        message: format!("cannot read {what}: {e}"),
+        message,
+    };
+    let bytes = read_capped(path, crate::limits::MAX_TEXT_BYTES)
+        .map_err(|e| at(format!("cannot read {what}: {e}")))?;
+    String::from_utf8(bytes).map_err(|e| at(format!("cannot read {what}: not UTF-8 text ({e})")))
+}
+
+/// Writes a file through a temporary file in the same folder renamed over `path`, so that a
+/// failed or interrupted write leaves what was at `path` as it was; the temporary
+/// `.NAME.tmp-PID-N` is removed on failure and on Ctrl-C / SIGTERM (only SIGKILL can leave it
+/// behind). `write` writes the temporary file.
+pub fn write_atomic(
+    path: &Path,
+    write: impl FnOnce(&Path) -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let name = path
+        .file_name()
+        .ok_or_else(|| std::io::Error::other("the path names no file"))?;
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp-{}-{}",
+        name.to_string_lossy(),
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    ));
+    // removed on failure, on drop after a successful rename (a no-op) and on interrupt
+    let tmp = super::cleanup::Pending::new(tmp);
+    write(tmp.path()).and_then(|_| std::fs::rename(tmp.path(), path))
+}
+
+/// A text file of at most [`crate::limits::MAX_TEXT_BYTES`] (see [`read_capped`]).
+pub fn read_small_text(path: &Path) -> std::io::Result<String> {
+    String::from_utf8(read_capped(path, crate::limits::MAX_TEXT_BYTES)?).map_err(|e| {
+        std::io::Error::new(
+            std::io::ErrorKind::InvalidData,
+            format!("not UTF-8 text ({e})"),
+        )
     })
+}
+
+/// Reads a regular file of at most `cap` bytes: a FIFO, a device or a directory is refused
+/// before it is opened (reading one could block or never end), and a larger file before it is
+/// read whole.
+pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
+    use std::io::{Error, ErrorKind, Read};
+    let meta = std::fs::metadata(path)?;
+    if !meta.is_file() {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "not a regular file (a FIFO, a device or a directory)",
+        ));
+    }
+    if meta.len() > cap {
+        return Err(Error::new(
+            ErrorKind::InvalidData,
+            format!("{} bytes; the limit is {cap}", meta.len()),
+        ));
+    }
+    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    std::fs::File::open(path)?
+        .take(cap + 1)
+        .read_to_end(&mut bytes)?;
+    if bytes.len() as u64 > cap {
+        return Err(Error::new(
+            ErrorKind::InvalidData,
+            format!("more than {cap} bytes (the file grew while it was read)"),
+        ));
+    }
+    Ok(bytes)
 }
 
 /// Parses TOML text into `T`; a syntax or type error (unknown key, wrong type) is located.

@@ -263,10 +263,13 @@ pub fn load_mesh(path: &Path) -> std::result::Result<MeshData, MeshIoError> {
             extension,
         });
     }
-    let bytes = std::fs::read(path).map_err(|source| MeshIoError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes =
+        super::located::read_capped(path, crate::limits::MAX_MESH_BYTES).map_err(|source| {
+            MeshIoError::Io {
+                path: path.to_path_buf(),
+                source,
+            }
+        })?;
     if lower == OBJ_EXT {
         parse_obj(&String::from_utf8_lossy(&bytes), path)
     } else {

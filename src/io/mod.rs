@@ -1,10 +1,13 @@
 //! File formats, each in one home: meshes (OBJ and PLY in, PLY out), CSV tables, images (OpenEXR in and
-//! out, PNG previews out), and located errors with the one TOML loader every text input uses.
+//! out, PNG previews out), located errors, and temporary paths removed on interrupt with the one TOML loader every text input uses.
 //! Plain data in and out: nothing here knows scenes, films or checks.
 
+pub mod cleanup;
 pub mod csv;
 pub mod image;
 pub mod located;
 pub mod mesh;
 
-pub use located::{parse_toml, read_text, LocatedError, Source};
+pub use located::{
+    parse_toml, read_capped, read_small_text, read_text, write_atomic, LocatedError, Source,
+};

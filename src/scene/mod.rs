@@ -384,6 +384,45 @@ impl Builder<'_> {
                 "the scene has no light: give a shape an `emission` or add a [[light]] (point or environment)",
             ));
         }
+        if let Some((i, lo, hi)) = shapes.iter().enumerate().find_map(|(i, s)| {
+            (0..s.primitive_count())
+                .map(|p| s.primitive_bounds(p))
+                .find(|(lo, hi)| {
+                    !lo.is_finite()
+                        || !hi.is_finite()
+                        || lo.abs().max(hi.abs()).max_element() > crate::limits::MAX_COORDINATE
+                })
+                .map(|(lo, hi)| (i, lo, hi))
+        }) {
+            return Err(self.err(
+                0..0,
+                format!("shape[{i}]"),
+                format!(
+                    "its bounds {:?} .. {:?} reach beyond {:e} scene units; coordinates and radii must stay within that",
+                    lo.to_array(),
+                    hi.to_array(),
+                    crate::limits::MAX_COORDINATE
+                ),
+            ));
+        }
+        if let Some((i, extent)) = shapes.iter().enumerate().find_map(|(i, s)| {
+            let (lo, hi) = (0..s.primitive_count())
+                .map(|p| s.primitive_bounds(p))
+                .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(l, h), (a, b)| {
+                    (l.min(a), h.max(b))
+                });
+            let extent = (hi - lo).max_element();
+            (extent < crate::limits::MIN_EXTENT).then_some((i, extent))
+        }) {
+            return Err(self.err(
+                0..0,
+                format!("shape[{i}]"),
+                format!(
+                    "it is {extent:e} scene units across; shapes must be at least {:e} across (choose a larger unit)",
+                    crate::limits::MIN_EXTENT
+                ),
+            ));
+        }
         let scene = Scene {
             aggregate: Aggregate::new(shapes),
             bsdfs,
@@ -535,6 +574,14 @@ impl Builder<'_> {
         }
         if let Some(v) = &r.max_depth {
             out.max_depth = Some(int(v, "max_depth", 0, 1 << 20)? as u32);
+        }
+        if let Err(e) = crate::limits::image(out.width as u64, out.height as u64) {
+            let span = r
+                .width
+                .as_ref()
+                .or(r.height.as_ref())
+                .map_or(0..0, |s| s.span());
+            return Err(self.err(span, "render", e.to_string()));
         }
         if let Some(f) = &r.filter {
             if f.get_ref() != "box" {
@@ -1078,6 +1125,8 @@ impl Builder<'_> {
                         "no triangles; give at least one [i, j, k]",
                     ));
                 }
+                let tris = with_area(&positions, tris)
+                    .map_err(|m| self.err(ix.span(), format!("{key}.indices"), m))?;
                 Shape::Mesh(TriangleMesh::new(positions, tris, flip))
             }
             _ => {
@@ -1085,12 +1134,14 @@ impl Builder<'_> {
                 let path = self.base.join(f.get_ref());
                 let data = crate::io::mesh::load_mesh(&path)
                     .map_err(|e| self.err(f.span(), format!("{key}.file"), e.to_string()))?;
-                let positions = data
+                let positions: Vec<Vec3> = data
                     .positions
                     .iter()
                     .map(|p| Vec3::from_array(*p))
                     .collect();
-                Shape::Mesh(TriangleMesh::new(positions, data.triangles, flip))
+                let tris = with_area(&positions, data.triangles)
+                    .map_err(|m| self.err(f.span(), format!("{key}.file"), m))?;
+                Shape::Mesh(TriangleMesh::new(positions, tris, flip))
             }
         };
         let emission = match &d.emission {
@@ -1192,4 +1243,32 @@ impl Builder<'_> {
             })
         }
     }
+}
+
+/// The triangles of a mesh that have an area (a zero-area triangle can never be hit and would
+/// only burden the BVH), or an error when none has; more than
+/// [`crate::limits::MAX_TRIANGLES`] is an error too.
+fn with_area(positions: &[Vec3], tris: Vec<[u32; 3]>) -> Result<Vec<[u32; 3]>, String> {
+    let limit = crate::limits::MAX_TRIANGLES;
+    if tris.len() as u64 > limit {
+        return Err(format!(
+            "{} triangles; the limit is {limit} per mesh",
+            tris.len()
+        ));
+    }
+    let total = tris.len();
+    let kept: Vec<[u32; 3]> = tris
+        .into_iter()
+        .filter(|t| {
+            let [a, b, c] = t.map(|k| positions[k as usize]);
+            let area = (b - a).cross(c - a).length();
+            area > 0.0 && area.is_finite()
+        })
+        .collect();
+    if kept.is_empty() {
+        return Err(format!(
+            "none of its {total} triangles has an area (all are degenerate: repeated or collinear corners)"
+        ));
+    }
+    Ok(kept)
 }

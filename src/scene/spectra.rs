@@ -235,7 +235,7 @@ impl<'a> SpectrumParser<'a> {
             "(referenced by {key} at {}:{line}:{col})",
             self.src.path.display()
         );
-        let text = std::fs::read_to_string(&path).map_err(|e| {
+        let text = crate::io::read_small_text(&path).map_err(|e| {
             self.src.error(
                 span.clone(),
                 key,

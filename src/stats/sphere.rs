@@ -231,7 +231,7 @@ impl Cell {
 
 /// Some probes see pdf 0 and some pdf > 0: a support edge crosses the cell.
 fn straddles(v: &[f64]) -> bool {
-    v.iter().any(|x| *x > 0.0) && v.iter().any(|x| *x == 0.0)
+    v.iter().any(|x| *x > 0.0) && v.contains(&0.0)
 }
 
 /// First split of an edge bin (8×8 cells), then up to `EDGE_DEPTH` − 3 levels of 2×2 splits

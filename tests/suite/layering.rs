@@ -5,7 +5,7 @@ use crate::root;
 use std::path::Path;
 
 const LAYERS: [&[&str]; 11] = [
-    &["math"],
+    &["math", "limits"],
     &["stats"],
     &["io"],
     &["spectrum"],

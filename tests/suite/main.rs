@@ -6,6 +6,7 @@ mod cli;
 mod colorimetry;
 mod digests;
 mod export;
+mod hostile;
 mod layering;
 mod manifest_errors;
 mod manifests;

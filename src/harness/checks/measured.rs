@@ -110,7 +110,7 @@ pub fn load(path: &Path) -> Result<MeasuredImages, String> {
         }],
         Some(r) => {
             let p = base.join(r);
-            let t = std::fs::read_to_string(&p)
+            let t = crate::io::read_small_text(&p)
                 .map_err(|e| at("regions", format!("cannot read {}: {e}", p.display())))?;
             parse_regions(&t, &p).map_err(|e| at("regions", e.to_string()))?
         }

@@ -91,13 +91,26 @@ impl Kind for ScaleInvariance {
             return Err(k.error_at("max_depth", "scale_invariance of \"lambert\" renders direct light only (max_depth 1); remove max_depth".into()));
         }
         let scales = k.finite_list("scales", true)?;
+        if let Some(s) = scales.iter().find(|s| !(1e-8..=1e8).contains(*s)) {
+            return Err(k.error_at(
+                "scales",
+                format!("{s:e} is out of range; allowed 1e-8 ..= 1e8"),
+            ));
+        }
         let offsets = k.get::<Vec<[f64; 3]>>("offsets")?;
         if let Some(o) = &offsets {
-            if o.get_ref().iter().flatten().any(|x| !x.is_finite()) {
+            if o.get_ref()
+                .iter()
+                .flatten()
+                .any(|x| !x.is_finite() || x.abs() > crate::limits::MAX_COORDINATE)
+            {
                 return Err(k.error(
                     o.span(),
                     "offsets",
-                    "every offset component must be finite".into(),
+                    format!(
+                        "every offset component must be finite and within {:e}",
+                        crate::limits::MAX_COORDINATE
+                    ),
                 ));
             }
         }

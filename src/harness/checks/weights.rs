@@ -29,6 +29,11 @@ fn rel_err(a: f64, b: f64) -> f64 {
     }
 }
 
+/// `err` within `tol`; NaN is not.
+fn within(err: f64, tol: f64) -> bool {
+    err <= tol
+}
+
 /// Measures one BSDF computing in `precision`: `samples` samples at each of a few outgoing
 /// directions. A pdf(wo, wi) that misses the sample's pdf by more than `rel_tol` is re-queried
 /// at the one-ulp neighbours of wo and wi (`model::conditioning`) and excused when the inputs'
@@ -110,9 +115,9 @@ pub fn measure_bsdf(
         let over: Vec<usize> = (0..at.len())
             .filter(|&i| {
                 let s = kept[i];
-                !(rel_err(pdfs[i], s.pdf) <= tol[i])
+                !within(rel_err(pdfs[i], s.pdf), tol[i])
                     || (0..4).any(|k| {
-                        !(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]) <= tol[i])
+                        !within(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]), tol[i])
                     })
             })
             .collect();
@@ -142,7 +147,7 @@ pub fn measure_bsdf(
                         pdf_tol,
                     );
                 let weight_over = (0..4).any(|k| {
-                    !(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]) <= tol[i])
+                    !within(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]), tol[i])
                 });
                 let weight_ok = weight_over
                     && (0..4).all(|k| {
@@ -178,7 +183,7 @@ pub fn measure_bsdf(
             let t = tol[k_at];
             k_at += 1;
             let e_pdf = if pdf_ok { 0.0 } else { rel_err(pdf, s.pdf) };
-            fails |= !(e_pdf <= t);
+            fails |= !within(e_pdf, t);
             if e_pdf > worst || e_pdf.is_nan() {
                 worst = e_pdf;
                 worst_at = format!("pdf {} vs sample pdf {}", fmt_sig(pdf), fmt_sig(s.pdf));
@@ -190,7 +195,7 @@ pub fn measure_bsdf(
                 } else {
                     rel_err(w, s.weight.0[k])
                 };
-                fails |= !(e <= t);
+                fails |= !within(e, t);
                 if e > worst || !e.is_finite() {
                     worst = e;
                     worst_at = format!(
@@ -242,7 +247,9 @@ pub fn measure_phase(
 ) -> Result<Measurement, ModelError> {
     // p near the forward peak of a |g| → 1 lobe is ill-conditioned in the model's precision
     let g = ph.mean_cosine().unwrap_or(0.0);
-    let rel_tol = rel_tol.max(crate::harness::model::phase::eval_conditioning(g, precision));
+    let rel_tol = rel_tol.max(crate::harness::model::phase::eval_conditioning(
+        g, precision,
+    ));
     let mut rng = SampleStream::new(seed, 5, 0);
     let wo = crate::math::Vec3::new(0.2, -0.5, 0.8).normalize();
     let mut worst = 0.0f64;

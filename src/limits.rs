@@ -1,0 +1,114 @@
+//! Limits on what furnace accepts, enforced before anything is allocated for it, each with a
+//! named error: image size, the work of a render, file sizes, meshes and checks.
+
+/// Largest image side, pixels.
+pub const MAX_IMAGE_SIDE: u64 = 1 << 16;
+
+/// Largest image, pixels (a 4096² image): the film keeps 144 bytes per pixel (count, mean and
+/// sum of squares in f64 for six channels), 2.4 GB at this size.
+pub const MAX_PIXELS: u64 = 1 << 24;
+
+/// Default work budget of `furnace render`, camera or light paths (width × height × spp): about
+/// 5 hours at 1 M paths/s. `--max-samples` raises it.
+pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 34;
+
+/// Largest text file read (scene, manifest, renderer table, CSV, regions), bytes: parsing a
+/// TOML document takes tens of times its size in memory.
+pub const MAX_TEXT_BYTES: u64 = 16 << 20;
+
+/// Largest mesh file read (OBJ, PLY), bytes.
+pub const MAX_MESH_BYTES: u64 = 1 << 30;
+
+/// Most triangles in one scene: about 1 KB each in the mesh, the BVH and the pairs.
+pub const MAX_TRIANGLES: u64 = 1 << 24;
+
+/// Most checks a manifest may expand to (after `vary`).
+pub const MAX_CHECKS: usize = 10_000;
+
+/// Largest coordinate magnitude of any shape's bounds, scene units: f64 positions there still
+/// resolve 2e-4 units, and the BVH's f32 boxes stay finite.
+pub const MAX_COORDINATE: f64 = 1e12;
+
+/// Smallest extent (largest side of the bounding box) of any shape, scene units: the
+/// mirror image of [`MAX_COORDINATE`]; below it squared lengths leave f64's normal range.
+pub const MIN_EXTENT: f64 = 1e-12;
+
+/// Longest piece of user input quoted in a message, characters.
+pub const MAX_QUOTED: usize = 120;
+
+/// A limit that input exceeded.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("{what} is {value}; the limit is {limit}{how}")]
+pub struct LimitError {
+    /// What was too large.
+    pub what: String,
+    /// Its size.
+    pub value: u64,
+    /// The limit.
+    pub limit: u64,
+    /// How to raise it, when it can be raised (starts with "; ").
+    pub how: String,
+}
+
+/// Checks an image size against [`MAX_IMAGE_SIDE`] and [`MAX_PIXELS`].
+pub fn image(width: u64, height: u64) -> Result<(), LimitError> {
+    for (what, v) in [("the image width", width), ("the image height", height)] {
+        if v > MAX_IMAGE_SIDE {
+            return Err(LimitError {
+                what: what.into(),
+                value: v,
+                limit: MAX_IMAGE_SIDE,
+                how: String::new(),
+            });
+        }
+    }
+    let pixels = width.saturating_mul(height);
+    if pixels > MAX_PIXELS {
+        return Err(LimitError {
+            what: format!("the pixel count of a {width}x{height} image"),
+            value: pixels,
+            limit: MAX_PIXELS,
+            how: " (the film needs 144 bytes per pixel)".into(),
+        });
+    }
+    Ok(())
+}
+
+/// `s` cut to [`MAX_QUOTED`] characters (with "…" when cut), for quoting user input.
+pub fn quote(s: &str) -> String {
+    let mut it = s.chars();
+    let head: String = it.by_ref().take(MAX_QUOTED).collect();
+    if it.next().is_some() {
+        format!("{head}… ({} bytes)", s.len())
+    } else {
+        head
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn images_beyond_the_limits_are_refused_by_name() {
+        assert!(image(4096, 4096).is_ok());
+        let e = image(1_000_000_000, 1).unwrap_err();
+        assert!(e
+            .to_string()
+            .contains("the image width is 1000000000; the limit is 65536"));
+        let e = image(65536, 65536).unwrap_err();
+        assert!(e
+            .to_string()
+            .contains("image is 4294967296; the limit is 16777216"));
+    }
+
+    #[test]
+    fn long_input_is_quoted_short() {
+        assert_eq!(quote("abc"), "abc");
+        let q = quote(&"x".repeat(1000));
+        assert!(
+            q.starts_with(&"x".repeat(120)) && q.ends_with("(1000 bytes)"),
+            "{q}"
+        );
+    }
+}

@@ -1,0 +1,433 @@
+//! Hostile and careless input: each class gets a named error (its message pinned by a
+//! snapshot) or the documented safe behaviour, never a panic, a hang, an out-of-memory abort or
+//! a lost file. The table of classes is in docs/hostile-input.md.
+
+use crate::root;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+use std::time::{Duration, Instant};
+
+/// A fresh temporary folder for one test.
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("furnace-hostile-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn furnace(dir: &Path, args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(dir)
+        .args(args)
+        .output()
+        .unwrap()
+}
+
+/// stderr with the temporary folder replaced by `<tmp>`, for snapshots.
+fn stderr_of(out: &Output, dir: &Path) -> String {
+    String::from_utf8_lossy(&out.stderr)
+        .replace(&dir.display().to_string(), "<tmp>")
+        .trim_end()
+        .to_string()
+}
+
+const SPHERE: &str = r#"[render]
+width = 8
+height = 8
+spp = SPP
+[camera]
+position = [0.0, 0.0, -3.0]
+look_at = [0.0, 0.0, 0.0]
+up = [0.0, 1.0, 0.0]
+fov = 40.0
+[materials.m]
+type = "diffuse"
+reflectance = 0.5
+[[shape]]
+SHAPE
+material = "m"
+[[light]]
+type = "environment"
+radiance = 1.0
+"#;
+
+fn scene(spp: &str, shape: &str) -> String {
+    SPHERE.replace("SPP", spp).replace(
+        "SHAPE",
+        if shape.is_empty() {
+            "type = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0"
+        } else {
+            shape
+        },
+    )
+}
+
+/// Runs `furnace render` on `text` and returns (exit code, stderr).
+fn render(name: &str, text: &str, extra: &[&str]) -> (Option<i32>, String) {
+    let d = tmp(name);
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let mut args = vec!["render", "s.toml", "-o", "out.exr", "-q"];
+    args.extend_from_slice(extra);
+    let out = furnace(&d, &args);
+    let msg = stderr_of(&out, &d);
+    let _ = std::fs::remove_dir_all(&d);
+    (out.status.code(), msg)
+}
+
+#[test]
+fn degenerate_meshes_are_refused_by_name() {
+    let d = tmp("degenerate");
+    // Two zero-area triangles: every vertex at the origin.
+    std::fs::write(
+        d.join("flat.obj"),
+        "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 3\nf 3 2 1\n",
+    )
+    .unwrap();
+    std::fs::write(
+        d.join("s.toml"),
+        scene("4", "type = \"mesh\"\nfile = \"flat.obj\""),
+    )
+    .unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+    let msg = stderr_of(&out, &d);
+    let _ = std::fs::remove_dir_all(&d);
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!("degenerate_mesh", msg);
+}
+
+#[test]
+fn work_and_image_limits_are_enforced_before_allocation() {
+    let big_spp = scene("1099511627776", "");
+    for (name, text, extra) in [
+        ("spp_2_40", big_spp.as_str(), vec![]),
+        ("width_1e9", &scene("4", ""), vec!["--width", "1000000000"]),
+        (
+            "pixels_65536_squared",
+            &scene("1", ""),
+            vec!["--width", "65536", "--height", "65536"],
+        ),
+    ] {
+        let t0 = Instant::now();
+        let (code, msg) = render(name, text, &extra);
+        assert_eq!(code, Some(2), "{name}: {msg}");
+        assert!(t0.elapsed() < Duration::from_secs(10));
+        insta::assert_snapshot!(name, msg);
+    }
+}
+
+#[test]
+fn a_fifo_or_a_device_named_as_a_mesh_is_refused_without_blocking() {
+    let d = tmp("fifo");
+    let fifo = d.join("mesh.obj");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("skipped: no mkfifo");
+        return;
+    }
+    std::os::unix::fs::symlink("/dev/zero", d.join("zero.obj")).unwrap();
+    for (name, file) in [("fifo_mesh", "mesh.obj"), ("dev_zero_mesh", "zero.obj")] {
+        std::fs::write(
+            d.join("s.toml"),
+            scene("4", &format!("type = \"mesh\"\nfile = \"{file}\"")),
+        )
+        .unwrap();
+        let t0 = Instant::now();
+        let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+        assert_eq!(out.status.code(), Some(2));
+        assert!(t0.elapsed() < Duration::from_secs(10));
+        insta::assert_snapshot!(name, stderr_of(&out, &d));
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn an_exr_declaring_a_huge_data_window_is_refused_before_decoding() {
+    let d = tmp("exr");
+    let out = furnace(
+        &d,
+        &[
+            "compare",
+            root("tests/fuzz/corpus/exr/huge-window.exr")
+                .to_str()
+                .unwrap(),
+            root("tests/fuzz/corpus/exr/tiny.exr").to_str().unwrap(),
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!(
+        "exr_huge_window",
+        stderr_of(&out, &d).replace(&root("").display().to_string(), "<root>/")
+    );
+}
+
+#[test]
+fn text_files_over_the_limit_are_refused_by_size() {
+    let d = tmp("big");
+    let text = scene("4", "") + &"# padding\n".repeat(1_700_000);
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!("scene_over_16_mib", stderr_of(&out, &d));
+}
+
+#[test]
+fn coincident_triangles_build_in_n_log_n() {
+    // 20 000 copies of one triangle took 11 s in a quadratic BVH build; now they are one bundle
+    let mut obj = String::new();
+    for _ in 0..20_000 {
+        obj.push_str("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+    }
+    for i in 0..20_000 {
+        obj.push_str(&format!("f {} {} {}\n", 3 * i + 1, 3 * i + 2, 3 * i + 3));
+    }
+    let d = tmp("coincident");
+    std::fs::write(d.join("m.obj"), obj).unwrap();
+    std::fs::write(
+        d.join("s.toml"),
+        scene("2", "type = \"mesh\"\nfile = \"m.obj\""),
+    )
+    .unwrap();
+    let t0 = Instant::now();
+    let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr_of(&out, &d));
+    assert!(t0.elapsed() < Duration::from_secs(5), "{:?}", t0.elapsed());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn outputs_that_collide_or_fail_never_destroy_what_was_there() {
+    let d = tmp("outputs");
+    std::fs::write(d.join("s.toml"), scene("2", "")).unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "same.png", "-q"]);
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!("exr_and_png_same_path", stderr_of(&out, &d));
+    // a write that fails leaves the old file whole
+    let old = d.join("old.txt");
+    std::fs::write(&old, "keep me").unwrap();
+    let failed = furnace::io::write_atomic(&old, |tmp| {
+        std::fs::write(tmp, "partial")?;
+        Err(std::io::Error::other("disk full"))
+    });
+    assert!(failed.is_err());
+    assert_eq!(std::fs::read_to_string(&old).unwrap(), "keep me");
+    let leftovers: Vec<_> = std::fs::read_dir(&d)
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().contains(".tmp-"))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn empty_runs_do_not_pass_silently() {
+    let d = tmp("empty");
+    std::fs::write(d.join("m.toml"), "# no checks\n").unwrap();
+    let out = furnace(&d, &["check", "m.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!("manifest_without_checks", stderr_of(&out, &d));
+    let out = furnace(&d, &["check", "m.toml", "--allow-empty"]);
+    assert_eq!(out.status.code(), Some(0));
+    let lambert = root("tests/manifests/lambert.toml");
+    let out = furnace(
+        &d,
+        &["check", lambert.to_str().unwrap(), "--filter", "nothing*"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    insta::assert_snapshot!("filter_matching_nothing", stderr_of(&out, &d));
+}
+
+#[test]
+fn errors_quote_user_input_short_and_referenced_files_not_at_all() {
+    let d = tmp("quotes");
+    // a CSV whose header would leak if echoed
+    std::fs::write(d.join("secret.csv"), "lambda,TOP-SECRET-TOKEN\n400,1\n").unwrap();
+    let text = scene("4", "").replace(
+        "reflectance = 0.5",
+        "reflectance = { csv = \"secret.csv\", column = \"x\" }",
+    );
+    std::fs::write(d.join("s.toml"), text).unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+    let msg = stderr_of(&out, &d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!msg.contains("TOP-SECRET"), "{msg}");
+    insta::assert_snapshot!("csv_header_not_echoed", msg);
+    // a 10 MB kind name is quoted in at most a few thousand characters
+    let manifest = format!(
+        "[[check]]\nname = \"x\"\nkind = \"{}\"\n",
+        "k".repeat(10_000_000)
+    );
+    std::fs::write(d.join("m.toml"), manifest).unwrap();
+    let out = furnace(&d, &["check", "m.toml"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stderr.len() < 5000, "{} bytes", out.stderr.len());
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn the_renderer_table_is_never_read_from_the_working_directory() {
+    let d = tmp("table");
+    std::fs::write(
+        d.join("renderers.toml"),
+        "[renderer.evil]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\ncommand = [\"touch\", \"pwned\"]\n",
+    )
+    .unwrap();
+    let lambert = root("tests/manifests/lambert.toml");
+    let out = furnace(
+        &d,
+        &["check", lambert.to_str().unwrap(), "--renderer", "evil"],
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(!d.join("pwned").exists());
+    insta::assert_snapshot!("renderer_from_working_directory", stderr_of(&out, &d));
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn adapters_bound_time_output_and_clean_up() {
+    use furnace::harness::adapter::{parse_renderers, run_bounded, External};
+    use furnace::harness::Renderer;
+    // a probe that never exits is stopped at the table's timeout
+    let table = r#"
+[renderer.slow]
+exporter = "mitsuba3"
+observer = "cie1931"
+timeout = 1
+probe = ["sleep", "100"]
+command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
+"#;
+    let r = parse_renderers(table, Path::new("t.toml")).unwrap();
+    let ext = External::from_spec("slow", &r, &root("")).unwrap();
+    let t0 = Instant::now();
+    let why = ext.probe().unwrap_err();
+    assert!(why.contains("did not finish within 1 s"), "{why}");
+    assert!(t0.elapsed() < Duration::from_secs(5));
+    // a command that prints 300 MB keeps only its tail
+    let mut c = Command::new("sh");
+    c.args(["-c", "yes 0123456789 | head -c 300000000 1>&2"]);
+    let out = run_bounded(c, Duration::from_secs(60)).unwrap();
+    assert!(out.stderr.len() <= 64 * 1024, "{}", out.stderr.len());
+    // a failed render leaves no temporary folder behind
+    let scene = furnace::scene::Scene::parse(&scene("4", ""), &root("scenes/x.toml")).unwrap();
+    let before = temp_folders("slow");
+    let settings = furnace::render::RenderSettings {
+        width: 8,
+        height: 8,
+        spp: 4,
+        seed: 1,
+        threads: 1,
+        integrator: Default::default(),
+        observer: Default::default(),
+        sampler: Default::default(),
+        spectral: Default::default(),
+        deadline: None,
+    };
+    assert!(ext.render(&scene, &settings).is_err());
+    assert_eq!(temp_folders("slow"), before);
+}
+
+fn temp_folders(label: &str) -> usize {
+    std::fs::read_dir(std::env::temp_dir())
+        .unwrap()
+        .flatten()
+        .filter(|e| {
+            let n = e.file_name().to_string_lossy().to_string();
+            n.starts_with(&format!("furnace-{label}-{}", std::process::id()))
+        })
+        .count()
+}
+
+#[test]
+fn geometry_beyond_f64_and_scales_beyond_reason_are_refused() {
+    let (code, msg) = render(
+        "huge_sphere",
+        &scene(
+            "4",
+            "type = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.01e308",
+        ),
+        &[],
+    );
+    assert_eq!(code, Some(2));
+    insta::assert_snapshot!("sphere_radius_1e308", msg);
+    let m = "[[check]]\nname = \"s\"\nkind = \"scale_invariance\"\nof = \"furnace\"\nscales = [1e300]\nscene = \"scenes/furnace-sphere.toml\"\n";
+    let e = furnace::harness::manifest::parse(m, &root("tests/manifests/x.toml")).unwrap_err();
+    insta::assert_snapshot!(
+        "scale_1e300",
+        e.to_string()
+            .replace(&root("").display().to_string(), "<root>/")
+    );
+}
+
+#[test]
+fn an_interrupted_run_removes_its_temporary_folders() {
+    let d = tmp("interrupt");
+    let table = d.join("renderers.toml");
+    std::fs::write(
+        &table,
+        "[renderer.sleepy]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nprobe = [\"true\"]\ncommand = [\"sleep\", \"5\"]\n",
+    )
+    .unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args([
+            "check",
+            "tests/manifests/furnace.toml",
+            "--filter",
+            "furnace/sphere*",
+        ])
+        .args(["--renderer", "sleepy", "-q", "--renderers"])
+        .arg(&table)
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let prefix = format!("furnace-sleepy-{}-", child.id());
+    let live = || {
+        std::fs::read_dir(std::env::temp_dir())
+            .unwrap()
+            .flatten()
+            .filter(|e| e.file_name().to_string_lossy().starts_with(&prefix))
+            .count()
+    };
+    let t0 = Instant::now();
+    while live() == 0 && t0.elapsed() < Duration::from_secs(30) {
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    assert!(live() > 0, "the run never exported its scene");
+    let killed = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(killed.success());
+    assert_eq!(child.wait().unwrap().code(), Some(130));
+    assert_eq!(live(), 0, "temporary folders left behind");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
+fn manifests_expanding_beyond_the_check_limit_are_refused() {
+    let values = vec!["0.5"; 10_001].join(", ");
+    let m = format!(
+        "[[check]]\nname = \"f\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = {{ albedo = [{values}] }}\n"
+    );
+    let e = furnace::harness::manifest::parse(&m, &root("tests/manifests/x.toml")).unwrap_err();
+    let msg = e
+        .to_string()
+        .replace(&root("").display().to_string(), "<root>/");
+    insta::assert_snapshot!("vary_10001", msg);
+}
+
+#[test]
+fn shapes_below_the_smallest_extent_are_refused() {
+    // found by the 30-minute fuzz run: a subnormal radius made the BVH builder index out of bounds
+    let (code, msg) = render(
+        "tiny_sphere",
+        &scene(
+            "4",
+            "type = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.01e-320",
+        ),
+        &[],
+    );
+    assert_eq!(code, Some(2));
+    insta::assert_snapshot!("sphere_radius_1e-320", msg);
+}
