@@ -15,9 +15,10 @@ use serde_json::{json, Value};
 use std::collections::VecDeque;
 use std::io::{BufReader, Read, Write};
 use std::process::{Child, ChildStdin, Command, Stdio};
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 /// Bytes of the server's stderr kept for error messages.
 const STDERR_KEPT: usize = 4096;
@@ -347,6 +348,32 @@ impl RemoteModels {
     }
 }
 
+static QUERIES: AtomicU64 = AtomicU64::new(0);
+static ROUND_TRIPS: AtomicU64 = AtomicU64::new(0);
+static WAIT_NANOS: AtomicU64 = AtomicU64::new(0);
+
+/// What this process has asked of model servers so far: queries (rows), round trips, and
+/// seconds spent between sending a batch and holding its checked reply (the server's own work
+/// included). The `check` command prints it; `benches/model-protocol.sh` reads it.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Traffic {
+    /// Rows sent (one query each).
+    pub queries: u64,
+    /// Batches sent.
+    pub round_trips: u64,
+    /// Wall time waiting on replies, s.
+    pub seconds: f64,
+}
+
+/// The model traffic of this process so far.
+pub fn traffic() -> Traffic {
+    Traffic {
+        queries: QUERIES.load(Ordering::Relaxed),
+        round_trips: ROUND_TRIPS.load(Ordering::Relaxed),
+        seconds: WAIT_NANOS.load(Ordering::Relaxed) as f64 * 1e-9,
+    }
+}
+
 /// One served model: its connection and name.
 struct Remote {
     conn: Arc<Mutex<Connection>>,
@@ -372,7 +399,12 @@ impl Remote {
         for chunk in rows.chunks(protocol::BATCH_ROWS * op.request) {
             let n = chunk.len() / op.request;
             let header = json!({"op": op.name, "model": self.name});
-            let reply = conn.call(header, op.request, chunk)?;
+            let start = Instant::now();
+            let reply = conn.call(header, op.request, chunk);
+            WAIT_NANOS.fetch_add(start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            QUERIES.fetch_add(n as u64, Ordering::Relaxed);
+            ROUND_TRIPS.fetch_add(1, Ordering::Relaxed);
+            let reply = reply?;
             if reply.header.get("ok") != Some(&Value::Bool(true)) {
                 let e = reply
                     .header
