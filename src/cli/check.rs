@@ -1,6 +1,6 @@
 //! `furnace check`: run manifests against one or more renderers and write the results.
 
-use super::{write_file, Failure};
+use super::{write_results, Failure, Outputs};
 use anyhow::Context;
 use clap::Args;
 use furnace::harness::adapter::{self, RendererDesc};
@@ -8,8 +8,9 @@ use furnace::harness::model::client::{RemoteModels, Unavailable};
 use furnace::harness::model::local::LocalModels;
 use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::runner::Progress;
-use furnace::harness::{self, manifest, BuiltIn, Correction, ModelSource, RunOptions};
-use furnace::report::{html, json, junit, text};
+use furnace::harness::shard::{self, Shard};
+use furnace::harness::{self, manifest, BuiltIn, Correction, ModelSource, RunOptions, ShardPlan};
+use furnace::report::text;
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
@@ -46,7 +47,7 @@ pub struct CheckArgs {
     #[arg(long, default_value_t = harness::context::DEFAULT_TIME_LIMIT)]
     time_limit: f64,
     /// Render threads; 0 uses every core (results are identical for any count).
-    #[arg(long, default_value_t = 0)]
+    #[arg(short = 'j', long, default_value_t = 0)]
     threads: usize,
     /// Write JUnit XML here.
     #[arg(long)]
@@ -60,6 +61,12 @@ pub struct CheckArgs {
     /// Write a self-contained HTML report here (renderers side by side when several are given).
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Run only shard K of N (1-based) of the selected checks, for a CI matrix: the family-wise correction still spans every check, and `furnace merge` joins the shards' --json files into one run's results.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
+    /// Balance shards by the check times of an earlier run (its --json file); without it every check counts alike.
+    #[arg(long, value_name = "JSON", requires = "shard")]
+    shard_costs: Option<PathBuf>,
     /// Renderer to judge: furnace (built in) or NAME[:VARIANT] from --renderers; repeatable. External renderers run the renderer-agnostic scene-level kinds; the rest are reported as skipped.
     #[arg(long = "renderer", default_value = "furnace")]
     renderers: Vec<String>,
@@ -121,7 +128,37 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         )
         .into());
     }
+    let shard = match &a.shard {
+        None => None,
+        Some(k) => {
+            let shard = Shard::parse(k)?;
+            if a.correction != "sidak" {
+                return Err(anyhow::anyhow!(
+                    "--shard needs --correction sidak: Holm's step-down needs every p-value of the run at once"
+                )
+                .into());
+            }
+            let costs = match &a.shard_costs {
+                None => BTreeMap::new(),
+                Some(p) => recorded_seconds(p)?,
+            };
+            let per: Vec<f64> = specs
+                .iter()
+                .map(|s| costs.get(&s.name).copied().unwrap_or(f64::NAN))
+                .collect();
+            Some(ShardPlan {
+                shard,
+                of_check: shard::partition(&per, shard.count),
+                also: skipped.iter().map(|s| s.name.clone()).collect(),
+            })
+        }
+    };
+    if shard.as_ref().is_some_and(|p| p.shard.index != 1) {
+        // shard 1 reports the checks --filter left out
+        skipped.clear();
+    }
     let opts = RunOptions {
+        shard,
         seed: a.seed,
         family_alpha: a.alpha,
         correction: if a.correction == "holm" {
@@ -139,6 +176,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         None
     };
     let mut reports = Vec::new();
+    let mut traffic = harness::model::client::traffic();
     for label in &a.renderers {
         let external = match &externals {
             Some(map) if label != "furnace" => Some(
@@ -245,50 +283,26 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         } else if !a.quiet {
             println!("{}", text::summary(&report));
         }
+        let now = harness::model::client::traffic();
+        if now.queries > traffic.queries && a.format != "json" && !a.quiet {
+            let q = now.queries - traffic.queries;
+            let t = now.seconds - traffic.seconds;
+            println!(
+                "model server: {q} queries in {} round trips, {t:.2} s waiting for replies ({:.3} M queries/s)",
+                now.round_trips - traffic.round_trips,
+                q as f64 / t.max(1e-9) * 1e-6
+            );
+        }
+        traffic = now;
         reports.push(report);
     }
-    // One JSON / JUnit / Markdown file per renderer: the first at the given path, the others
-    // with the renderer's label before the extension.
-    let path_for = |p: &Path, i: usize, r: &harness::outcome::RunReport| -> PathBuf {
-        if i == 0 {
-            return p.to_path_buf();
-        }
-        let label: String = r
-            .renderer
-            .chars()
-            .map(|c| {
-                if c.is_alphanumeric() || c == '-' || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
-        let ext = p
-            .extension()
-            .map(|e| e.to_string_lossy().to_string())
-            .unwrap_or_default();
-        p.with_extension(format!("{label}.{ext}"))
+    let out = Outputs {
+        json: a.json.clone(),
+        junit: a.junit.clone(),
+        markdown: a.markdown.clone(),
+        report: a.report.clone(),
     };
-    let mut values = Vec::new();
-    for (i, report) in reports.iter().enumerate() {
-        if let Some(p) = &a.json {
-            write_file(&path_for(p, i, report), &json::to_json(report))?;
-        }
-        if let Some(p) = &a.junit {
-            write_file(&path_for(p, i, report), &junit::to_junit(report))?;
-        }
-        if let Some(p) = &a.markdown {
-            write_file(&path_for(p, i, report), &text::table_markdown(report))?;
-        }
-        values.push(
-            serde_json::from_str::<serde_json::Value>(&json::to_json(report))
-                .context("JSON round trip")?,
-        );
-    }
-    if let Some(p) = &a.report {
-        write_file(p, &html::page("furnace check", &values, &[]))?;
-    }
+    write_results(&reports, &out, "furnace check")?;
     Ok(
         if reports
             .iter()
@@ -299,6 +313,15 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             0
         },
     )
+}
+
+/// Each check's wall time in an earlier run's JSON results, by name.
+fn recorded_seconds(p: &Path) -> Result<BTreeMap<String, f64>, Failure> {
+    let text =
+        furnace::io::read_small_text(p).with_context(|| format!("cannot read {}", p.display()))?;
+    let r: harness::outcome::RunReport = serde_json::from_str(&text)
+        .with_context(|| format!("{} is not furnace check results (JSON)", p.display()))?;
+    Ok(r.outcomes.into_iter().map(|o| (o.name, o.seconds)).collect())
 }
 
 /// The renderer table: `--renderers`, else the user's (~/.config/furnace/renderers.toml, or

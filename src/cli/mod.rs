@@ -6,6 +6,7 @@ mod check;
 mod compare;
 mod converge;
 mod export;
+mod merge;
 mod render;
 mod report;
 mod serve_models;
@@ -13,8 +14,9 @@ mod serve_models;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 use furnace::harness::compare::{self as image_compare, RgbImage};
-use furnace::report::html;
-use std::path::Path;
+use furnace::harness::outcome::RunReport;
+use furnace::report::{html, json, junit, text};
+use std::path::{Path, PathBuf};
 
 /// furnace: a predictive-rendering validation harness and spectral reference renderer.
 #[derive(Debug, Parser)]
@@ -36,6 +38,8 @@ enum Command {
     Converge(converge::ConvergeArgs),
     /// Turn check results (JSON) and image comparisons into one self-contained HTML page and a Markdown summary; exit 1 when something failed.
     Report(report::ReportArgs),
+    /// Merge the JSON results of the shards of one `check --shard K/N` run into one run's JSON, JUnit, Markdown and HTML; exit 0 all pass, 1 a check failed, 2 the shards do not make one run.
+    Merge(merge::MergeArgs),
     /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
     Export(export::ExportArgs),
     /// Serve furnace's own BSDFs, phase functions and emitters over the model protocol on stdin/stdout (docs/model-protocol.md).
@@ -67,6 +71,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Check(args) => check::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Export(args) => export::run(args),
+        Command::Merge(args) => merge::run(args),
         Command::Report(args) => report::run(args),
         Command::Converge(args) => converge::run(args),
         Command::ServeModels(args) => serve_models::run(args),
@@ -111,4 +116,63 @@ pub(crate) fn section(
         family_alpha,
         panels,
     })
+}
+
+/// Where `check` and `merge` write a run's results.
+#[derive(Debug, Default)]
+pub struct Outputs {
+    /// JSON results.
+    pub json: Option<PathBuf>,
+    /// JUnit XML.
+    pub junit: Option<PathBuf>,
+    /// Markdown table.
+    pub markdown: Option<PathBuf>,
+    /// HTML page (renderers side by side).
+    pub report: Option<PathBuf>,
+}
+
+/// Writes one JSON / JUnit / Markdown file per renderer (the first at the given path, the
+/// others with the renderer's label before the extension) and one HTML page for all.
+pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Result<(), Failure> {
+    let path_for = |p: &Path, i: usize, r: &RunReport| -> PathBuf {
+        if i == 0 {
+            return p.to_path_buf();
+        }
+        let label: String = r
+            .renderer
+            .chars()
+            .map(|c| {
+                if c.is_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        let ext = p
+            .extension()
+            .map(|e| e.to_string_lossy().to_string())
+            .unwrap_or_default();
+        p.with_extension(format!("{label}.{ext}"))
+    };
+    let mut values = Vec::new();
+    for (i, report) in reports.iter().enumerate() {
+        if let Some(p) = &out.json {
+            write_file(&path_for(p, i, report), &json::to_json(report))?;
+        }
+        if let Some(p) = &out.junit {
+            write_file(&path_for(p, i, report), &junit::to_junit(report))?;
+        }
+        if let Some(p) = &out.markdown {
+            write_file(&path_for(p, i, report), &text::table_markdown(report))?;
+        }
+        values.push(
+            serde_json::from_str::<serde_json::Value>(&json::to_json(report))
+                .context("JSON round trip")?,
+        );
+    }
+    if let Some(p) = &out.report {
+        write_file(p, &html::page(title, &values, &[]))?;
+    }
+    Ok(())
 }

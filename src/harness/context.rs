@@ -1,6 +1,7 @@
 //! How a run is configured ([`RunOptions`]) and what one check sees while it runs
 //! ([`Context`]): the renderer under test, its seed, threads and per-test significance.
 
+use super::shard::Shard;
 use super::error::CheckError;
 use super::renderer::Renderer;
 use super::under_test::ModelSource;
@@ -38,6 +39,20 @@ pub struct RunOptions {
     pub threads: usize,
     /// Wall-time limit of a check without its own `time_limit`, seconds.
     pub time_limit: f64,
+    /// Run only this shard's checks (the correction still spans every check).
+    pub shard: Option<ShardPlan>,
+}
+
+/// A shard and the shard of every check of the suite (`shard::partition`).
+#[derive(Debug, Clone)]
+pub struct ShardPlan {
+    /// This job's shard.
+    pub shard: Shard,
+    /// The shard (1-based) of each check, in the order of the checks given to the runner.
+    pub of_check: Vec<usize>,
+    /// Names appended to the suite after the checks (checks left out by --filter, which
+    /// shard 1 reports as skipped).
+    pub also: Vec<String>,
 }
 
 /// The default wall-time limit of one check, seconds: 20× the longest check of the default
@@ -52,6 +67,7 @@ impl Default for RunOptions {
             correction: Correction::Sidak,
             threads: 0,
             time_limit: DEFAULT_TIME_LIMIT,
+            shard: None,
         }
     }
 }

@@ -2,7 +2,7 @@
 //! judge, and the runner that applies the family-wise error correction.
 //!
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
-//! `names`, `outcome`, `error` → `measurement` → `renderer` → `under_test` → `context`, `keys` → `kind` →
+//! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `runner`.
@@ -24,9 +24,10 @@ pub mod region;
 pub mod registry;
 pub mod renderer;
 pub mod runner;
+pub mod shard;
 pub mod under_test;
 
-pub use context::{check_seed, Context, Correction, RunOptions};
+pub use context::{check_seed, Context, Correction, RunOptions, ShardPlan};
 pub use error::CheckError;
 pub use kind::{Check, Kind, Scope};
 pub use measurement::Measurement;

@@ -1,9 +1,9 @@
 //! The result of one check: its verdict and the numbers behind it.
 
-use serde::Serialize;
+use serde::{Deserialize, Deserializer, Serialize};
 
 /// What a check concluded.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "UPPERCASE")]
 pub enum Verdict {
     /// The measurement agrees with the expectation at the stated significance/tolerance.
@@ -20,17 +20,19 @@ pub enum Verdict {
 }
 
 /// The statistic a verdict rests on.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case")]
 pub enum Statistic {
     /// Two-sided z test: (estimate − expected)/standard error.
     Z {
         /// The z score.
+        #[serde(deserialize_with = "nan_if_null")]
         z: f64,
     },
     /// Pearson chi-square goodness of fit.
     ChiSquare {
         /// The χ² value.
+        #[serde(deserialize_with = "nan_if_null")]
         chi2: f64,
         /// Degrees of freedom after pooling.
         dof: u64,
@@ -39,10 +41,13 @@ pub enum Statistic {
     /// max_error ≤ abs_tol + rel_tol·|expected|.
     Tolerance {
         /// The largest error found.
+        #[serde(deserialize_with = "nan_if_null")]
         max_error: f64,
         /// Absolute tolerance.
+        #[serde(deserialize_with = "nan_if_null")]
         abs_tol: f64,
         /// Relative tolerance.
+        #[serde(deserialize_with = "nan_if_null")]
         rel_tol: f64,
     },
     /// No statistic (errors, skipped checks).
@@ -50,7 +55,7 @@ pub enum Statistic {
 }
 
 /// One check's outcome, with every number a reader needs to judge it.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Outcome {
     /// Unique check name, e.g. `furnace/sphere[albedo=0.9]`.
     pub name: String,
@@ -71,12 +76,14 @@ pub struct Outcome {
     /// The per-check significance level after the family-wise correction.
     pub alpha: Option<f64>,
     /// Relative model tolerance added to the acceptance rule (stated per check).
+    #[serde(deserialize_with = "nan_if_null")]
     pub rel_tolerance: f64,
     /// Smallest relative bias detected with 95 % probability at this budget and alpha.
     pub detection_power: Option<f64>,
     /// Samples (paths, BSDF samples, quadrature points) used.
     pub samples: u64,
     /// Wall time, seconds.
+    #[serde(deserialize_with = "nan_if_null")]
     pub seconds: f64,
     /// Human-readable explanation: estimator, what was compared, evidence for UNSTABLE/ERROR.
     pub message: String,
@@ -113,7 +120,7 @@ impl Outcome {
 }
 
 /// A whole run: what was run, with which settings, and every outcome.
-#[derive(Debug, Clone, PartialEq, Serialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RunReport {
     /// furnace version.
     pub furnace_version: String,
@@ -124,6 +131,7 @@ pub struct RunReport {
     /// Run seed (each check's seed derives from it unless the check sets one).
     pub seed: u64,
     /// Family-wise false-alarm rate the corrections hold.
+    #[serde(deserialize_with = "nan_if_null")]
     pub family_alpha: f64,
     /// Correction method, "sidak" or "holm".
     pub correction: String,
@@ -132,5 +140,26 @@ pub struct RunReport {
     /// Outcomes in run order.
     pub outcomes: Vec<Outcome>,
     /// Total wall time, seconds.
+    #[serde(deserialize_with = "nan_if_null")]
     pub seconds: f64,
+    /// Set when this run is one shard of a suite (`furnace check --shard K/N`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub shard: Option<ShardInfo>,
+}
+
+/// Which shard of a suite a run is, and the whole suite's check names in run order (so that a
+/// merge can tell a missing shard, a duplicate or a different suite).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ShardInfo {
+    /// 1 ..= count.
+    pub index: usize,
+    /// Number of shards.
+    pub count: usize,
+    /// Every check of the suite (all shards), in run order.
+    pub suite: Vec<String>,
+}
+
+/// JSON writes a non-finite number as null: read it back as NaN.
+fn nan_if_null<'de, D: Deserializer<'de>>(d: D) -> Result<f64, D::Error> {
+    Ok(Option::<f64>::deserialize(d)?.unwrap_or(f64::NAN))
 }

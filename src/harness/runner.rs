@@ -5,7 +5,7 @@ use super::context::{check_seed, Context, Correction, RunOptions};
 use super::kind::Check;
 use super::measurement::Measurement;
 use super::model::local::LocalModels;
-use super::outcome::{Outcome, RunReport, Statistic, Verdict};
+use super::outcome::{Outcome, RunReport, ShardInfo, Statistic, Verdict};
 use super::renderer::Renderer;
 use super::under_test::{Filtered, ModelSource, Subject};
 use crate::stats::{multiple, power};
@@ -109,7 +109,12 @@ pub fn run_with(
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
     let mut outcomes = Vec::new();
     let mut measured = Vec::new();
-    for check in checks {
+    for (i, check) in checks.iter().enumerate() {
+        if let Some(plan) = &opts.shard {
+            if plan.of_check.get(i) != Some(&plan.shard.index) {
+                continue;
+            }
+        }
         progress(Progress::Started(&check.name));
         if let Some(why) = check.kind.not_applicable(check, &subject) {
             let mut o = Outcome::new(&check.name, check.kind_name());
@@ -211,5 +216,14 @@ pub fn run_with(
         stochastic_tests: m,
         outcomes,
         seconds: start.elapsed().as_secs_f64(),
+        shard: opts.shard.as_ref().map(|p| ShardInfo {
+            index: p.shard.index,
+            count: p.shard.count,
+            suite: checks
+                .iter()
+                .map(|c| c.name.clone())
+                .chain(p.also.iter().cloned())
+                .collect(),
+        }),
     }
 }

@@ -33,6 +33,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `stochastic_tests` | integer | count | Number of stochastic tests the correction spans. |
 | `outcomes` | array of outcome | — | One object per check, in run order (below). |
 | `seconds` | number or null | s | Total wall time of the run. |
+| `shard` | object (absent unless sharded) | — | Set by `furnace check --shard K/N`: `index` (K), `count` (N) and `suite` (every check name of the whole suite, in run order), which `furnace merge` uses to check that its inputs make one run. A merged run has no `shard` and its `seconds` is the longest shard's. |
 
 ### Outcome
 

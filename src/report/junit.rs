@@ -479,6 +479,7 @@ mod tests {
             stochastic_tests: usize::MAX,
             outcomes,
             seconds: f64::NEG_INFINITY,
+            shard: None,
         };
         let p = parse(&to_junit(&r));
         assert_eq!(p.cases.len(), r.outcomes.len());

@@ -130,6 +130,7 @@ pub(crate) mod fixture {
                 skipped(),
             ],
             seconds: 5.2013,
+            shard: None,
         }
     }
 }

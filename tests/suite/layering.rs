@@ -130,7 +130,7 @@ fn third_party_crates_stay_in_their_homes() {
 /// use each other.
 const HARNESS_LAYERS: [&[&str]; 11] = [
     &["names", "outcome", "error"],
-    &["measurement"],
+    &["measurement", "shard"],
     &["renderer"],
     &["under_test"],
     &["context", "keys"],

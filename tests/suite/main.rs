@@ -18,6 +18,7 @@ mod render;
 mod report_html;
 mod scene_errors;
 mod scene_parse;
+mod shard;
 
 use std::path::PathBuf;
 

@@ -1,0 +1,89 @@
+//! `furnace merge`: the JSON results of a sharded `check` (one file per shard and renderer)
+//! joined into one run's results, checked to be the shards of one run.
+
+use super::{write_results, Failure, Outputs};
+use anyhow::Context;
+use clap::Args;
+use furnace::harness::outcome::RunReport;
+use furnace::harness::shard;
+use furnace::report::{json, text};
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct MergeArgs {
+    /// The shards' JSON results (`furnace check --shard K/N --json ...`), every shard of every renderer.
+    #[arg(required = true)]
+    results: Vec<PathBuf>,
+    /// Write the merged JSON results here (one file per renderer, as check does).
+    #[arg(long)]
+    json: Option<PathBuf>,
+    /// Write JUnit XML here.
+    #[arg(long)]
+    junit: Option<PathBuf>,
+    /// Write a Markdown table here.
+    #[arg(long)]
+    markdown: Option<PathBuf>,
+    /// Write the HTML report here (renderers side by side).
+    #[arg(long)]
+    report: Option<PathBuf>,
+    /// Print no check lines, only errors.
+    #[arg(short, long)]
+    quiet: bool,
+}
+
+/// Runs `furnace merge`; returns the exit code.
+pub fn run(a: MergeArgs) -> Result<i32, Failure> {
+    // shards grouped by renderer, in the order the renderers first appear
+    let mut order: Vec<String> = Vec::new();
+    let mut groups: BTreeMap<String, Vec<(String, RunReport)>> = BTreeMap::new();
+    for p in &a.results {
+        let text = furnace::io::read_small_text(p)
+            .with_context(|| format!("cannot read {}", p.display()))?;
+        let v: serde_json::Value = serde_json::from_str(&text)
+            .with_context(|| format!("{} is not JSON", p.display()))?;
+        if v.get("schema").and_then(|s| s.as_str()) != Some(json::SCHEMA) {
+            return Err(anyhow::anyhow!(
+                "{} is not furnace check results (no \"schema\": \"{}\")",
+                p.display(),
+                json::SCHEMA
+            )
+            .into());
+        }
+        let r: RunReport = serde_json::from_value(v)
+            .with_context(|| format!("{} is not furnace check results", p.display()))?;
+        if !groups.contains_key(&r.renderer) {
+            order.push(r.renderer.clone());
+        }
+        groups
+            .entry(r.renderer.clone())
+            .or_default()
+            .push((p.display().to_string(), r));
+    }
+    let mut reports = Vec::new();
+    for renderer in &order {
+        let merged = shard::merge(&groups[renderer])
+            .map_err(|e| anyhow::anyhow!("cannot merge the shards of {renderer}: {e}"))?;
+        if !a.quiet {
+            if order.len() > 1 {
+                println!("== {renderer}");
+            }
+            for o in &merged.outcomes {
+                println!("{}", text::line(o));
+            }
+            println!("{}", text::summary(&merged));
+        }
+        reports.push(merged);
+    }
+    let out = Outputs {
+        json: a.json,
+        junit: a.junit,
+        markdown: a.markdown,
+        report: a.report,
+    };
+    write_results(&reports, &out, "furnace check (merged shards)")?;
+    let failed = reports
+        .iter()
+        .any(|r| r.outcomes.iter().any(|o| o.is_failure()));
+    Ok(if failed { 1 } else { 0 })
+}
