@@ -321,7 +321,10 @@ fn recorded_seconds(p: &Path) -> Result<BTreeMap<String, f64>, Failure> {
         furnace::io::read_small_text(p).with_context(|| format!("cannot read {}", p.display()))?;
     let r: harness::outcome::RunReport = serde_json::from_str(&text)
         .with_context(|| format!("{} is not furnace check results (JSON)", p.display()))?;
-    Ok(r.outcomes.into_iter().map(|o| (o.name, o.seconds)).collect())
+    Ok(r.outcomes
+        .into_iter()
+        .map(|o| (o.name, o.seconds))
+        .collect())
 }
 
 /// The renderer table: `--renderers`, else the user's (~/.config/furnace/renderers.toml, or

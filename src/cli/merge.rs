@@ -40,8 +40,8 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
     for p in &a.results {
         let text = furnace::io::read_small_text(p)
             .with_context(|| format!("cannot read {}", p.display()))?;
-        let v: serde_json::Value = serde_json::from_str(&text)
-            .with_context(|| format!("{} is not JSON", p.display()))?;
+        let v: serde_json::Value =
+            serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))?;
         if v.get("schema").and_then(|s| s.as_str()) != Some(json::SCHEMA) {
             return Err(anyhow::anyhow!(
                 "{} is not furnace check results (no \"schema\": \"{}\")",

@@ -1,9 +1,9 @@
 //! How a run is configured ([`RunOptions`]) and what one check sees while it runs
 //! ([`Context`]): the renderer under test, its seed, threads and per-test significance.
 
-use super::shard::Shard;
 use super::error::CheckError;
 use super::renderer::Renderer;
+use super::shard::Shard;
 use super::under_test::ModelSource;
 use crate::math::rng::mix64;
 

@@ -99,7 +99,9 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
     let mut seen: BTreeMap<usize, &str> = BTreeMap::new();
     for (file, r) in parts {
         let Some(s) = &r.shard else {
-            return mismatch(format!("{file} is not a shard's result (no \"shard\" field)"));
+            return mismatch(format!(
+                "{file} is not a shard's result (no \"shard\" field)"
+            ));
         };
         let differs = |what: &str, a: String, b: String| {
             mismatch(format!(
@@ -176,7 +178,10 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
     for (file, r) in parts {
         for o in &r.outcomes {
             if by_name.insert(&o.name, o).is_some() {
-                return mismatch(format!("check {:?} appears twice (again in {file})", o.name));
+                return mismatch(format!(
+                    "check {:?} appears twice (again in {file})",
+                    o.name
+                ));
             }
         }
     }
@@ -188,7 +193,9 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
         }
     }
     if let Some(extra) = by_name.keys().next() {
-        return mismatch(format!("check {extra:?} is not in the suite the shards name"));
+        return mismatch(format!(
+            "check {extra:?} is not in the suite the shards name"
+        ));
     }
     Ok(RunReport {
         outcomes,
@@ -207,7 +214,10 @@ mod tests {
     fn specs_parse_and_bad_ones_are_named() {
         assert_eq!(Shard::parse("2/4"), Ok(Shard { index: 2, count: 4 }));
         for bad in ["0/4", "5/4", "4", "a/b", "1/0", "1/5000", ""] {
-            assert!(matches!(Shard::parse(bad), Err(ShardError::Spec(_))), "{bad}");
+            assert!(
+                matches!(Shard::parse(bad), Err(ShardError::Spec(_))),
+                "{bad}"
+            );
         }
     }
 

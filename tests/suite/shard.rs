@@ -30,7 +30,14 @@ fn stderr(o: &Output) -> String {
 fn shard_run(dir: &Path, extra: &[&str], k: usize, n: usize) -> String {
     let out = dir.join(format!("shard-{k}-of-{n}.json"));
     let spec = format!("{k}/{n}");
-    let mut args = vec!["check", "-q", "--shard", &spec, "--json", out.to_str().unwrap()];
+    let mut args = vec![
+        "check",
+        "-q",
+        "--shard",
+        &spec,
+        "--json",
+        out.to_str().unwrap(),
+    ];
     args.extend(extra);
     let o = furnace(&args);
     assert!(
@@ -49,7 +56,11 @@ fn four_shards_merge_into_the_single_runs_numbers() {
     let first: RunReport =
         serde_json::from_str(&std::fs::read_to_string(&parts[0]).unwrap()).unwrap();
     let all = first.shard.as_ref().unwrap().suite.len();
-    assert!(first.outcomes.len() < all, "{} of {all}", first.outcomes.len());
+    assert!(
+        first.outcomes.len() < all,
+        "{} of {all}",
+        first.outcomes.len()
+    );
     let merged = dir.join("merged.json");
     let mut args = vec!["merge", "-q", "--json", merged.to_str().unwrap()];
     // in any order
@@ -61,8 +72,7 @@ fn four_shards_merge_into_the_single_runs_numbers() {
     assert_eq!(report.outcomes.len(), all);
     assert!(report.shard.is_none());
     // the committed digest of one run at seed 1 (tests/suite/manifests.rs checks it)
-    let baseline =
-        std::fs::read_to_string(root("tests/digests/default-suite-seed1.txt")).unwrap();
+    let baseline = std::fs::read_to_string(root("tests/digests/default-suite-seed1.txt")).unwrap();
     let merged = crate::digests::report_digest(&report);
     let differ: Vec<String> = merged
         .lines()
@@ -93,9 +103,17 @@ fn merges_that_are_not_one_run_are_refused_by_name() {
     assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
     let missing = merge(&[&p[0], &p[2]]);
     assert_eq!(missing.status.code(), Some(2));
-    assert!(stderr(&missing).contains("shard 2/3 missing"), "{}", stderr(&missing));
+    assert!(
+        stderr(&missing).contains("shard 2/3 missing"),
+        "{}",
+        stderr(&missing)
+    );
     let twice = merge(&[&p[0], &p[1], &p[1], &p[2]]);
-    assert!(stderr(&twice).contains("shard 2/3 given twice"), "{}", stderr(&twice));
+    assert!(
+        stderr(&twice).contains("shard 2/3 given twice"),
+        "{}",
+        stderr(&twice)
+    );
     // another seed is another run
     let other = dir.join("seed2");
     std::fs::create_dir(&other).unwrap();
@@ -106,13 +124,29 @@ fn merges_that_are_not_one_run_are_refused_by_name() {
     assert!(stderr(&mixed).contains("seed 2 vs 1"), "{}", stderr(&mixed));
     // a plain run is not a shard
     let plain = dir.join("plain.json");
-    let o = furnace(&["check", "-q", m[0], m[1], m[2], "--json", plain.to_str().unwrap()]);
+    let o = furnace(&[
+        "check",
+        "-q",
+        m[0],
+        m[1],
+        m[2],
+        "--json",
+        plain.to_str().unwrap(),
+    ]);
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let not = merge(&[plain.to_str().unwrap()]);
-    assert!(stderr(&not).contains("is not a shard's result"), "{}", stderr(&not));
+    assert!(
+        stderr(&not).contains("is not a shard's result"),
+        "{}",
+        stderr(&not)
+    );
     // and a bad spec is an error, not a silent full run
     let bad = furnace(&["check", "--shard", "5/4"]);
     assert_eq!(bad.status.code(), Some(2));
-    assert!(stderr(&bad).contains("--shard \"5/4\" must be K/N"), "{}", stderr(&bad));
+    assert!(
+        stderr(&bad).contains("--shard \"5/4\" must be K/N"),
+        "{}",
+        stderr(&bad)
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

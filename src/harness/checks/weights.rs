@@ -117,7 +117,10 @@ pub fn measure_bsdf(
                 let s = kept[i];
                 !within(rel_err(pdfs[i], s.pdf), tol[i])
                     || (0..4).any(|k| {
-                        !within(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]), tol[i])
+                        !within(
+                            rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]),
+                            tol[i],
+                        )
                     })
             })
             .collect();
@@ -147,7 +150,10 @@ pub fn measure_bsdf(
                         pdf_tol,
                     );
                 let weight_over = (0..4).any(|k| {
-                    !within(rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]), tol[i])
+                    !within(
+                        rel_err(weight_of(&fs[i], s.wi, s.pdf, k), s.weight.0[k]),
+                        tol[i],
+                    )
                 });
                 let weight_ok = weight_over
                     && (0..4).all(|k| {
