@@ -12,8 +12,17 @@ use crate::stats::{multiple, power};
 use std::time::Instant;
 
 /// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
-/// UNSTABLE if the variance did not settle, FAIL if the deterministic part fails or p ≤ α.
+/// ERROR if an estimate, standard error or p-value is not finite (the test could not be
+/// formed, as the runner reports it), UNSTABLE if the variance did not settle, FAIL if the
+/// deterministic part fails or p ≤ α.
 pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
+    if [ms.estimate, ms.std_error, ms.p_value]
+        .iter()
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return Verdict::Error;
+    }
     if ms.unstable.is_some() {
         return Verdict::Unstable;
     }

@@ -87,6 +87,10 @@ fn assert_all(manifest_file: &str, name: &str, renderer: &dyn Renderer, want: Ve
 /// make `furnace check` exit 1.
 fn assert_rejected(manifest_file: &str, name: &str, renderer: &dyn Renderer) {
     for (n, v, m) in verdicts(manifest_file, name, renderer) {
+        // UNSTABLE still counts: two controls (a grey absorption coefficient, an area pdf used
+        // as a solid-angle pdf) make a bias that varies across the image, which the batch-means
+        // diagnosis flags before the z test (z 30 and p 1e-47) can say FAIL. Re-testing with the
+        // inflated standard error would turn those into FAILs; not done yet (issue 28).
         assert!(
             matches!(v, Verdict::Fail | Verdict::Unstable),
             "{n} was not rejected ({v:?}): {m}"
