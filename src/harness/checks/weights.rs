@@ -251,11 +251,13 @@ pub fn measure_phase(
     seed: u64,
     precision: Precision,
 ) -> Result<Measurement, ModelError> {
-    // p near the forward peak of a |g| → 1 lobe is ill-conditioned in the model's precision
+    // p near the forward peak of a |g| → 1 lobe is ill-conditioned in the model's precision:
+    // the sample's pdf comes from its own μ, pdf(wo, wi) from a dot product of two rounded
+    // vectors, μ off by up to ~4ε, and p's relative change per unit μ reaches 3/(1 − |g|)²
+    // (the HG form, Henyey & Greenstein 1941): four times the eval's own conditioning
     let g = ph.mean_cosine().unwrap_or(0.0);
-    let rel_tol = rel_tol.max(crate::harness::model::phase::eval_conditioning(
-        g, precision,
-    ));
+    let cond = crate::harness::model::phase::eval_conditioning(g, precision);
+    let rel_tol = rel_tol.max(4.0 * cond);
     let mut rng = SampleStream::new(seed, 5, 0);
     let wo = crate::math::Vec3::new(0.2, -0.5, 0.8).normalize();
     let mut worst = 0.0f64;
@@ -279,7 +281,7 @@ pub fn measure_phase(
         p_value: Some(p),
         deterministic_pass: Some(worst <= rel_tol),
         samples,
-        message: format!("largest relative weight/pdf error {worst:.2e} (rel_tol {rel_tol:.0e}, at least 3ε/(1 − |g|)²)"),
+        message: format!("largest relative weight/pdf error {worst:.2e} (rel_tol {rel_tol:.0e}, at least 12ε/(1 − |g|)²)"),
         ..Default::default()
     })
 }
