@@ -1,6 +1,6 @@
 //! `furnace check`: run manifests against one or more renderers and write the results.
 
-use super::{write_results, Failure, Outputs};
+use super::{read_results, write_results, Failure, Outputs};
 use anyhow::Context;
 use clap::Args;
 use furnace::harness::adapter::{self, RendererDesc};
@@ -317,11 +317,8 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
 
 /// Each check's wall time in an earlier run's JSON results, by name.
 fn recorded_seconds(p: &Path) -> Result<BTreeMap<String, f64>, Failure> {
-    let text =
-        furnace::io::read_small_text(p).with_context(|| format!("cannot read {}", p.display()))?;
-    let r: harness::outcome::RunReport = serde_json::from_str(&text)
-        .with_context(|| format!("{} is not furnace check results (JSON)", p.display()))?;
-    Ok(r.outcomes
+    Ok(read_results(p)?
+        .outcomes
         .into_iter()
         .map(|o| (o.name, o.seconds))
         .collect())

@@ -1,12 +1,11 @@
 //! `furnace merge`: the JSON results of a sharded `check` (one file per shard and renderer)
 //! joined into one run's results, checked to be the shards of one run.
 
-use super::{write_results, Failure, Outputs};
-use anyhow::Context;
+use super::{read_results, write_results, Failure, Outputs};
 use clap::Args;
 use furnace::harness::outcome::RunReport;
 use furnace::harness::shard;
-use furnace::report::{json, text};
+use furnace::report::text;
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -38,20 +37,7 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
     let mut order: Vec<String> = Vec::new();
     let mut groups: BTreeMap<String, Vec<(String, RunReport)>> = BTreeMap::new();
     for p in &a.results {
-        let text = furnace::io::read_small_text(p)
-            .with_context(|| format!("cannot read {}", p.display()))?;
-        let v: serde_json::Value =
-            serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))?;
-        if v.get("schema").and_then(|s| s.as_str()) != Some(json::SCHEMA) {
-            return Err(anyhow::anyhow!(
-                "{} is not furnace check results (no \"schema\": \"{}\")",
-                p.display(),
-                json::SCHEMA
-            )
-            .into());
-        }
-        let r: RunReport = serde_json::from_value(v)
-            .with_context(|| format!("{} is not furnace check results", p.display()))?;
+        let r = read_results(p)?;
         if !groups.contains_key(&r.renderer) {
             order.push(r.renderer.clone());
         }

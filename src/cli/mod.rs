@@ -176,3 +176,21 @@ pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Resul
     }
     Ok(())
 }
+
+/// Reads one run's JSON results (`check --json`), refusing files without furnace's schema key.
+pub fn read_results(p: &Path) -> Result<RunReport, Failure> {
+    let text =
+        furnace::io::read_small_text(p).with_context(|| format!("cannot read {}", p.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{} is not JSON", p.display()))?;
+    if v.get("schema").and_then(|s| s.as_str()) != Some(json::SCHEMA) {
+        return Err(anyhow::anyhow!(
+            "{} is not furnace check results (no \"schema\": \"{}\")",
+            p.display(),
+            json::SCHEMA
+        )
+        .into());
+    }
+    Ok(serde_json::from_value(v)
+        .with_context(|| format!("{} is not furnace check results", p.display()))?)
+}
