@@ -17,7 +17,7 @@ use super::outcome::Statistic;
 use crate::film::Film;
 use crate::io::image::{read_exr, Layers};
 use crate::scene::{SceneError, Source};
-use crate::stats::{multiple, welch_test, z_with_tolerance};
+use crate::stats::{multiple, satterthwaite_dof, t_with_tolerance, welch_test};
 use serde::Deserialize;
 
 /// Colour channels compared.
@@ -38,6 +38,10 @@ pub struct RgbImage {
     /// (header `furnace.spp`), K − 1 for K independent batches (`furnace.variance_dof`, or
     /// `batches` in the JSON sidecar next to the file); None = treat as known (z test).
     pub variance_dof: Option<f64>,
+    /// Estimated variance of each pixel's variance.R/G/B (from the samples' fourth moments,
+    /// stats::MeanVar), when known: region tests then use the Satterthwaite degrees of
+    /// freedom of the region's variance instead of treating it as known.
+    pub variance_variance: Option<[Vec<f64>; 3]>,
 }
 
 impl RgbImage {
@@ -80,6 +84,7 @@ impl RgbImage {
             rgb,
             variance,
             variance_dof,
+            variance_variance: None,
         })
     }
 
@@ -117,6 +122,12 @@ impl RgbImage {
                 .first()
                 .map(|p| p.channels[0].count() as f64 - 1.0)
                 .filter(|d| *d >= 1.0),
+            variance_variance: Some(std::array::from_fn(|c| {
+                film.pixels
+                    .iter()
+                    .map(|p| p.channels[3 + c].mean_variance_variance())
+                    .collect()
+            })),
         }
     }
 
@@ -220,8 +231,10 @@ pub struct RegionResult {
     pub test: (f64, f64),
     /// Mean of the reference and its standard error (0 when it has no variance channels).
     pub reference: (f64, f64),
-    /// z = (test − reference)/√(se_t² + se_r²).
+    /// z = (test − reference)/√(se_t² + se_r²) (a t score when `dof` is finite).
     pub z: f64,
+    /// Welch–Satterthwaite degrees of freedom of the comparison (∞: a z test).
+    pub dof: f64,
     /// Two-sided p.
     pub p: f64,
 }
@@ -233,24 +246,37 @@ impl RegionResult {
     }
 }
 
-/// The z test of one region × channel: test and reference (mean, standard error) pairs,
+/// The test of one region × channel: test and reference (mean, standard error) pairs,
 /// z = (test − reference)/√(se_t² + se_r²) after the stated relative model tolerance
-/// (checks::z_with_tolerance).
+/// (stats::t_with_tolerance), judged by Student's t with the Welch–Satterthwaite degrees of
+/// freedom of the two variance estimates (`dof` = [test, reference]; ∞ for a variance taken
+/// as known, which gives the z test). Few effective degrees of freedom (a variance made of a
+/// handful of bright samples) widen the acceptance region instead of trusting an
+/// underestimated standard error.
 pub fn region_test(
     region: &str,
     channel: &'static str,
     test: (f64, f64),
     reference: (f64, f64),
+    dof: [f64; 2],
     rel_tolerance: f64,
 ) -> RegionResult {
     let se = (test.1 * test.1 + reference.1 * reference.1).sqrt();
-    let (z, p) = z_with_tolerance(test.0, se, reference.0, rel_tolerance);
+    let (_, _, nu) = welch_test(
+        0.0,
+        &[
+            (test.1 * test.1, dof[0]),
+            (reference.1 * reference.1, dof[1]),
+        ],
+    );
+    let (z, p) = t_with_tolerance(test.0, se, reference.0, rel_tolerance, nu);
     RegionResult {
         region: region.to_string(),
         channel,
         test,
         reference,
         z,
+        dof: nu,
         p,
     }
 }
@@ -319,6 +345,24 @@ pub fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
     (sum / n, var.sqrt() / n)
 }
 
+/// Degrees of freedom of the variance of a region mean of channel `c` (Satterthwaite: from
+/// the pixels' variances and the estimated variances of those, [`RgbImage::variance_variance`]);
+/// ∞ (the variance taken as known) when the image carries no such estimate.
+pub fn region_dof(img: &RgbImage, c: usize, r: [usize; 4]) -> f64 {
+    let (Some(v), Some(vv)) = (&img.variance, &img.variance_variance) else {
+        return f64::INFINITY;
+    };
+    let (mut sv, mut svv) = (0.0, 0.0);
+    for y in r[1]..r[3] {
+        for x in r[0]..r[2] {
+            let i = y * img.width + x;
+            sv += v[c][i];
+            svv += vv[c][i];
+        }
+    }
+    satterthwaite_dof(sv, svv)
+}
+
 /// Compares `test` with `reference` over `regions` (the whole image is always one region) at
 /// family-wise rate `family_alpha` (Šidák over regions × channels) and pixel FDR `q`. A region
 /// differs when |test − reference| exceeds `rel_tolerance`·|reference| by more than noise (a
@@ -374,6 +418,7 @@ pub fn compare(
                 channel,
                 region_mean(test, c, rect),
                 region_mean(reference, c, rect),
+                [region_dof(test, c, rect), region_dof(reference, c, rect)],
                 rel_tolerance,
             ));
         }
@@ -456,17 +501,37 @@ pub fn regions_measurement(
     let top: Vec<String> = listed
         .iter()
         .take(3)
-        .map(|r| format!("{} {} {} (z {:.2})", r.region, r.channel, rel(r), r.z))
+        .map(|r| {
+            if r.dof.is_finite() {
+                format!(
+                    "{} {} {} (t {:.2}, ν {})",
+                    r.region,
+                    r.channel,
+                    rel(r),
+                    r.z,
+                    fmt_sig(r.dof)
+                )
+            } else {
+                format!("{} {} {} (z {:.2})", r.region, r.channel, rel(r), r.z)
+            }
+        })
         .collect();
     Ok(Measurement {
         estimate: Some(worst.test.0),
         std_error: Some(se),
         expected: Some(worst.reference.0),
-        statistic: Some(Statistic::Z { z: worst.z }),
+        statistic: Some(if worst.dof.is_finite() {
+            Statistic::T {
+                t: worst.z,
+                dof: worst.dof,
+            }
+        } else {
+            Statistic::Z { z: worst.z }
+        }),
         p_value: Some(p.min(1.0)),
         samples,
         message: format!(
-            "{m} region x channel z tests ({what}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
+            "{m} region x channel tests (z, or Welch t with ν where a variance rests on few effective samples; {what}); worst: {} {} test {} ± {} vs reference {} ± {}; smallest p first: {}",
             worst.region,
             worst.channel,
             fmt_sig(worst.test.0),
@@ -511,6 +576,7 @@ mod tests {
             rgb,
             variance,
             variance_dof: None,
+            variance_variance: None,
         }
     }
 
@@ -539,6 +605,7 @@ mod tests {
             rgb,
             variance: Some(var),
             variance_dof: Some(k as f64 - 1.0),
+            variance_variance: None,
         }
     }
 
@@ -628,6 +695,7 @@ mod tests {
             rgb: [vec![v, v], vec![v, v], vec![v, v]],
             variance: None,
             variance_dof: None,
+            variance_variance: None,
         };
         let c = compare(&img(1.1), &img(1.0), &[], 0.01, 0.01, 0.0).unwrap();
         let m = &c.metrics[0];

@@ -29,6 +29,17 @@ pub enum Statistic {
         #[serde(deserialize_with = "nan_if_null")]
         z: f64,
     },
+    /// Two-sided Student t test with Welch–Satterthwaite degrees of freedom: (estimate −
+    /// expected)/standard error where the standard error is itself estimated from few
+    /// effective values (stats::welch_test).
+    T {
+        /// The t score.
+        #[serde(deserialize_with = "nan_if_null")]
+        t: f64,
+        /// Effective degrees of freedom ν.
+        #[serde(deserialize_with = "nan_if_null")]
+        dof: f64,
+    },
     /// Pearson chi-square goodness of fit.
     ChiSquare {
         /// The χ² value.

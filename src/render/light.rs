@@ -60,26 +60,32 @@ pub fn render_light_paths(
     trace_light_image(scene, settings, n_paths, &[], &sensor, progress).map(|i| i.film)
 }
 
-/// Per-chunk accumulators: Σc and Σc² per pixel and channel, the same per region.
+/// Per-chunk accumulators: Σc, Σc², Σc³ and Σc⁴ per pixel and channel (the last two give
+/// the variance estimate's own uncertainty, stats::MeanVar), the same per region.
 struct ChunkSums {
     paths: u64,
     /// Paths cut by the path-length guard.
     cut: u64,
-    /// [Σc (6 channels), Σc² (6 channels)] per pixel.
-    pixels: Vec<[f64; 12]>,
+    /// [Σc, Σc², Σc³, Σc⁴ (6 channels each)] per pixel.
+    pixels: Vec<[f64; 24]>,
     /// The same for the per-path region sums.
-    regions: Vec<[f64; 12]>,
+    regions: Vec<[f64; 24]>,
 }
 
-fn add_sample(acc: &mut [f64; 12], v: &[f64; 6]) {
+fn add_sample(acc: &mut [f64; 24], v: &[f64; 6]) {
     for c in 0..6 {
+        let v2 = v[c] * v[c];
         acc[c] += v[c];
-        acc[6 + c] += v[c] * v[c];
+        acc[6 + c] += v2;
+        acc[12 + c] += v2 * v[c];
+        acc[18 + c] += v2 * v2;
     }
 }
 
-fn stats_of(paths: u64, acc: &[f64; 12]) -> [MeanVar; 6] {
-    std::array::from_fn(|c| MeanVar::from_sums(paths, acc[c], acc[6 + c]))
+fn stats_of(paths: u64, acc: &[f64; 24]) -> [MeanVar; 6] {
+    std::array::from_fn(|c| {
+        MeanVar::from_power_sums(paths, [acc[c], acc[6 + c], acc[12 + c], acc[18 + c]])
+    })
 }
 
 /// Light tracing with an explicit sensor (the pinhole of the scene for
@@ -139,8 +145,8 @@ pub fn trace_light_image<S: Sensor>(
         let mut sums = ChunkSums {
             paths: end - start,
             cut: 0,
-            pixels: vec![[0.0; 12]; w * h],
-            regions: vec![[0.0; 12]; regions.len()],
+            pixels: vec![[0.0; 24]; w * h],
+            regions: vec![[0.0; 24]; regions.len()],
         };
         let mut splats: Vec<Splat> = Vec::new();
         let mut merged: Vec<(usize, [f64; 6])> = Vec::new();

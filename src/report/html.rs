@@ -537,6 +537,7 @@ mod tests {
             rgb: std::array::from_fn(|_| vec![v; 16]),
             variance: Some(std::array::from_fn(|_| vec![1e-6; 16])),
             variance_dof: None,
+            variance_variance: None,
         }
     }
 

@@ -435,6 +435,7 @@ mod tests {
             let y = numbers[(i + 5) % numbers.len()];
             let statistics = [
                 Statistic::Z { z: x },
+                Statistic::T { t: x, dof: y },
                 Statistic::ChiSquare {
                     chi2: x,
                     dof: u64::MAX,

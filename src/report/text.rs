@@ -128,6 +128,7 @@ fn estimate_text(o: &Outcome) -> String {
 fn statistic_text(o: &Outcome) -> String {
     match &o.statistic {
         Statistic::Z { z } => format!("z = {}", sig(*z, 3, true)),
+        Statistic::T { t, dof } => format!("t = {}, ν {}", sig(*t, 3, true), sig(*dof, 3, false)),
         Statistic::ChiSquare { chi2, dof } => format!("χ² = {}, dof {dof}", sig(*chi2, 4, true)),
         Statistic::Tolerance {
             max_error,

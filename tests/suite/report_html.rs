@@ -18,6 +18,7 @@ fn flat(rgb: [f64; 3]) -> RgbImage {
         rgb: std::array::from_fn(|c| vec![rgb[c]; 32 * 32]),
         variance: Some(std::array::from_fn(|_| vec![1e-4; 32 * 32])),
         variance_dof: None,
+        variance_variance: None,
     }
 }
 

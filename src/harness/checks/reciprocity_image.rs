@@ -19,8 +19,8 @@
 //! refuses the latter with an error naming the light).
 
 use crate::harness::compare::{
-    region_mean, region_test, regions_key, regions_measurement, whole_image, Region, RgbImage,
-    CHANNELS,
+    region_dof, region_mean, region_test, regions_key, regions_measurement, whole_image, Region,
+    RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -175,6 +175,7 @@ impl Kind for ReciprocityImage {
                     channel,
                     test,
                     reference,
+                    [sum.mean_variance_dof(), region_dof(&path, c, *rect)],
                     check.rel_tolerance,
                 ));
             }
