@@ -4,8 +4,8 @@
 /// Largest image side, pixels.
 pub const MAX_IMAGE_SIDE: u64 = 1 << 16;
 
-/// Largest image, pixels (a 4096² image): the film keeps 144 bytes per pixel (count, mean and
-/// sum of squares in f64 for six channels), 2.4 GB at this size.
+/// Largest image, pixels (a 4096² image): the film keeps 240 bytes per pixel (count, mean and
+/// second to fourth central sums in f64 for six channels), 4.0 GB at this size.
 pub const MAX_PIXELS: u64 = 1 << 24;
 
 /// Default work budget of `furnace render`, camera or light paths (width × height × spp): about
@@ -68,7 +68,7 @@ pub fn image(width: u64, height: u64) -> Result<(), LimitError> {
             what: format!("the pixel count of a {width}x{height} image"),
             value: pixels,
             limit: MAX_PIXELS,
-            how: " (the film needs 144 bytes per pixel)".into(),
+            how: " (the film needs 240 bytes per pixel)".into(),
         });
     }
     Ok(())
