@@ -21,6 +21,11 @@ pub struct Measurement {
     pub deterministic_pass: Option<bool>,
     /// Evidence that the variance did not settle (makes the verdict UNSTABLE).
     pub unstable: Option<String>,
+    /// With `unstable`: the standard error and p-value come from a re-test whose standard
+    /// error allows for what the diagnosis found (batch means over pixel blocks, for residuals
+    /// with structure), so a rejection at the check's level is a FAIL, not UNSTABLE: a bias
+    /// too large for even the inflated error is a bias, whatever the variance does.
+    pub retested: bool,
     /// Samples used.
     pub samples: u64,
     /// Explanation: estimator, what was compared, sub-results.
@@ -70,6 +75,11 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
     m.samples = samples;
     m.deterministic_pass = det;
     m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
+    // A FAIL through the re-test needs every unstable part re-tested.
+    m.retested = parts
+        .iter()
+        .filter(|(_, m)| m.unstable.is_some())
+        .all(|(_, m)| m.retested);
     let broken: Vec<&str> = parts
         .iter()
         .filter(|(_, m)| m.deterministic_pass == Some(false))

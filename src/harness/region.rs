@@ -10,7 +10,9 @@ use crate::film::Film;
 use crate::integrators::{PathTracer, Strategy};
 use crate::render::RenderSettings;
 use crate::scene::Scene;
-use crate::stats::{stability, z_with_tolerance};
+use crate::stats::chi2::chi2_sf;
+use crate::stats::multiple::sidak_combine;
+use crate::stats::{stability, t_with_tolerance, z_with_tolerance};
 
 /// Statistics of the Y channel over a pixel region of a rendered image.
 #[derive(Debug, Clone, PartialEq)]
@@ -33,6 +35,45 @@ pub struct RegionStats {
     pub stable: bool,
     /// The diagnosis with its numbers.
     pub stability: String,
+    /// When the diagnosis failed on batch means only (structure across pixels, not an
+    /// infinite-variance tail): the re-test that decides between FAIL and UNSTABLE.
+    pub retest: Option<Retest>,
+}
+
+/// The re-test of a region whose residuals have structure. Pixels are independent estimates,
+/// so under the null hypothesis (every pixel unbiased) residuals have none: structure is a
+/// bias that varies across the region, and two tests ask whether it is real.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Retest {
+    /// The mean's standard error inflated to the batch-means estimate at the batch size that
+    /// gives the largest one (Schmeiser 1982, Operations Research 30(3), "Batch size effects
+    /// in the analysis of simulation output"), and its degrees of freedom, batches − 1.
+    pub se: f64,
+    /// Degrees of freedom of `se`.
+    pub dof: f64,
+    /// Pearson's X = Σ rᵢ²/vᵢ over the pixels with vᵢ > 0, χ²(`pixels`) under the null.
+    pub chi2: f64,
+    /// Pixels in `chi2`.
+    pub pixels: usize,
+}
+
+impl Retest {
+    /// Šidák combination of the inflated mean test and the χ² test: (mean test's t, p).
+    pub fn p(&self, mean: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
+        let (t, p_mean) = t_with_tolerance(mean, self.se, expected, rel_tolerance, self.dof);
+        let p_chi2 = chi2_sf(self.chi2, self.pixels as f64);
+        (t, sidak_combine(&[p_mean, p_chi2]))
+    }
+}
+
+/// Pearson's X = Σ rᵢ²/vᵢ of residuals against their variances, over pixels with vᵢ > 0:
+/// (X, pixels). χ²(pixels) when every pixel mean is unbiased, independent and near-normal.
+pub fn residual_chi2(resid: &[f64], vars: &[f64]) -> (f64, usize) {
+    resid
+        .iter()
+        .zip(vars)
+        .filter(|(_, v)| **v > 0.0)
+        .fold((0.0, 0), |(x, n), (r, v)| (x + r * r / v, n + 1))
 }
 
 /// Image size, spp and region of a scene-level check (independent sampling).
@@ -167,38 +208,58 @@ pub fn region_stats_of(
             samples,
             stable: false,
             stability: why,
+            retest: None,
         };
     }
-    let (stable, stability, se_between) = residual_stability(&resid, &vars, scale, alpha);
+    let (stable, stability, se_between, infinite) = residual_stability(&resid, &vars, scale, alpha);
+    let se = se_within.max(se_between);
+    let retest = (!stable && !infinite)
+        .then(|| {
+            let raw = stability::diagnose(&resid, alpha);
+            let (chi2, pixels) = residual_chi2(&resid, &vars);
+            raw.se_by_batch_size
+                .iter()
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+                .map(|&(b, se_b)| Retest {
+                    se: se.max(se_b),
+                    dof: (resid.len() / b) as f64 - 1.0,
+                    chi2,
+                    pixels,
+                })
+        })
+        .flatten();
     RegionStats {
         mean,
-        se: se_within.max(se_between),
+        se,
         se_within,
         se_between,
         pixels: px.len(),
         samples,
         stable,
         stability,
+        retest,
     }
 }
 
 /// Variance diagnosis of per-pixel residuals rᵢ (zero mean under the null hypothesis) whose
 /// variances are `vars`: returns (stable, the diagnosis, batch-means standard error of their
-/// mean). Residuals are standardised by their own standard errors first when the variances
-/// differ by more than 100× (emitters in view), so that bright pixels do not pass for a heavy
-/// tail; the batch-means standard error is then not used (0). Residuals without Monte Carlo
-/// noise (all variances below (1e-12·scale)²) are reported as deterministic.
+/// mean, whether the failure rests on an infinite-variance tail or on no test at all).
+/// Residuals are standardised by their own standard errors first when the variances differ
+/// by more than 100× (emitters in view), so that bright pixels do not pass for a heavy tail;
+/// the batch-means standard error is then not used (0). Residuals without Monte Carlo noise
+/// (all variances below (1e-12·scale)²) are reported as deterministic.
 pub fn residual_stability(
     resid: &[f64],
     vars: &[f64],
     scale: f64,
     alpha: f64,
-) -> (bool, String, f64) {
+) -> (bool, String, f64, bool) {
     if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
         return (
             true,
             "no Monte Carlo noise: every pixel is exact up to rounding".into(),
             0.0,
+            false,
         );
     }
     let n = resid.len() as f64;
@@ -232,7 +293,15 @@ pub fn residual_stability(
         },
         diag.reason
     );
-    (diag.stable, reason, se_between)
+    let infinite = diag
+        .hill_upper
+        .is_some_and(|u| u < stability::INFINITE_VARIANCE_INDEX);
+    (
+        diag.stable,
+        reason,
+        se_between,
+        infinite || diag.se_by_batch_size.len() < 2,
+    )
 }
 
 /// A measurement from one region test against a closed form.
@@ -242,20 +311,40 @@ pub fn region_measurement(
     rel_tolerance: f64,
     message: String,
 ) -> Measurement {
-    let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
+    let unstable = (!r.stable).then(|| format!("UNSTABLE: {}", r.stability));
+    let (se, statistic, p, retest_text) = match (r.stable, r.retest) {
+        (false, Some(rt)) => {
+            let (t, p) = rt.p(r.mean, expected, rel_tolerance);
+            let s = super::outcome::Statistic::T { t, dof: rt.dof };
+            let text = format!(
+                "; re-tested (pixels are independent, so structure is a bias): mean with the batch-means se {:.3e} ({} dof) and Pearson χ² {:.4} over {} px, Šidák-combined p {}: a rejection is a FAIL",
+                rt.se,
+                rt.dof,
+                rt.chi2,
+                rt.pixels,
+                super::measurement::fmt_sig(p)
+            );
+            (rt.se, s, p, text)
+        }
+        _ => {
+            let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
+            (r.se, super::outcome::Statistic::Z { z }, p, String::new())
+        }
+    };
     Measurement {
         estimate: Some(r.mean),
-        std_error: Some(r.se),
+        std_error: Some(se),
         expected: Some(expected),
-        statistic: Some(super::outcome::Statistic::Z { z }),
+        statistic: Some(statistic),
         p_value: Some(p),
         deterministic_pass: None,
-        unstable: (!r.stable).then(|| format!("UNSTABLE: {}", r.stability)),
+        retested: unstable.is_some() && r.retest.is_some(),
+        unstable,
         variants: 1,
         one_sided: false,
         samples: r.samples,
         message: format!(
-            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}",
+            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{retest_text}",
             r.pixels, r.se_within, r.se_between, r.stability
         ),
     }

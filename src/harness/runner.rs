@@ -23,11 +23,12 @@ pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
     {
         return Verdict::Error;
     }
-    if ms.unstable.is_some() {
-        return Verdict::Unstable;
-    }
     let det = ms.deterministic_pass.unwrap_or(true);
     let stoch = ms.p_value.is_none_or(|p| p > alpha);
+    // UNSTABLE unless a re-test (measurement::Measurement::retested) rejected.
+    if ms.unstable.is_some() && (stoch || !ms.retested) {
+        return Verdict::Unstable;
+    }
     if det && stoch {
         Verdict::Pass
     } else {
@@ -67,7 +68,8 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
                 Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
         }
     }
-    o.verdict = if ms.unstable.is_some() {
+    let rejected = test.is_some_and(|t| t.0);
+    o.verdict = if ms.unstable.is_some() && !(ms.retested && rejected) {
         if !o.message.starts_with(ms.unstable.as_deref().unwrap_or("")) {
             o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
         }

@@ -166,7 +166,7 @@ pub fn chi2_gof(
 }
 
 /// Upper tail of ChiSquared(dof) at `x`, with the infinite/NaN cases pinned to 0.
-fn chi2_sf(x: f64, dof: f64) -> f64 {
+pub fn chi2_sf(x: f64, dof: f64) -> f64 {
     if !x.is_finite() {
         return 0.0;
     }

@@ -20,7 +20,7 @@ pub const MIN_HILL_K: usize = 10;
 pub const HILL_MAX_FRACTION: usize = 16;
 
 /// Tail index at or below which the variance is infinite.
-const INFINITE_VARIANCE_INDEX: f64 = 2.0;
+pub const INFINITE_VARIANCE_INDEX: f64 = 2.0;
 
 /// Verdict of [`diagnose`], with the numbers behind it.
 #[derive(Debug, Clone, PartialEq)]

@@ -109,6 +109,7 @@ pub fn measure(
         p_value: Some(if failed.is_empty() { p } else { f64::NAN }),
         deterministic_pass: Some(a_max <= 1.0 + abs_tol),
         unstable: None,
+        retested: false,
         variants: 1,
         one_sided: true,
         samples: samples + scanned,

@@ -8,13 +8,15 @@ use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::outcome::Statistic;
 use crate::harness::region::{
-    diagnosis_alpha, region_of, region_pixels, region_stats, residual_stability, settings_for,
+    diagnosis_alpha, region_of, region_pixels, region_stats, residual_chi2, residual_stability,
+    settings_for,
 };
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
 use crate::lights::Light;
 use crate::math::rng::mix64;
+use crate::stats::chi2::chi2_sf;
 use crate::stats::{multiple::sidak_combine, z_test};
 
 /// The `estimator_agreement` kind.
@@ -75,6 +77,8 @@ impl Kind for EstimatorAgreement {
         // structure neither inflates the standard error nor passes for a heavy tail):
         // se = max(√(se_a² + se_b²) from within-pixel variances, sd(d)/√N).
         let mut unstable = Vec::new();
+        // Every unstable pair re-tested (structure, not an infinite-variance tail)?
+        let mut retested = true;
         let mut ps = Vec::new();
         let mut worst = (0.0f64, 1.0f64, String::new(), 0.0f64, 0.0f64);
         let mut lines = Vec::new();
@@ -86,12 +90,22 @@ impl Kind for EstimatorAgreement {
             let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
             let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
             let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
-            let (stable, why, se_between) =
+            let (stable, why, se_between, infinite) =
                 residual_stability(&d, &v, scale, diagnosis_alpha(ctx, 3));
             let (na, ra) = &stats[a];
             let (nb, rb) = &stats[b];
             if !stable {
-                unstable.push(format!("{na} − {nb}: {why}"));
+                // Pixels are independent estimates, so structure in the differences is a
+                // difference that varies across the region: Pearson's χ² of dᵢ/√vᵢ asks
+                // whether it is real (region::Retest).
+                let (chi2, n) = residual_chi2(&d, &v);
+                let p = chi2_sf(chi2, n as f64);
+                retested &= !infinite;
+                ps.push(p);
+                unstable.push(format!(
+                    "{na} − {nb}: {why}; re-test: Pearson χ² {chi2:.4} over {n} px, p {}",
+                    fmt_sig(p)
+                ));
             }
             let diff = ra.mean - rb.mean;
             let se = (ra.se_within.powi(2) + rb.se_within.powi(2))
@@ -120,9 +134,10 @@ impl Kind for EstimatorAgreement {
             expected: Some(0.0),
             statistic: Some(Statistic::Z { z: worst.0 }),
             p_value: Some(sidak_combine(&ps)),
-            variants: 3,
+            variants: ps.len(),
             one_sided: false,
             deterministic_pass: None,
+            retested: !unstable.is_empty() && retested,
             unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
             samples: stats.iter().map(|(_, r)| r.samples).sum(),
             message: format!(

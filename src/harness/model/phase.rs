@@ -242,6 +242,7 @@ pub fn measure_phase_at(
         p_value: Some(p_combined),
         deterministic_pass: Some(det_err <= abs_tol),
         unstable: None,
+        retested: false,
         variants: 3,
         one_sided: false,
         samples,
