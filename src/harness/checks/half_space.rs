@@ -7,8 +7,9 @@
 //! boundary, optically ≥ 1e3 thick along every region ray, under an environment light; the
 //! expected value of each pixel uses μ = |n·d| at its camera rays' hits.
 
-use crate::geometry::{ray, Ray};
+use crate::geometry::Ray;
 use crate::harness::closed_form::footprint::{per_pixel_rays, FOOTPRINT_K};
+use crate::harness::closed_form::witness;
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::region::{
     diagnosis_alpha, region_measurement, region_of, render_region, settings_for,
@@ -164,17 +165,16 @@ impl Kind for HalfSpace {
         let region = region_of(check, &s)?;
         let h = HFunction::new(albedo);
         let r_of = |mu: f64| h.reflectance(mu.clamp(0.0, 1.0));
+        let shapes = scene.aggregate.shapes();
         let expected_ray = |r: Ray| -> Result<f64, CheckError> {
-            let Some(h) = scene.aggregate.intersect(&r, f64::INFINITY) else {
+            // Hits from the closed forms' own caster (closed_form::witness), not the BVH.
+            let hits = witness::hits_along(shapes, &r);
+            let Some(h) = hits.first() else {
                 return Ok(env);
             };
             let mu = h.point.n.dot(r.d).abs();
             // optical thickness of the chord: the exit point along the same line
-            let inside = ray::spawn(&h.point, r.d);
-            let chord = scene
-                .aggregate
-                .intersect(&inside, f64::INFINITY)
-                .map_or(f64::INFINITY, |e| e.t);
+            let chord = hits.get(1).map_or(f64::INFINITY, |e| e.t - h.t);
             if sigma_t * chord < 1e3 {
                 return Err(format!("a region ray crosses the medium with optical thickness {:.3e}; the half-space form needs >= 1e3 (use a larger sphere or sigma)", sigma_t * chord).into());
             }

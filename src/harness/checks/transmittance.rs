@@ -6,8 +6,9 @@
 //! scene's null boundaries, so chromatic absorbers test the wavelength weights too. Rendered
 //! with emission only (max_depth 0; crossing a null boundary is not a bounce).
 
-use crate::geometry::{ray, Ray};
+use crate::geometry::Ray;
 use crate::harness::closed_form::footprint::{per_pixel_rays, FOOTPRINT_K};
+use crate::harness::closed_form::witness;
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::combine;
 use crate::harness::region::{
@@ -29,9 +30,14 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
     // (emitted spectrum, number of path segments in front of it)
     let mut sources: Vec<(&Spectrum, usize)> = Vec::new();
     let mut medium = scene.camera.medium;
-    let mut r = camera_ray;
+    let r = camera_ray;
+    // Every crossing along the camera ray's line, from the closed forms' own caster
+    // (closed_form::witness), with media tracked by the boundary rule, not the tracer's code.
+    let hits = witness::hits_along(scene.aggregate.shapes(), &r);
+    let mut next = hits.iter();
+    let mut t_last = 0.0;
     loop {
-        let hit = scene.aggregate.intersect(&r, f64::INFINITY);
+        let hit = next.next().copied();
         if let (Some(m), Some(h)) = (medium, hit.as_ref()) {
             if !scene.media[m as usize].absorbs_only() {
                 return Err(format!(
@@ -39,7 +45,7 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
                     scene.medium_names[m as usize]
                 ).into());
             }
-            path.push((m, h.t));
+            path.push((m, h.t - t_last));
         }
         let Some(h) = hit else {
             if let Some(env) = scene.lights.iter().find_map(|l| match l {
@@ -63,8 +69,13 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
         if !scene.bsdfs[h.shape as usize].is_null() {
             break;
         }
-        medium = scene.medium_after(h.shape, h.point.n, r.d, medium);
-        r = ray::spawn(&h.point, r.d);
+        medium = witness::medium_beyond(
+            scene.shape_media.get(h.shape as usize).copied().flatten(),
+            h.point.n,
+            r.d,
+            medium,
+        );
+        t_last = h.t;
     }
     Ok(cie::tables().function_to_xyz(|l| {
         sources

@@ -1,6 +1,8 @@
 //! Closed forms averaged over pixel footprints: a value along each camera ray through a pixel,
-//! integrated by k×k midpoint quadrature over the pixel (the box filter's footprint).
+//! integrated by k×k midpoint quadrature over the pixel (the box filter's footprint). Rays and
+//! hits come from the closed forms' own camera and caster (`witness`), not the renderer's.
 
+use super::witness::{self, Eye};
 use crate::geometry::{Hit, Ray};
 use crate::harness::error::CheckError;
 use crate::math::Vec3;
@@ -18,16 +20,20 @@ pub fn ray_average(
     f: &dyn Fn(Ray) -> Result<f64, CheckError>,
     k: usize,
 ) -> Result<f64, CheckError> {
-    let camera = scene
-        .camera
-        .build(width, height)
-        .map_err(CheckError::Setup)?;
+    let prims = witness::primitive_count(scene.aggregate.shapes());
+    if prims > witness::MAX_PRIMITIVES {
+        return Err(CheckError::Setup(format!(
+            "the scene has {prims} primitives; closed forms cast their rays against every one (at most {})",
+            witness::MAX_PRIMITIVES
+        )));
+    }
+    let eye = Eye::new(&scene.camera, width, height).map_err(CheckError::Setup)?;
     let mut sum = 0.0;
     for j in 0..k {
         for i in 0..k {
             let x = region[0] as f64 + (region[2] - region[0]) as f64 * (i as f64 + 0.5) / k as f64;
             let y = region[1] as f64 + (region[3] - region[1]) as f64 * (j as f64 + 0.5) / k as f64;
-            sum += f(camera.ray(x, y, width, height))?;
+            sum += f(eye.ray(x, y))?;
         }
     }
     Ok(sum / (k * k) as f64)
@@ -53,17 +59,13 @@ pub fn per_pixel_k(
     f: &RayClosedForm<'_>,
     k: usize,
 ) -> Result<Vec<f64>, CheckError> {
+    let shapes = scene.aggregate.shapes();
     per_pixel_rays(
         scene,
         width,
         height,
         region,
-        &|ray| {
-            f(
-                scene.aggregate.intersect(&ray, f64::INFINITY).as_ref(),
-                ray.d,
-            )
-        },
+        &|ray| f(witness::nearest_hit(shapes, &ray).as_ref(), ray.d),
         k,
     )
 }

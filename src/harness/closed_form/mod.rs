@@ -8,3 +8,4 @@ pub mod footprint;
 pub mod furnace;
 pub mod ggx_albedo;
 pub mod lambert;
+pub mod witness;
