@@ -5,6 +5,7 @@ mod budgets;
 mod cli;
 mod colorimetry;
 mod digests;
+mod docs_consistency;
 mod export;
 mod hostile;
 mod layering;

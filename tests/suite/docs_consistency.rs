@@ -1,0 +1,149 @@
+//! The README and docs against the committed reports: every figure the docs quote from a
+//! committed run of the default suite (reports/check-default.*) must be what that run says,
+//! so that a regenerated report with different numbers fails here until the docs follow.
+
+use crate::root;
+use regex::Regex;
+
+fn read(rel: &str) -> String {
+    std::fs::read_to_string(root(rel)).unwrap_or_else(|e| panic!("{rel}: {e}"))
+}
+
+/// README.md and every page under docs/, with their names.
+fn pages() -> Vec<(String, String)> {
+    let mut out = vec![("README.md".to_string(), read("README.md"))];
+    let mut docs: Vec<_> = std::fs::read_dir(root("docs"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "md"))
+        .collect();
+    docs.sort();
+    for p in docs {
+        let name = format!("docs/{}", p.file_name().unwrap().to_string_lossy());
+        out.push((name, std::fs::read_to_string(&p).unwrap()));
+    }
+    out
+}
+
+struct Committed {
+    checks: usize,
+    stochastic: u64,
+    per_test_alpha: String,
+    lines: Vec<String>,
+}
+
+fn committed() -> Committed {
+    let json: serde_json::Value =
+        serde_json::from_str(&read("reports/check-default.json")).unwrap();
+    let stochastic = json["stochastic_tests"].as_u64().unwrap();
+    let family = json["family_alpha"].as_f64().unwrap();
+    // Šidák per-test level, printed as the text report prints it (two significant digits).
+    let per = -((-family).ln_1p() / stochastic as f64).exp_m1();
+    let txt = read("reports/check-default.txt");
+    let header =
+        Regex::new(r"over (\d+) stochastic tests? \(Šidák: per-test α = ([0-9.e-]+)\)").unwrap();
+    let caps = header
+        .captures(&txt)
+        .expect("reports/check-default.txt states its correction");
+    assert_eq!(caps[1].parse::<u64>().unwrap(), stochastic);
+    let printed: f64 = caps[2].parse().unwrap();
+    assert!((printed / per - 1.0).abs() < 0.05, "{printed} vs {per}");
+    Committed {
+        checks: json["outcomes"].as_array().unwrap().len(),
+        stochastic,
+        per_test_alpha: caps[2].to_string(),
+        lines: txt.lines().map(str::to_string).collect(),
+    }
+}
+
+#[test]
+fn quoted_verdict_lines_are_in_the_committed_report() {
+    // A verdict line quoted in a code block must be a line of reports/check-default.txt (the
+    // wall time at its end may differ).
+    let c = committed();
+    let verdict = Regex::new(r"^(PASS|FAIL|UNSTABLE|ERROR|SKIP)\s{2,}\S").unwrap();
+    let time = Regex::new(r"\s+[0-9.]+ s$").unwrap();
+    let strip = |l: &str| time.replace(l.trim_end(), "").to_string();
+    let report: Vec<String> = c.lines.iter().map(|l| strip(l)).collect();
+    let mut quoted = 0;
+    for (name, text) in pages() {
+        let mut in_code = false;
+        for line in text.lines() {
+            if line.starts_with("```") {
+                in_code = !in_code;
+                continue;
+            }
+            if in_code && verdict.is_match(line) {
+                quoted += 1;
+                assert!(
+                    report.contains(&strip(line)),
+                    "{name} quotes a verdict line that reports/check-default.txt does not hold:\n{line}"
+                );
+            }
+        }
+    }
+    assert!(quoted >= 1, "the README quotes at least one verdict line");
+}
+
+#[test]
+fn quoted_test_counts_and_levels_match_the_committed_report() {
+    let c = committed();
+    let over = Regex::new(r"over (?:the whole run's )?(\d+) stochastic tests").unwrap();
+    let level = Regex::new(r"per-test α = ([0-9.e-]+)").unwrap();
+    let checks = Regex::new(r"default suite has (\d+) checks \((\d+) stochastic tests\)").unwrap();
+    let alpha_of =
+        Regex::new(r"([0-9.e-]+) for the (\d+) stochastic tests of the\s+default suite").unwrap();
+    let mut seen = 0;
+    for (name, text) in pages() {
+        // statistics.md's tables of the first suite are labelled historical and not checked.
+        for caps in over.captures_iter(&text) {
+            seen += 1;
+            assert_eq!(
+                caps[1].parse::<u64>().unwrap(),
+                c.stochastic,
+                "{name}: {}",
+                &caps[0]
+            );
+        }
+        for caps in level.captures_iter(&text) {
+            seen += 1;
+            assert_eq!(caps[1], c.per_test_alpha, "{name}: {}", &caps[0]);
+        }
+        for caps in checks.captures_iter(&text) {
+            seen += 1;
+            assert_eq!(
+                caps[1].parse::<usize>().unwrap(),
+                c.checks,
+                "{name}: {}",
+                &caps[0]
+            );
+            assert_eq!(
+                caps[2].parse::<u64>().unwrap(),
+                c.stochastic,
+                "{name}: {}",
+                &caps[0]
+            );
+        }
+        for caps in alpha_of.captures_iter(&text) {
+            seen += 1;
+            assert_eq!(caps[1], c.per_test_alpha, "{name}: {}", &caps[0]);
+            assert_eq!(
+                caps[2].parse::<u64>().unwrap(),
+                c.stochastic,
+                "{name}: {}",
+                &caps[0]
+            );
+        }
+    }
+    assert!(
+        seen >= 5,
+        "only {seen} quoted figures found: did the wording change?"
+    );
+    // The README's field table quotes the example line's α.
+    let readme = read("README.md");
+    assert!(
+        readme.contains(&format!("| `α = {}` |", c.per_test_alpha)),
+        "README.md's verdict-field table quotes another α than the committed report's {}",
+        c.per_test_alpha
+    );
+}
