@@ -138,6 +138,11 @@ impl Renderer for InverseSquareCamera {
 
 #[derive(Clone, Copy, PartialEq)]
 enum DirectBug {
+    /// No bug: the clean twin of the controls below, which must pass the same checks.
+    None,
+    /// No bug, and like `AreaPdfAsSolidAngle` only for the light-sampling strategy (the
+    /// built-in renderer for the others): the clean twin of the estimator-agreement control.
+    NoneLightOnly,
     MissingCosine,
     AreaPdfAsSolidAngle,
     FixedEpsilon,
@@ -156,7 +161,10 @@ impl Renderer for Direct {
         scene: &Scene,
         s: &RenderSettings,
     ) -> Result<Film, furnace::harness::RendererError> {
-        if self.0 == DirectBug::AreaPdfAsSolidAngle && s.integrator.strategy != Strategy::LightOnly
+        if matches!(
+            self.0,
+            DirectBug::AreaPdfAsSolidAngle | DirectBug::NoneLightOnly
+        ) && s.integrator.strategy != Strategy::LightOnly
         {
             return BuiltIn.render(scene, s);
         }
@@ -290,6 +298,31 @@ fn the_controls_render_correctly_when_unbroken() {
         "tests/manifests/lambert.toml",
         "lambert/point-60deg*",
         &BuiltIn,
+        Verdict::Pass,
+    );
+}
+
+#[test]
+fn the_test_tracer_passes_when_it_has_no_bug() {
+    // The clean twin of the lambert, scale-invariance and estimator-agreement controls: the
+    // same small direct-lighting tracer, without its injected bug, passes those checks, so
+    // their rejections come from the bug and not from the tracer.
+    assert_all(
+        "tests/manifests/lambert.toml",
+        "lambert/point-60deg*",
+        &Direct(DirectBug::None),
+        Verdict::Pass,
+    );
+    assert_all(
+        "tests/manifests/invariance.toml",
+        "scale/lambert-area",
+        &Direct(DirectBug::None),
+        Verdict::Pass,
+    );
+    assert_all(
+        "tests/manifests/invariance.toml",
+        "estimators/*",
+        &Direct(DirectBug::NoneLightOnly),
         Verdict::Pass,
     );
 }
@@ -501,6 +534,48 @@ fn energy_rejects_a_lambert_missing_one_over_pi() {
     )
     .unwrap();
     assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+}
+
+#[test]
+fn energy_tests_the_noisy_violator_not_an_exact_lossless_model() {
+    // A lossless mirror reads exactly 1 ± 0; the Monte Carlo test must land on the noisy
+    // model instead, where it can fail: a rough conductor (α = 0.05, below the quadrature's
+    // reach, so only the Monte Carlo part sees it) with a 2 % gain is rejected by that
+    // sub-test, and its clean twin passes it.
+    let catalogue = |name: &str| {
+        let b = furnace::harness::model::catalogue::bsdfs()
+            .into_iter()
+            .find(|(n, _)| n == name)
+            .unwrap()
+            .1;
+        bsdf(name, b)
+    };
+    let run = |models: &[Named<dyn BsdfModel>]| {
+        energy::measure(models, 89.9, 1e-6, 20_000, 1, furnace::stats::ROUNDING).unwrap()
+    };
+    let gain = bsdf(
+        "2 % gain",
+        BrokenConductor::grey("conductor/ggx α=0.05 perfect", 1.02),
+    );
+    let m = run(&[catalogue("conductor/smooth perfect"), gain]);
+    assert_eq!(judge(&m, ALPHA), Verdict::Fail, "{}", m.message);
+    assert!(
+        m.p_value.unwrap() < ALPHA,
+        "the Monte Carlo sub-test rejects: {}",
+        m.message
+    );
+    assert_eq!(m.deterministic_pass, Some(true), "{}", m.message);
+    assert!(m.message.contains("at 2 % gain"), "{}", m.message);
+    let m = run(&[
+        catalogue("conductor/smooth perfect"),
+        catalogue("conductor/ggx α=0.05 perfect"),
+    ]);
+    assert_eq!(judge(&m, ALPHA), Verdict::Pass, "{}", m.message);
+    assert!(
+        m.std_error.unwrap() > 0.0,
+        "tested on the noisy model: {}",
+        m.message
+    );
 }
 
 #[test]

@@ -4,9 +4,11 @@
 //! midpoint quadrature in (cos θi, φi) over the whole sphere, max over wo ≤ 1 + abs_tol, for
 //! the models and angles the grid resolves (roughness ≥ catalogue::QUADRATURE_MIN_ROUGHNESS,
 //! θo ≤ 60° for microfacet lobes, which the grid cannot follow towards the horizon).
-//! Stochastic part: Monte Carlo estimates of a(wo) from BSDF sampling weights for every model
-//! and angle (delta lobes included), and a fresh estimate at the largest, one-sided z test of
-//! H0: a ≤ 1.
+//! Monte Carlo part: estimates of a(wo) from BSDF sampling weights for every model and angle
+//! (delta lobes included). Zero-variance estimates (lossless delta lobes, cosine-sampled
+//! Lambert) are exact and join the deterministic part (≤ 1 + rounding); among the noisy ones,
+//! the most likely violator (largest (a − 1)/se) gets a fresh estimate and a one-sided z test
+//! of H0: a ≤ 1, so the test never lands on an exact model that cannot fail it.
 
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -32,7 +34,9 @@ pub fn measure(
 ) -> Result<Measurement, ModelError> {
     let wl = catalogue::check_wavelengths();
     let mut quad_max = (0.0f64, String::from("no model resolved by the grid"));
+    // noisy estimates: the largest (a − 1)/se; exact ones: the largest a
     let mut worst: Option<(f64, &dyn BsdfModel, Vec3, usize, String)> = None;
+    let mut exact_max: Option<(f64, String)> = None;
     let mut rng = SampleStream::new(seed, 2, 0);
     let mut scanned = 0u64;
     let mut non_finite = 0u64;
@@ -56,12 +60,17 @@ pub fn measure(
                         }
                     }
                 }
-                let (mean, _, bad) = albedo_mc(b, wo, samples / 5, &mut rng)?;
+                let (mean, se, bad) = albedo_mc(b, wo, samples / 5, &mut rng)?;
                 scanned += samples / 5;
                 non_finite += bad;
-                for (k, &v) in mean.iter().enumerate() {
-                    if worst.as_ref().is_none_or(|w| v > w.0) {
-                        worst = Some((v, b, wo, k, at(k)));
+                for (k, (&v, &e)) in mean.iter().zip(&se).enumerate() {
+                    if e > 0.0 {
+                        let z = (v - 1.0 - rounding) / e;
+                        if worst.as_ref().is_none_or(|w| z > w.0) {
+                            worst = Some((z, b, wo, k, at(k)));
+                        }
+                    } else if exact_max.as_ref().is_none_or(|x| v > x.0 || v.is_nan()) {
+                        exact_max = Some((v, at(k)));
                     }
                 }
             }
@@ -71,7 +80,36 @@ pub fn measure(
             failed.push(format!("{name}: could not be run: {e}"));
         }
     }
+    let exact_text = exact_max.as_ref().map_or(String::new(), |(v, w)| {
+        format!(
+            "; largest exact (zero-variance) Monte Carlo albedo {} at {w}",
+            fmt_sig(*v)
+        )
+    });
+    let exact_pass = exact_max.as_ref().is_none_or(|(v, _)| *v <= 1.0 + rounding);
+    let a_max = quad_max.0;
     let Some((_, b, wo, k, where_)) = worst else {
+        if let Some((v, _)) = exact_max.as_ref().filter(|_| failed.is_empty()) {
+            // every estimate is exact: a deterministic check
+            return Ok(Measurement {
+                estimate: Some(*v),
+                std_error: Some(0.0),
+                expected: Some(1.0),
+                statistic: Some(Statistic::Tolerance {
+                    max_error: (a_max.max(*v) - 1.0).max(0.0),
+                    abs_tol,
+                    rel_tol: 0.0,
+                }),
+                deterministic_pass: Some(a_max <= 1.0 + abs_tol && exact_pass && non_finite == 0),
+                samples: scanned,
+                message: format!(
+                    "largest albedo by quadrature {} ({}){exact_text}; no estimate has Monte Carlo noise; {non_finite} non-finite weights",
+                    fmt_sig(a_max),
+                    quad_max.1
+                ),
+                ..Default::default()
+            });
+        }
         // nothing measured: no models, or none that could be run (then an ERROR)
         return Ok(Measurement {
             p_value: (!failed.is_empty()).then_some(f64::NAN),
@@ -99,7 +137,6 @@ pub fn measure(
     } else {
         1.0
     };
-    let a_max = quad_max.0;
     Ok(Measurement {
         estimate: Some(mean),
         std_error: Some(se),
@@ -107,14 +144,15 @@ pub fn measure(
         statistic: Some(Statistic::Tolerance { max_error: (a_max - 1.0).max(0.0), abs_tol, rel_tol: 0.0 }),
         // a model that could not be run makes the check an ERROR, with its reason below
         p_value: Some(if failed.is_empty() { p } else { f64::NAN }),
-        deterministic_pass: Some(a_max <= 1.0 + abs_tol),
+        deterministic_pass: Some(a_max <= 1.0 + abs_tol && exact_pass),
         unstable: None,
         retested: false,
         variants: 1,
         one_sided: true,
+        regression: false,
         samples: samples + scanned,
         message: format!(
-            "largest albedo by quadrature {} ({}); largest Monte Carlo albedo at {where_}: {} ± {} (fresh {samples} samples, one-sided z {:.2} against 1 + {rounding:e}); {non_finite} non-finite weights{}",
+            "largest albedo by quadrature {} ({}){exact_text}; most likely violator among the noisy estimates (largest (a − 1)/se) at {where_}: {} ± {} (fresh {samples} samples, one-sided z {:.2} against 1 + {rounding:e}); {non_finite} non-finite weights{}",
             fmt_sig(a_max),
             quad_max.1,
             fmt_sig(mean),
