@@ -160,7 +160,7 @@ impl<'a> Keys<'a> {
             table,
         };
         for (key, v) in table {
-            if key == "name" || key == "kind" || key == "time_limit" {
+            if key == "name" || key == "kind" || key == "time_limit" || key == "regression" {
                 continue;
             }
             if !allowed.iter().any(|k| k.name == key) {
@@ -169,7 +169,7 @@ impl<'a> Keys<'a> {
                     v.span(),
                     key,
                     format!(
-                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, {}",
+                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, {}",
                         kind,
                         names.join(", ")
                     ),

@@ -175,6 +175,9 @@ pub struct Check {
     pub origin: String,
     /// Its own wall-time limit, seconds (None: the run's).
     pub time_limit: Option<f64>,
+    /// The manifest says the expected value is furnace's own earlier output (`regression =
+    /// true`): the check is a regression baseline, reported apart, not validation.
+    pub regression: bool,
 }
 
 impl Check {

@@ -198,6 +198,9 @@ fn expand_check(
             ))
         }
     };
+    let regression = keys
+        .get::<bool>("regression")?
+        .is_some_and(|r| *r.get_ref());
     let models = keys
         .get::<Vec<String>>("models")?
         .map(|m| m.into_inner())
@@ -239,6 +242,7 @@ fn expand_check(
         params,
         origin: format!("{}:{line}", src.path.display()),
         time_limit,
+        regression,
     };
     let Some(scene) = keys.raw("scene") else {
         return Ok(vec![base_check]);

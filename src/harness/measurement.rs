@@ -35,6 +35,9 @@ pub struct Measurement {
     pub variants: usize,
     /// True when the test is one-sided (energy: only an albedo above 1 is a violation).
     pub one_sided: bool,
+    /// True when some expected value is furnace's own earlier output (a regression band or
+    /// baseline), not an independent source.
+    pub regression: bool,
 }
 
 /// Combines several region tests (one per variant) into one measurement: p is the Šidák
@@ -74,6 +77,7 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
     m.variants = parts.iter().map(|(_, p)| p.variants.max(1)).sum();
     m.samples = samples;
     m.deterministic_pass = det;
+    m.regression = parts.iter().any(|(_, p)| p.regression);
     m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
     // A FAIL through the re-test needs every unstable part re-tested.
     m.retested = parts

@@ -98,6 +98,10 @@ pub struct Outcome {
     pub seconds: f64,
     /// Human-readable explanation: estimator, what was compared, evidence for UNSTABLE/ERROR.
     pub message: String,
+    /// True when the expected value is furnace's own earlier output (a regression baseline):
+    /// reported apart from the physics checks and never counted as validation.
+    #[serde(default)]
+    pub regression: bool,
 }
 
 impl Outcome {
@@ -118,6 +122,7 @@ impl Outcome {
             samples: 0,
             seconds: 0.0,
             message: String::new(),
+            regression: false,
         }
     }
 

@@ -342,6 +342,7 @@ pub fn region_measurement(
         unstable,
         variants: 1,
         one_sided: false,
+        regression: false,
         samples: r.samples,
         message: format!(
             "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{retest_text}",

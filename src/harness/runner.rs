@@ -158,6 +158,7 @@ pub fn run_with(
         let mut o = Outcome::new(&check.name, check.kind_name());
         o.seconds = seconds;
         o.rel_tolerance = check.rel_tolerance;
+        o.regression = check.regression;
         match result {
             Err(e) => {
                 o.verdict = Verdict::Error;
@@ -172,6 +173,7 @@ pub fn run_with(
                 o.p_value = ms.p_value;
                 o.samples = ms.samples;
                 o.message = ms.message.clone();
+                o.regression |= ms.regression;
                 let finite = [ms.estimate, ms.std_error, ms.p_value]
                     .iter()
                     .flatten()

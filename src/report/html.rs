@@ -264,7 +264,11 @@ pub fn page_with_notes(
                 verdict_class(v),
                 escape(o["name"].as_str().unwrap_or("")),
                 escape(o["kind"].as_str().unwrap_or("")),
-                v,
+                if o["regression"].as_bool() == Some(true) {
+                    format!("{v} (regression baseline)")
+                } else {
+                    v.to_string()
+                },
                 num(&o["estimate"]),
                 num(&o["std_error"]),
                 num(&o["expected"]),

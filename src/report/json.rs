@@ -53,6 +53,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `samples` | integer | count | Samples used (paths, BSDF samples or quadrature points). |
 | `seconds` | number or null | s | Wall time of the check. |
 | `message` | string | — | Human-readable explanation: estimator, what was compared, and the evidence for UNSTABLE or ERROR. |
+| `regression` | boolean | — | True when the expected value is furnace's own earlier output (a regression baseline, from the manifest's `regression = true` or a check's own regression band): reported apart, never counted as validation. |
 
 ### Statistic
 

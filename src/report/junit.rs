@@ -16,7 +16,7 @@ use crate::report::text::{self, Tally};
 /// `<testsuites>` and its one `<testsuite>` carry `tests`, `failures` (FAIL and
 /// UNSTABLE), `errors`, `skipped` and `time` (seconds, 3 decimals); the suite also lists
 /// the run settings as `<properties>`. Each `<testcase>` has the check name, the class
-/// name `furnace.<kind>` and its time.
+/// name `furnace.<kind>` (`furnace.regression.<kind>` for a regression baseline) and its time.
 pub fn to_junit(r: &RunReport) -> String {
     let t = Tally::of(r);
     let counts = format!(
@@ -60,10 +60,16 @@ pub fn to_junit(r: &RunReport) -> String {
 /// Appends one `<testcase>` element.
 fn testcase(x: &mut String, o: &Outcome) {
     let kind = o.kind.trim();
-    let classname = if kind.is_empty() {
-        "furnace".to_string()
+    // Regression baselines get a class of their own, so CI views list them apart.
+    let root = if o.regression {
+        "furnace.regression"
     } else {
-        format!("furnace.{kind}")
+        "furnace"
+    };
+    let classname = if kind.is_empty() {
+        root.to_string()
+    } else {
+        format!("{root}.{kind}")
     };
     let _ = writeln!(
         x,

@@ -44,6 +44,9 @@ pub fn line(o: &Outcome) -> String {
         display_name(&o.name),
         width = VERDICT_WIDTH
     );
+    if o.regression {
+        s.push_str("  [regression baseline]");
+    }
     let nums = numbers(o);
     if !nums.is_empty() {
         s.push_str("  ");
@@ -227,6 +230,7 @@ impl Tally {
 ///
 /// FAIL, UNSTABLE and ERROR all count as failed; the breakdown line appears only when
 /// some failures are UNSTABLE or ERROR, and `, N skipped` only when some were skipped.
+/// Regression baselines get a line of their own and are left out of the last line.
 /// The `N passed, N failed` line is always the last line, alone.
 pub fn summary(r: &RunReport) -> String {
     let t = Tally::of(r);
@@ -242,7 +246,26 @@ pub fn summary(r: &RunReport) -> String {
             if t.errors == 1 { "error" } else { "errors" }
         ));
     }
-    let mut last = format!("{} passed, {} failed", t.passed, t.failing());
+    // Regression baselines (furnace against its own earlier output) are counted apart: the
+    // last line counts validation only; a failing baseline still fails the run.
+    let baselines: Vec<&Outcome> = r.outcomes.iter().filter(|o| o.regression).collect();
+    let (b_pass, b_fail) = (
+        baselines
+            .iter()
+            .filter(|o| o.verdict == Verdict::Pass)
+            .count(),
+        baselines.iter().filter(|o| o.is_failure()).count(),
+    );
+    if !baselines.is_empty() {
+        lines.push(format!(
+            "(regression baselines, furnace against its own earlier output, not validation: {b_pass} passed, {b_fail} failed)"
+        ));
+    }
+    let mut last = format!(
+        "{} passed, {} failed",
+        t.passed - b_pass,
+        t.failing() - b_fail
+    );
     if t.skipped > 0 {
         let _ = write!(last, ", {} skipped", t.skipped);
     }
@@ -324,7 +347,11 @@ pub fn table_markdown(r: &RunReport) -> String {
         }
         let statistic = statistic_text(o);
         let cells = [
-            markdown_name(&o.name),
+            if o.regression {
+                format!("{} (regression baseline)", markdown_name(&o.name))
+            } else {
+                markdown_name(&o.name)
+            },
             verdict,
             markdown_cell(&estimate),
             markdown_cell(&expected),

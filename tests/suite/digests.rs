@@ -107,8 +107,9 @@ pub fn report_digest(report: &RunReport) -> String {
     for o in &report.outcomes {
         writeln!(
             out,
-            "{} {:?} est={:?} se={:?} exp={:?} stat={:?} p={:?} alpha={:?} power={:?} n={}",
+            "{}{} {:?} est={:?} se={:?} exp={:?} stat={:?} p={:?} alpha={:?} power={:?} n={}",
             o.name,
+            if o.regression { " [regression]" } else { "" },
             o.verdict,
             o.estimate,
             o.std_error,

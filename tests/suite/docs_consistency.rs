@@ -86,6 +86,45 @@ fn quoted_verdict_lines_are_in_the_committed_report() {
 }
 
 #[test]
+fn quoted_summaries_are_the_committed_reports_summary() {
+    // A code block that quotes a run's summary (it names the family-wise rate) must be the
+    // committed run's closing lines, word for word.
+    let c = committed();
+    let mut quoted = 0;
+    for (name, text) in pages() {
+        let mut block: Vec<&str> = Vec::new();
+        let mut in_code = false;
+        for line in text.lines() {
+            if line.starts_with("```") {
+                if in_code
+                    && block
+                        .iter()
+                        .any(|l| l.starts_with("family-wise false-alarm rate"))
+                {
+                    quoted += 1;
+                    for l in &block {
+                        assert!(
+                            c.lines.iter().any(|r| r == l),
+                            "{name} quotes a summary line that reports/check-default.txt does not hold:\n{l}"
+                        );
+                    }
+                }
+                in_code = !in_code;
+                block.clear();
+                continue;
+            }
+            if in_code {
+                block.push(line);
+            }
+        }
+    }
+    assert!(
+        quoted >= 1,
+        "the docs quote the committed summary at least once"
+    );
+}
+
+#[test]
 fn quoted_test_counts_and_levels_match_the_committed_report() {
     let c = committed();
     let over = Regex::new(r"over (?:the whole run's )?(\d+) stochastic tests").unwrap();

@@ -97,6 +97,7 @@ pub fn measure(
                         fmt_sig(lo),
                         fmt_sig(hi)
                     ),
+                    regression: true,
                     ..Default::default()
                 }
             }

@@ -136,6 +136,7 @@ impl Kind for EstimatorAgreement {
             p_value: Some(sidak_combine(&ps)),
             variants: ps.len(),
             one_sided: false,
+            regression: false,
             deterministic_pass: None,
             retested: !unstable.is_empty() && retested,
             unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
