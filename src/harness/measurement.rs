@@ -21,10 +21,11 @@ pub struct Measurement {
     pub deterministic_pass: Option<bool>,
     /// Evidence that the variance did not settle (makes the verdict UNSTABLE).
     pub unstable: Option<String>,
-    /// With `unstable`: the standard error and p-value come from a re-test whose standard
-    /// error allows for what the diagnosis found (batch means over pixel blocks, for residuals
-    /// with structure), so a rejection at the check's level is a FAIL, not UNSTABLE: a bias
-    /// too large for even the inflated error is a bias, whatever the variance does.
+    /// With `unstable`: the p-value comes from a re-test that allows for what the diagnosis
+    /// found (structure in the residuals, not an infinite-variance tail: a mean test with the
+    /// batch-means standard error and a test of the structure itself, harness::region::Retest),
+    /// so a rejection at the check's level is a FAIL, not UNSTABLE: a bias too large for even
+    /// that is a bias, whatever the variance does.
     pub retested: bool,
     /// Samples used.
     pub samples: u64,

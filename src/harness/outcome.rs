@@ -29,9 +29,10 @@ pub enum Statistic {
         #[serde(deserialize_with = "nan_if_null")]
         z: f64,
     },
-    /// Two-sided Student t test with Welch–Satterthwaite degrees of freedom: (estimate −
-    /// expected)/standard error where the standard error is itself estimated from few
-    /// effective values (stats::welch_test).
+    /// Two-sided Student t test: (estimate − expected)/standard error where the standard error
+    /// is itself estimated from few effective values: Welch–Satterthwaite degrees of freedom
+    /// from fourth moments (region tests between images), or batches − 1 (the re-test of a
+    /// region with structure, harness::region::Retest).
     T {
         /// The t score.
         #[serde(deserialize_with = "nan_if_null")]
@@ -60,6 +61,23 @@ pub enum Statistic {
         /// Relative tolerance.
         #[serde(deserialize_with = "nan_if_null")]
         rel_tol: f64,
+    },
+    /// Deterministic comparison where every value has its own allowance abs_tol +
+    /// rel_tol·|value| (reciprocity: each pair relative to its own size): passes when the
+    /// largest error / allowance is at most 1; values within their one-ulp rounding spread
+    /// are excused and counted.
+    PerValueTolerance {
+        /// Largest error / allowance over the values not excused.
+        #[serde(deserialize_with = "nan_if_null")]
+        max_ratio: f64,
+        /// Absolute part of each allowance.
+        #[serde(deserialize_with = "nan_if_null")]
+        abs_tol: f64,
+        /// Relative part of each allowance.
+        #[serde(deserialize_with = "nan_if_null")]
+        rel_tol: f64,
+        /// Values over their allowance excused as the model's rounding.
+        excused: u64,
     },
     /// No statistic (errors, skipped checks).
     None,

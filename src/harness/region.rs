@@ -12,7 +12,7 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 use crate::stats::chi2::chi2_sf;
 use crate::stats::multiple::sidak_combine;
-use crate::stats::{stability, t_with_tolerance, z_with_tolerance};
+use crate::stats::{normal_sf, stability, t_with_tolerance, z_with_tolerance};
 
 /// Statistics of the Y channel over a pixel region of a rendered image.
 #[derive(Debug, Clone, PartialEq)]
@@ -40,9 +40,10 @@ pub struct RegionStats {
     pub retest: Option<Retest>,
 }
 
-/// The re-test of a region whose residuals have structure. Pixels are independent estimates,
-/// so under the null hypothesis (every pixel unbiased) residuals have none: structure is a
-/// bias that varies across the region, and two tests ask whether it is real.
+/// The re-test of a region whose residuals have structure. Pixels are independent estimates
+/// (furnace seeds every pixel apart; a black-box renderer with an independent sampler does
+/// too), so under the null hypothesis (every pixel unbiased) residuals have none: structure is
+/// a bias that varies across the region, and two tests ask whether it is real.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Retest {
     /// The mean's standard error inflated to the batch-means estimate at the batch size that
@@ -51,29 +52,54 @@ pub struct Retest {
     pub se: f64,
     /// Degrees of freedom of `se`.
     pub dof: f64,
-    /// Pearson's X = Σ rᵢ²/vᵢ over the pixels with vᵢ > 0, χ²(`pixels`) under the null.
+    /// X = Σ rᵢ²/vᵢ over the pixels with vᵢ > 0 ([`residual_chi2`]).
     pub chi2: f64,
-    /// Pixels in `chi2`.
+    /// Pixels in `chi2`, less one when the residuals are taken about their own mean.
     pub pixels: usize,
+    /// Degrees of freedom of each pixel's variance estimate (spp − 1; ∞: known variances).
+    pub pixel_dof: f64,
 }
 
 impl Retest {
-    /// Šidák combination of the inflated mean test and the χ² test: (mean test's t, p).
-    pub fn p(&self, mean: f64, expected: f64, rel_tolerance: f64) -> (f64, f64) {
+    /// Šidák combination of the inflated mean test and, where it is calibrated, the structure
+    /// test ([`structure_p`]): (mean test's t, p, sub-tests combined). NaN when either p is.
+    pub fn p(&self, mean: f64, expected: f64, rel_tolerance: f64) -> (f64, f64, usize) {
         let (t, p_mean) = t_with_tolerance(mean, self.se, expected, rel_tolerance, self.dof);
-        let p_chi2 = chi2_sf(self.chi2, self.pixels as f64);
-        (t, sidak_combine(&[p_mean, p_chi2]))
+        match structure_p(self.chi2, self.pixels, self.pixel_dof) {
+            None => (t, p_mean, 1),
+            Some(p_x) if p_x.is_nan() || p_mean.is_nan() => (t, f64::NAN, 2),
+            Some(p_x) => (t, sidak_combine(&[p_mean, p_x]), 2),
+        }
     }
 }
 
-/// Pearson's X = Σ rᵢ²/vᵢ of residuals against their variances, over pixels with vᵢ > 0:
-/// (X, pixels). χ²(pixels) when every pixel mean is unbiased, independent and near-normal.
+/// X = Σ rᵢ²/vᵢ of residuals against their estimated variances, over pixels with vᵢ > 0:
+/// (X, pixels).
 pub fn residual_chi2(resid: &[f64], vars: &[f64]) -> (f64, usize) {
     resid
         .iter()
         .zip(vars)
         .filter(|(_, v)| **v > 0.0)
         .fold((0.0, 0), |(x, n), (r, v)| (x + r * r / v, n + 1))
+}
+
+/// Upper-tail p of X = Σ rᵢ²/v̂ᵢ over `n` independent unbiased near-normal pixels whose
+/// variance estimates have `dof` degrees of freedom each: χ²(n) for known variances; else each
+/// term is F(1, ν), mean ν/(ν − 2) and variance 2ν²(ν − 1)/((ν − 2)²(ν − 4)) (Johnson, Kotz &
+/// Balakrishnan 1995, Continuous Univariate Distributions 2, ch. 27), and X is taken as normal
+/// with n times those moments (central limit over pixels). None where that is not calibrated:
+/// ν ≤ 30 (a heavy-tailed F) or n < 30.
+pub fn structure_p(x: f64, n: usize, dof: f64) -> Option<f64> {
+    if n < 30 || dof <= 30.0 || dof.is_nan() {
+        return None;
+    }
+    if dof.is_infinite() {
+        return Some(chi2_sf(x, n as f64));
+    }
+    let nf = n as f64;
+    let mean = dof / (dof - 2.0);
+    let var = 2.0 * dof * dof * (dof - 1.0) / ((dof - 2.0).powi(2) * (dof - 4.0));
+    Some(normal_sf((x - nf * mean) / (nf * var).sqrt()))
 }
 
 /// Image size, spp and region of a scene-level check (independent sampling).
@@ -213,10 +239,17 @@ pub fn region_stats_of(
     }
     let (stable, stability, se_between, infinite) = residual_stability(&resid, &vars, scale, alpha);
     let se = se_within.max(se_between);
+    // each pixel's variance rests on (its sample count − 1) degrees of freedom
+    let pixel_dof = film
+        .pixels
+        .get(region[1] * film.width + region[0])
+        .map_or(f64::NAN, |p| p.channels[channel].count() as f64 - 1.0);
     let retest = (!stable && !infinite)
         .then(|| {
             let raw = stability::diagnose(&resid, alpha);
             let (chi2, pixels) = residual_chi2(&resid, &vars);
+            // residuals about their own mean (no per-pixel closed form) lose one dof
+            let pixels = pixels.saturating_sub(usize::from(expected_px.is_none()));
             raw.se_by_batch_size
                 .iter()
                 .max_by(|a, b| a.1.total_cmp(&b.1))
@@ -225,6 +258,7 @@ pub fn region_stats_of(
                     dof: (resid.len() / b) as f64 - 1.0,
                     chi2,
                     pixels,
+                    pixel_dof,
                 })
         })
         .flatten();
@@ -312,23 +346,38 @@ pub fn region_measurement(
     message: String,
 ) -> Measurement {
     let unstable = (!r.stable).then(|| format!("UNSTABLE: {}", r.stability));
-    let (se, statistic, p, retest_text) = match (r.stable, r.retest) {
+    let (se, statistic, p, retest_text, tests) = match (r.stable, r.retest) {
         (false, Some(rt)) => {
-            let (t, p) = rt.p(r.mean, expected, rel_tolerance);
+            let (t, p, tests) = rt.p(r.mean, expected, rel_tolerance);
             let s = super::outcome::Statistic::T { t, dof: rt.dof };
+            let structure = if tests == 2 {
+                format!(
+                    " and Σr²/v {:.4} over {} px (v on {} dof each)",
+                    rt.chi2, rt.pixels, rt.pixel_dof
+                )
+            } else {
+                format!(
+                    " (Σr²/v not calibrated at {} px, {} dof per pixel)",
+                    rt.pixels, rt.pixel_dof
+                )
+            };
             let text = format!(
-                "; re-tested (pixels are independent, so structure is a bias): mean with the batch-means se {:.3e} ({} dof) and Pearson χ² {:.4} over {} px, Šidák-combined p {}: a rejection is a FAIL",
+                "; re-tested (pixels are independent, so structure is a bias): mean with the batch-means se {:.3e} ({} dof){structure}, combined p {}: a rejection is a FAIL",
                 rt.se,
                 rt.dof,
-                rt.chi2,
-                rt.pixels,
                 super::measurement::fmt_sig(p)
             );
-            (rt.se, s, p, text)
+            (rt.se, s, p, text, tests)
         }
         _ => {
             let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
-            (r.se, super::outcome::Statistic::Z { z }, p, String::new())
+            (
+                r.se,
+                super::outcome::Statistic::Z { z },
+                p,
+                String::new(),
+                1,
+            )
         }
     };
     Measurement {
@@ -340,7 +389,7 @@ pub fn region_measurement(
         deterministic_pass: None,
         retested: unstable.is_some() && r.retest.is_some(),
         unstable,
-        variants: 1,
+        variants: tests,
         one_sided: false,
         regression: false,
         samples: r.samples,

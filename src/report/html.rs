@@ -151,11 +151,16 @@ fn verdict_class(v: &str) -> &'static str {
     }
 }
 
-/// Counts of each verdict over the check runs.
-fn counts(runs: &[Value]) -> Vec<(String, usize)> {
+/// Counts of each verdict over the outcomes of the check runs that `keep` selects.
+fn counts_where(runs: &[Value], keep: impl Fn(&Value) -> bool) -> Vec<(String, usize)> {
     let mut c: std::collections::BTreeMap<String, usize> = Default::default();
     for r in runs {
-        for o in r["outcomes"].as_array().into_iter().flatten() {
+        for o in r["outcomes"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter(|o| keep(o))
+        {
             *c.entry(o["verdict"].as_str().unwrap_or("?").to_string())
                 .or_default() += 1;
         }
@@ -438,17 +443,27 @@ pub fn markdown(runs: &[Value], comparisons: &[ComparisonSection]) -> String {
         "## furnace: {}\n",
         if ok { "all pass" } else { "failures" }
     );
+    let baseline = |o: &Value| o["regression"].as_bool() == Some(true);
     for run in runs {
-        let c: Vec<String> = counts(std::slice::from_ref(run))
-            .into_iter()
-            .map(|(v, n)| format!("{n} {v}"))
-            .collect();
-        if !c.is_empty() {
+        let text = |c: Vec<(String, usize)>| {
+            c.into_iter()
+                .map(|(v, n)| format!("{n} {v}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let c = text(counts_where(std::slice::from_ref(run), |o| !baseline(o)));
+        let b = text(counts_where(std::slice::from_ref(run), baseline));
+        if !c.is_empty() || !b.is_empty() {
             let _ = writeln!(
                 m,
-                "Checks ({}): {}\n",
+                "Checks ({}): {}{}\n",
                 run["renderer"].as_str().unwrap_or("furnace"),
-                c.join(", ")
+                c,
+                if b.is_empty() {
+                    String::new()
+                } else {
+                    format!("; regression baselines (not validation): {b}")
+                }
             );
         }
     }

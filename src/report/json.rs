@@ -60,9 +60,10 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `type` | further fields | meaning |
 |---|---|---|
 | `"z"` | `z` (number or null): the z score | Two-sided z test: (`estimate` − `expected`) / `std_error`. |
-| `"t"` | `t` (number or null): the t score; `dof` (number or null): Welch–Satterthwaite degrees of freedom | Two-sided Student t test, used where a standard error rests on few effective samples (its degrees of freedom come from the samples' fourth moments). |
+| `"t"` | `t` (number or null): the t score; `dof` (number or null): its degrees of freedom | Two-sided Student t test, used where a standard error rests on few effective samples: Welch–Satterthwaite degrees of freedom from the samples' fourth moments (region tests between images), or batches − 1 (the re-test of a region whose residuals have structure). |
 | `"chi_square"` | `chi2` (number or null): the χ² value; `dof` (integer): degrees of freedom after pooling | Pearson χ² goodness of fit. |
 | `"tolerance"` | `max_error` (number or null): largest error found; `abs_tol` (number or null): absolute tolerance; `rel_tol` (number or null): relative tolerance | Deterministic comparison; passes when `max_error` ≤ `abs_tol` + `rel_tol`·\|`expected`\|. |
+| `"per_value_tolerance"` | `max_ratio` (number or null): largest error / allowance over the values not excused; `abs_tol`, `rel_tol` (number or null): each value's allowance abs_tol + rel_tol·\|value\|; `excused` (integer): values excused as the model's rounding | Deterministic comparison with an allowance per value (reciprocity); passes when `max_ratio` ≤ 1. |
 | `"none"` | — | No statistic (errors, skipped checks). |
 "#;
 

@@ -442,6 +442,12 @@ mod tests {
             let statistics = [
                 Statistic::Z { z: x },
                 Statistic::T { t: x, dof: y },
+                Statistic::PerValueTolerance {
+                    max_ratio: x,
+                    abs_tol: y,
+                    rel_tol: x,
+                    excused: 3,
+                },
                 Statistic::ChiSquare {
                     chi2: x,
                     dof: u64::MAX,

@@ -138,6 +138,30 @@ fn statistic_text(o: &Outcome) -> String {
             abs_tol,
             rel_tol,
         } => tolerance_rule(o, *max_error, *abs_tol, *rel_tol),
+        Statistic::PerValueTolerance {
+            max_ratio,
+            abs_tol,
+            rel_tol,
+            excused,
+        } => {
+            let relation = if *max_ratio <= 1.0 {
+                "≤"
+            } else if *max_ratio > 1.0 {
+                ">"
+            } else {
+                "vs"
+            };
+            let mut s = format!(
+                "max error/allowance {} {relation} 1, allowance {} + {}·|value| per value",
+                sig(*max_ratio, 2, true),
+                sig(*abs_tol, 2, true),
+                sig(*rel_tol, 2, true)
+            );
+            if *excused > 0 {
+                let _ = write!(s, ", {excused} excused as rounding");
+            }
+            s
+        }
         Statistic::None => String::new(),
     }
 }
@@ -172,8 +196,7 @@ fn tolerance_rule(o: &Outcome, max_error: f64, abs_tol: f64, rel_tol: f64) -> St
         },
     };
     if relation == ">" && o.verdict == Verdict::Pass {
-        // a rule per value (reciprocity: relative to each pair's own size) or values excused
-        // as the model's rounding: the largest error passed its own test
+        // values excused as the model's rounding: the largest error passed its own test
         return format!(
             "max error {}, within each value's own tolerance (see the message)",
             sig(max_error, 2, true)
@@ -200,8 +223,13 @@ pub(crate) struct Tally {
 impl Tally {
     /// Counts the verdicts of `r`.
     pub(crate) fn of(r: &RunReport) -> Tally {
+        Tally::of_outcomes(r.outcomes.iter())
+    }
+
+    /// Counts the verdicts of `outcomes`.
+    pub(crate) fn of_outcomes<'a>(outcomes: impl Iterator<Item = &'a Outcome>) -> Tally {
         let mut t = Tally::default();
-        for o in &r.outcomes {
+        for o in outcomes {
             match o.verdict {
                 Verdict::Pass => t.passed += 1,
                 Verdict::Fail => t.failed += 1,
@@ -233,7 +261,10 @@ impl Tally {
 /// Regression baselines get a line of their own and are left out of the last line.
 /// The `N passed, N failed` line is always the last line, alone.
 pub fn summary(r: &RunReport) -> String {
-    let t = Tally::of(r);
+    // Regression baselines (furnace against its own earlier output) are counted apart: every
+    // count below is of validation checks; a failing baseline still fails the run.
+    let t = Tally::of_outcomes(r.outcomes.iter().filter(|o| !o.regression));
+    let b = Tally::of_outcomes(r.outcomes.iter().filter(|o| o.regression));
     let mut lines = vec![
         family_line(r),
         format!("total time {}, seed {}", seconds(r.seconds), r.seed),
@@ -246,26 +277,19 @@ pub fn summary(r: &RunReport) -> String {
             if t.errors == 1 { "error" } else { "errors" }
         ));
     }
-    // Regression baselines (furnace against its own earlier output) are counted apart: the
-    // last line counts validation only; a failing baseline still fails the run.
-    let baselines: Vec<&Outcome> = r.outcomes.iter().filter(|o| o.regression).collect();
-    let (b_pass, b_fail) = (
-        baselines
-            .iter()
-            .filter(|o| o.verdict == Verdict::Pass)
-            .count(),
-        baselines.iter().filter(|o| o.is_failure()).count(),
-    );
-    if !baselines.is_empty() {
+    if b != Tally::default() {
         lines.push(format!(
-            "(regression baselines, furnace against its own earlier output, not validation: {b_pass} passed, {b_fail} failed)"
+            "(regression baselines, furnace against its own earlier output, not validation: {} passed, {} failed{})",
+            b.passed,
+            b.failing(),
+            if b.skipped > 0 {
+                format!(", {} skipped", b.skipped)
+            } else {
+                String::new()
+            }
         ));
     }
-    let mut last = format!(
-        "{} passed, {} failed",
-        t.passed - b_pass,
-        t.failing() - b_fail
-    );
+    let mut last = format!("{} passed, {} failed", t.passed, t.failing());
     if t.skipped > 0 {
         let _ = write!(last, ", {} skipped", t.skipped);
     }

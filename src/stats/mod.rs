@@ -137,14 +137,18 @@ impl MeanVar {
     /// Estimated variance of [`MeanVar::mean_variance`] itself, Var(s²)/n² with
     /// Var(s²) = μ₄/n − σ⁴(n − 3)/(n(n − 1)) (Cramér 1946, Mathematical Methods of
     /// Statistics, eq. 27.4.2), μ₄ = m4/n and σ² = s², never below the normal-theory value
-    /// 2σ⁴/(n − 1) (so the degrees of freedom never exceed n − 1); NaN when the fourth moment
-    /// is unknown or n < 4.
+    /// 2σ⁴/(n − 1) (so the degrees of freedom never exceed n − 1), which is also the value
+    /// for n = 2 and 3; NaN when the fourth moment is unknown (NaN) or n < 2; +∞ when it
+    /// overflowed (the degrees of freedom then go to their floor, [`satterthwaite_dof`]).
     pub fn mean_variance_variance(&self) -> f64 {
-        if self.n < 4 || !self.m4.is_finite() {
+        if self.n < 2 || self.m4.is_nan() {
             return f64::NAN;
         }
         let n = self.n as f64;
         let s2 = self.variance();
+        if self.n < 4 {
+            return 2.0 * s2 * s2 / (n - 1.0) / (n * n);
+        }
         let var_s2 = self.m4 / (n * n) - s2 * s2 * (n - 3.0) / (n * (n - 1.0));
         var_s2.max(2.0 * s2 * s2 / (n - 1.0)) / (n * n)
     }
@@ -160,12 +164,14 @@ impl MeanVar {
 
 /// ν = 2·V²/W for an estimated variance V whose own estimated variance is W (Satterthwaite
 /// 1946, eq. 3), for sums of independent parts V = ΣVᵢ, W = ΣWᵢ; INFINITY when W is 0 or
-/// unknown (NaN), so that the z test applies.
+/// unknown (NaN), so that the z test applies; 1, the most cautious value, when W overflowed.
 pub fn satterthwaite_dof(v: f64, w: f64) -> f64 {
-    if w > 0.0 && v > 0.0 && w.is_finite() {
-        2.0 * v * v / w
-    } else {
+    if v.is_nan() || v <= 0.0 || w.is_nan() || w <= 0.0 {
         f64::INFINITY
+    } else if w.is_infinite() {
+        1.0
+    } else {
+        (2.0 * v * v / w).max(1.0)
     }
 }
 
@@ -273,6 +279,7 @@ pub fn t_with_tolerance(
     };
     let allowance = rel_tolerance * expected.abs() + ROUNDING * expected.abs().max(estimate.abs());
     let d = (estimate - expected).abs();
+    // as in z_with_tolerance: P(|D| ≥ d) at the boundary bias = allowance, Student's t for D/se
     let p = t.sf((d - allowance) / se) + t.sf((d + allowance) / se);
     (z, p.min(1.0))
 }

@@ -9,14 +9,13 @@ use crate::harness::measurement::fmt_sig;
 use crate::harness::outcome::Statistic;
 use crate::harness::region::{
     diagnosis_alpha, region_of, region_pixels, region_stats, residual_chi2, residual_stability,
-    settings_for,
+    settings_for, structure_p,
 };
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
 use crate::lights::Light;
 use crate::math::rng::mix64;
-use crate::stats::chi2::chi2_sf;
 use crate::stats::{multiple::sidak_combine, z_test};
 
 /// The `estimator_agreement` kind.
@@ -99,13 +98,24 @@ impl Kind for EstimatorAgreement {
                 // difference that varies across the region: Pearson's χ² of dᵢ/√vᵢ asks
                 // whether it is real (region::Retest).
                 let (chi2, n) = residual_chi2(&d, &v);
-                let p = chi2_sf(chi2, n as f64);
-                retested &= !infinite;
-                ps.push(p);
-                unstable.push(format!(
-                    "{na} − {nb}: {why}; re-test: Pearson χ² {chi2:.4} over {n} px, p {}",
-                    fmt_sig(p)
-                ));
+                // each pixel's variance: a sum of two estimates on spp − 1 dof each (at least)
+                let dof = films[a].2 as f64 - 1.0;
+                match structure_p(chi2, n, dof) {
+                    Some(p) => {
+                        retested &= !infinite;
+                        ps.push(p);
+                        unstable.push(format!(
+                            "{na} − {nb}: {why}; re-test: Σd²/v {chi2:.4} over {n} px, p {}",
+                            fmt_sig(p)
+                        ));
+                    }
+                    None => {
+                        retested = false;
+                        unstable.push(format!(
+                            "{na} − {nb}: {why}; no re-test (Σd²/v not calibrated at {n} px, {dof} dof per pixel)"
+                        ));
+                    }
+                }
             }
             let diff = ra.mean - rb.mean;
             let se = (ra.se_within.powi(2) + rb.se_within.powi(2))

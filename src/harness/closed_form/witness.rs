@@ -76,9 +76,11 @@ pub fn nearest_hit(shapes: &[Shape], ray: &Ray) -> Option<Hit> {
 /// Every hit along `ray` (t > 0, both sides of a sphere), nearest first: the whole line
 /// through the scene, for closed forms that follow a ray through media.
 pub fn hits_along(shapes: &[Shape], ray: &Ray) -> Vec<Hit> {
-    let mut all = Vec::new();
+    let mut all: Vec<Hit> = Vec::new();
     for_each_hit(shapes, ray, &mut |h| all.push(h));
     all.sort_by(|a, b| a.t.total_cmp(&b.t));
+    // a ray through an edge shared by two triangles of one mesh crosses once, not twice
+    all.dedup_by(|b, a| a.shape == b.shape && (b.t - a.t).abs() <= 1e-12 * a.t.max(1.0));
     all
 }
 
@@ -94,6 +96,8 @@ pub fn medium_beyond(
 ) -> Option<u32> {
     match boundary {
         None => current,
+        // a ray along the surface crosses nothing
+        Some(_) if d.dot(n) == 0.0 => current,
         Some(b) if d.dot(n) > 0.0 => b.exterior,
         Some(b) => b.interior,
     }
@@ -164,7 +168,8 @@ fn sphere_roots(c: Vec3, r: f64, ray: &Ray) -> [Option<f64>; 2] {
     let b = f.dot(ray.d);
     let h = f - ray.d * b;
     let disc = r * r - h.dot(h);
-    if disc < 0.0 {
+    // a tangent ray (disc = 0) grazes without entering: a miss, not two hits
+    if disc <= 0.0 {
         return [None, None];
     }
     let q = -b - disc.sqrt().copysign(b);
@@ -173,7 +178,8 @@ fn sphere_roots(c: Vec3, r: f64, ray: &Ray) -> [Option<f64>; 2] {
 }
 
 /// Hit distance of the parallelogram corner + a·u + b·v (a, b in [0, 1]) with normal n = u × v:
-/// the plane's t, then a = ((p − corner) × v)·n/|n|², b = (u × (p − corner))·n/|n|².
+/// the plane's t, then a = ((p − corner) × v)·n/|n|², b = (u × (p − corner))·n/|n|² (cross
+/// both sides of p − corner = a·u + b·v with v, resp. u, and project on n).
 fn parallelogram_t(corner: Vec3, u: Vec3, v: Vec3, n: Vec3, ray: &Ray) -> Option<f64> {
     let denom = n.dot(ray.d);
     if denom == 0.0 {
