@@ -186,3 +186,50 @@ fn quoted_test_counts_and_levels_match_the_committed_report() {
         c.per_test_alpha
     );
 }
+
+#[test]
+fn the_convergence_table_is_the_committed_reports() {
+    // docs/convergence.md's table of measured rates quotes reports/convergence.html: slopes
+    // word for word, times to target to their two significant digits.
+    let html = read("reports/convergence.html");
+    let row = Regex::new(r"(?s)<tr[^>]*>(.*?)</tr>").unwrap();
+    let cell = Regex::new(r"(?s)<t[dh][^>]*>(.*?)</t[dh]>").unwrap();
+    let tag = Regex::new(r"<[^>]+>").unwrap();
+    let mut report: Vec<(String, f64)> = Vec::new(); // (slope, time to target in s)
+    for r in row.captures_iter(&html) {
+        let cells: Vec<String> = cell
+            .captures_iter(&r[1])
+            .map(|c| tag.replace_all(&c[1], "").trim().to_string())
+            .collect();
+        if cells.len() == 8 && cells[0].starts_with("convergence/") {
+            report.push((cells[2].clone(), cells[7].parse().unwrap()));
+        }
+    }
+    let doc = read("docs/convergence.md");
+    let line = Regex::new(
+        r"(?m)^\|[^|\n]*\|[^|\n]*\| ([−-][0-9.]+ ± [0-9.]+) \|[^|\n]*\| ([0-9.]+) (ms|s)\b",
+    )
+    .unwrap();
+    let quoted: Vec<(String, f64)> = line
+        .captures_iter(&doc)
+        .map(|c| {
+            let v: f64 = c[2].parse().unwrap();
+            (
+                c[1].replace('−', "-"),
+                if &c[3] == "ms" { v / 1e3 } else { v },
+            )
+        })
+        .collect();
+    assert!(report.len() >= 10, "the report's table: {report:?}");
+    assert_eq!(quoted.len(), report.len(), "rows: {quoted:?} vs {report:?}");
+    for ((slope, t), (rs, rt)) in quoted.iter().zip(&report) {
+        assert_eq!(
+            slope, rs,
+            "docs/convergence.md quotes slope {slope}, the report has {rs}"
+        );
+        assert!(
+            (t / rt - 1.0).abs() < 0.05,
+            "docs/convergence.md quotes {t} s to target where the report has {rt} s"
+        );
+    }
+}
