@@ -7,6 +7,7 @@ mod colorimetry;
 mod digests;
 mod docs_consistency;
 mod export;
+mod false_alarms;
 mod hostile;
 mod layering;
 mod manifest_errors;

@@ -1,0 +1,45 @@
+#!/usr/bin/env bash
+# False alarms of the default suite, measured: runs `furnace check` (every manifest under
+# tests/manifests/, the furnace renderer) once per seed and appends each check's verdict and
+# p-value to reports/false-alarms/pvalues.tsv. Seeds already in the file are skipped, so the
+# sweep can be stopped and resumed, or split across machines by seed range and the files
+# concatenated. The test `false_alarms_stay_within_the_stated_rate` (tests/suite/false_alarms.rs)
+# reads the file.
+#
+#   benches/false-alarms.sh 1001 1100          # seeds 1001..1100
+#   FURNACE=target/release/furnace benches/false-alarms.sh 1001 1010
+#
+# Each seed takes what one default-suite run takes (about 150 s on 2 cores). The file records,
+# per line: seed, build (git describe), check name, verdict, p-value. The suite's manifests and
+# scenes are read from this checkout at every seed, so run the sweep from a checkout nobody
+# edits meanwhile, e.g. a worktree of the commit whose binary runs it:
+#
+#   git worktree add ../furnace-sweep HEAD && cargo build --release
+#   FURNACE=$PWD/target/release/furnace ../furnace-sweep/benches/false-alarms.sh 1001 1100
+#   cat ../furnace-sweep/reports/false-alarms/pvalues.tsv   # then commit it here
+set -euo pipefail
+first=${1:?first seed}
+last=${2:?last seed}
+cd "$(dirname "$0")/.."
+furnace=${FURNACE:-target/release/furnace}
+[ -x "$furnace" ] || cargo build --release
+out=reports/false-alarms/pvalues.tsv
+mkdir -p "$(dirname "$out")"
+[ -f "$out" ] || printf 'seed\tbuild\tcheck\tverdict\tp\n' > "$out"
+build=$(git describe --always --dirty)
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+for seed in $(seq "$first" "$last"); do
+  if cut -f1 "$out" | grep -qx "$seed"; then continue; fi
+  # Exit code 1 (a check failed) is data here, not an error.
+  "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" || [ $? -eq 1 ]
+  # One line per outcome: name, verdict, p-value ("-" when the check has none).
+  python3 - "$tmp/run.json" "$seed" "$build" >> "$out" <<'EOF'
+import json, sys
+run = json.load(open(sys.argv[1]))
+for o in run["outcomes"]:
+    p = o.get("p_value")
+    print(f'{sys.argv[2]}\t{sys.argv[3]}\t{o["name"]}\t{o["verdict"]}\t{"-" if p is None else repr(p)}')
+EOF
+  echo "seed $seed: $(awk -F'\t' -v s="$seed" '$1 == s && $4 != "PASS" && $4 != "SKIPPED"' "$out" | wc -l) checks not passed"
+done
