@@ -17,7 +17,7 @@ use super::outcome::Statistic;
 use crate::film::Film;
 use crate::io::image::{read_exr, Layers};
 use crate::scene::{SceneError, Source};
-use crate::stats::{multiple, satterthwaite_dof, t_with_tolerance, welch_test};
+use crate::stats::{multiple, satterthwaite_dof, t_with_tolerance, welch_dof, welch_test};
 use serde::Deserialize;
 
 /// Colour channels compared.
@@ -262,13 +262,10 @@ pub fn region_test(
     rel_tolerance: f64,
 ) -> RegionResult {
     let se = (test.1 * test.1 + reference.1 * reference.1).sqrt();
-    let (_, _, nu) = welch_test(
-        0.0,
-        &[
-            (test.1 * test.1, dof[0]),
-            (reference.1 * reference.1, dof[1]),
-        ],
-    );
+    let nu = welch_dof(&[
+        (test.1 * test.1, dof[0]),
+        (reference.1 * reference.1, dof[1]),
+    ]);
     let (z, p) = t_with_tolerance(test.0, se, reference.0, rel_tolerance, nu);
     RegionResult {
         region: region.to_string(),

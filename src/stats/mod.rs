@@ -211,22 +211,30 @@ pub fn z_test(estimate: f64, std_error: f64, expected: f64) -> ZTest {
 /// (t, two-sided p, ν); ν above 1e6 uses the normal distribution.
 pub fn welch_test(diff: f64, parts: &[(f64, f64)]) -> (f64, f64, f64) {
     let var: f64 = parts.iter().map(|p| p.0).sum();
-    let denom: f64 = parts
-        .iter()
-        .filter(|p| p.0 > 0.0 && p.1.is_finite())
-        .map(|p| p.0 * p.0 / p.1)
-        .sum();
-    let nu = if denom > 0.0 {
-        var * var / denom
-    } else {
-        f64::INFINITY
-    };
+    let nu = welch_dof(parts);
     let z = z_test(diff, var.sqrt(), 0.0);
     if !(nu.is_finite() && nu < 1e6 && z.z.is_finite()) {
         return (z.z, z.p, nu);
     }
     let t = StudentsT::new(0.0, 1.0, nu).expect("nu > 0");
     (z.z, (2.0 * t.sf(z.z.abs())).min(1.0), nu)
+}
+
+/// The Welch–Satterthwaite degrees of freedom ν = (Σv)²/Σ(v²/ν) of a sum of independent
+/// estimated variances `parts` = [(variance, degrees of freedom)] (Welch 1947, Biometrika 34,
+/// eq. 9); parts with a known variance (ν = ∞) or none add nothing; ∞ when no part is estimated.
+pub fn welch_dof(parts: &[(f64, f64)]) -> f64 {
+    let var: f64 = parts.iter().map(|p| p.0).sum();
+    let denom: f64 = parts
+        .iter()
+        .filter(|p| p.0 > 0.0 && p.1.is_finite())
+        .map(|p| p.0 * p.0 / p.1)
+        .sum();
+    if denom > 0.0 {
+        var * var / denom
+    } else {
+        f64::INFINITY
+    }
 }
 
 /// Relative allowance for f64 rounding in the comparison of an estimate with its closed form

@@ -56,6 +56,23 @@ fn committed() -> Committed {
     }
 }
 
+/// The fenced code blocks of a Markdown text, each as its lines.
+fn code_blocks(text: &str) -> Vec<Vec<&str>> {
+    let mut blocks = Vec::new();
+    let mut open: Option<Vec<&str>> = None;
+    for line in text.lines() {
+        if line.starts_with("```") {
+            match open.take() {
+                Some(block) => blocks.push(block),
+                None => open = Some(Vec::new()),
+            }
+        } else if let Some(block) = open.as_mut() {
+            block.push(line);
+        }
+    }
+    blocks
+}
+
 #[test]
 fn quoted_verdict_lines_are_in_the_committed_report() {
     // A verdict line quoted in a code block must be a line of reports/check-default.txt (the
@@ -67,13 +84,8 @@ fn quoted_verdict_lines_are_in_the_committed_report() {
     let report: Vec<String> = c.lines.iter().map(|l| strip(l)).collect();
     let mut quoted = 0;
     for (name, text) in pages() {
-        let mut in_code = false;
-        for line in text.lines() {
-            if line.starts_with("```") {
-                in_code = !in_code;
-                continue;
-            }
-            if in_code && verdict.is_match(line) {
+        for line in code_blocks(&text).into_iter().flatten() {
+            if verdict.is_match(line) {
                 quoted += 1;
                 assert!(
                     report.contains(&strip(line)),
@@ -92,29 +104,19 @@ fn quoted_summaries_are_the_committed_reports_summary() {
     let c = committed();
     let mut quoted = 0;
     for (name, text) in pages() {
-        let mut block: Vec<&str> = Vec::new();
-        let mut in_code = false;
-        for line in text.lines() {
-            if line.starts_with("```") {
-                if in_code
-                    && block
-                        .iter()
-                        .any(|l| l.starts_with("family-wise false-alarm rate"))
-                {
-                    quoted += 1;
-                    for l in &block {
-                        assert!(
-                            c.lines.iter().any(|r| r == l),
-                            "{name} quotes a summary line that reports/check-default.txt does not hold:\n{l}"
-                        );
-                    }
-                }
-                in_code = !in_code;
-                block.clear();
+        for block in code_blocks(&text) {
+            if !block
+                .iter()
+                .any(|l| l.starts_with("family-wise false-alarm rate"))
+            {
                 continue;
             }
-            if in_code {
-                block.push(line);
+            quoted += 1;
+            for l in &block {
+                assert!(
+                    c.lines.iter().any(|r| r == l),
+                    "{name} quotes a summary line that reports/check-default.txt does not hold:\n{l}"
+                );
             }
         }
     }

@@ -150,13 +150,7 @@ fn for_each_hit(shapes: &[Shape], ray: &Ray, out: &mut dyn FnMut(Hit)) {
 
 /// Primitives in `shapes` (one per sphere or parallelogram, one per triangle).
 pub fn primitive_count(shapes: &[Shape]) -> usize {
-    shapes
-        .iter()
-        .map(|s| match s {
-            Shape::Mesh(m) => m.triangles.len(),
-            _ => 1,
-        })
-        .sum()
+    shapes.iter().map(Shape::primitive_count).sum()
 }
 
 /// Both roots of |o + t·d − c|² = r² for a unit d (None: no root), with the discriminant in
