@@ -8,6 +8,12 @@ pub const MAX_IMAGE_SIDE: u64 = 1 << 16;
 /// second to fourth central sums in f64 for six channels), 4.0 GB at this size.
 pub const MAX_PIXELS: u64 = 1 << 24;
 
+/// Memory the light tracer's film state may take, bytes: while the pending nodes of the merge
+/// tree (up to 7 images of 240 bytes per pixel) and the chunks in flight (432 bytes per pixel
+/// each) are held. Fewer chunks run at once when many threads would pass it; an image whose
+/// state passes it with one chunk in flight (over about 6.1 M pixels) is refused.
+pub const MAX_LIGHT_TRACER_BYTES: u64 = 12 << 30;
+
 /// Default work budget of `furnace render`, camera or light paths (width × height × spp): about
 /// 5 hours at 1 M paths/s. `--max-samples` raises it.
 pub const DEFAULT_MAX_SAMPLES: u64 = 1 << 34;

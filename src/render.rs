@@ -1,12 +1,16 @@
 //! The pixel loop: square tiles rendered in parallel with rayon; each sample's random
 //! numbers depend only on (seed, pixel, sample index), and each pixel accumulates its
-//! samples in order, so the image is bit-identical for any thread count.
+//! samples in blocks of [`BLOCK_SAMPLES`] merged along a fixed tree (film::blocks), so the
+//! image is bit-identical for any thread count and for any split into parts
+//! ([`render_part`], merged by film::partial).
 
 pub mod light;
 
-pub use light::{render_light_paths, LightImage};
+pub use light::{render_light_part, render_light_paths, LightImage};
 
-use crate::film::Film;
+use crate::film::blocks::{spans, BlockFold};
+use crate::film::partial::{Header, PartialFilm};
+use crate::film::{Film, Pixel};
 use crate::integrators::PathTracer;
 use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
@@ -16,6 +20,24 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Tile edge, pixels.
 pub const TILE: usize = 16;
+
+/// Samples per block: a pixel's samples [16·b, 16·b + 16) form block b, the unit of the
+/// fixed merge tree and of a sharded render.
+pub const BLOCK_SAMPLES: u64 = 16;
+
+/// Blocks of a render of `spp` samples per pixel (the last may hold fewer samples).
+pub fn sample_blocks(spp: u64) -> u64 {
+    spp.div_ceil(BLOCK_SAMPLES)
+}
+
+/// Hash of everything a render reads from `scene` (FNV-1a over its debug form, so a change in
+/// any loaded value changes it): parts of one sharded render must share it.
+pub fn scene_fingerprint(scene: &Scene) -> String {
+    use std::fmt::Write;
+    let mut h = crate::math::Fnv1a::default();
+    write!(h, "{scene:?}").expect("hashing cannot fail");
+    format!("{:016x}", h.0)
+}
 
 /// What to render.
 #[derive(Debug, Clone, PartialEq)]
@@ -189,6 +211,65 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
+    let blocks = 0..sample_blocks(settings.spp);
+    let (mut pieces, truncated_paths) = render_blocks(scene, settings, blocks, true, progress)?;
+    Ok(Film {
+        width: settings.width,
+        height: settings.height,
+        pixels: pieces.pop().expect("a whole render is one piece"),
+        truncated_paths,
+    })
+}
+
+/// Renders the sample blocks `blocks` (of [`sample_blocks`]`(settings.spp)`) of `scene`: one
+/// part of a sharded render, with the exact state of its pieces. Merging the parts of all
+/// blocks (film::partial::merge_files) gives [`render`]'s film bit for bit. The header's
+/// attributes are left empty for the caller.
+pub fn render_part(
+    scene: &Scene,
+    settings: &RenderSettings,
+    blocks: std::ops::Range<u64>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<PartialFilm, RenderError> {
+    let total = sample_blocks(settings.spp);
+    if !(blocks.start < blocks.end && blocks.end <= total) {
+        return Err(RenderError::Settings(format!(
+            "sample blocks {}..{} are not a non-empty part of the render's {total} blocks of {BLOCK_SAMPLES} samples",
+            blocks.start, blocks.end
+        )));
+    }
+    let layout = spans(blocks.clone());
+    let (pieces, truncated_paths) = render_blocks(scene, settings, blocks, false, progress)?;
+    let samples = |s: &crate::film::blocks::Span| {
+        (s.end() * BLOCK_SAMPLES).min(settings.spp) - s.start * BLOCK_SAMPLES
+    };
+    Ok(PartialFilm {
+        header: Header {
+            furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+            width: settings.width,
+            height: settings.height,
+            total_blocks: total,
+            pieces: layout
+                .iter()
+                .map(|s| (s.start, s.level, samples(s)))
+                .collect(),
+            truncated_paths,
+            scene_fingerprint: scene_fingerprint(scene),
+            attributes: Vec::new(),
+        },
+        pieces,
+    })
+}
+
+/// The pixel loop over sample blocks `blocks`: per piece of the part (one piece, the
+/// finished film, if `whole`), the pixels row-major; and the count of cut paths.
+fn render_blocks(
+    scene: &Scene,
+    settings: &RenderSettings,
+    blocks: std::ops::Range<u64>,
+    whole: bool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<Vec<Pixel>>, u64), RenderError> {
     let (w, h) = (settings.width, settings.height);
     if w == 0 || h == 0 || settings.spp == 0 {
         return Err(RenderError::Settings(format!(
@@ -204,6 +285,13 @@ pub fn render(
     let lanes = settings.spectral.wavelengths;
     let observer = &settings.observer;
     let response = FilmResponse::new(observer, grey, lanes);
+    let n_pieces = if whole {
+        1
+    } else {
+        spans(blocks.clone()).len()
+    };
+    let samples = (blocks.end * BLOCK_SAMPLES).min(settings.spp) - blocks.start * BLOCK_SAMPLES;
+    let merge = |a: &mut Pixel, b: &Pixel| a.merge(b);
     let tiles_x = w.div_ceil(TILE);
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
@@ -218,45 +306,55 @@ pub fn render(
             .map(|&(tx, ty)| {
                 let (x0, y0) = (tx * TILE, ty * TILE);
                 let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-                let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0));
+                // per pixel, its n_pieces piece states in order
+                let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0) * n_pieces);
                 let mut cut = 0;
                 for y in y0..y1 {
                     for x in x0..x1 {
-                        let mut px = crate::film::Pixel::default();
                         if out_of_time.load(Ordering::Relaxed)
                             || settings
                                 .deadline
                                 .is_some_and(|d| std::time::Instant::now() >= d)
                         {
                             out_of_time.store(true, Ordering::Relaxed);
-                            pixels.push(px);
+                            pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
                             continue;
                         }
                         let pixel_index = (y * w + x) as u64;
-                        for s in 0..settings.spp {
-                            let mut rng = SampleStream::with_sampler(
-                                settings.sampler,
-                                settings.seed,
-                                pixel_index,
-                                s,
-                                settings.spp,
-                            );
-                            let u_lambda = rng.next_f64();
-                            let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
-                            let [jx, jy] = rng.next_2d();
-                            let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                            let (l, was_cut) =
-                                settings.integrator.trace(scene, ray, &mut wl, &mut rng);
-                            cut += u64::from(was_cut);
-                            let xyz = response.xyz(&l, &wl);
-                            px.add(xyz, observer.xyz_to_rgb(xyz));
+                        let mut fold = BlockFold::new(blocks.start);
+                        for b in blocks.clone() {
+                            let mut px = Pixel::default();
+                            let first = b * BLOCK_SAMPLES;
+                            for s in first..(first + BLOCK_SAMPLES).min(settings.spp) {
+                                let mut rng = SampleStream::with_sampler(
+                                    settings.sampler,
+                                    settings.seed,
+                                    pixel_index,
+                                    s,
+                                    settings.spp,
+                                );
+                                let u_lambda = rng.next_f64();
+                                let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
+                                let [jx, jy] = rng.next_2d();
+                                let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                                let (l, was_cut) =
+                                    settings.integrator.trace(scene, ray, &mut wl, &mut rng);
+                                cut += u64::from(was_cut);
+                                let xyz = response.xyz(&l, &wl);
+                                px.add(xyz, observer.xyz_to_rgb(xyz));
+                            }
+                            fold.push(px, &merge);
                         }
-                        pixels.push(px);
+                        if whole {
+                            pixels.push(fold.finish(&merge).unwrap_or_default());
+                        } else {
+                            pixels.extend(fold.into_pieces().into_iter().map(|p| p.state));
+                        }
                     }
                 }
                 truncated.fetch_add(cut, Ordering::Relaxed);
-                let n = done.fetch_add(pixels.len() as u64 * settings.spp, Ordering::Relaxed)
-                    + pixels.len() as u64 * settings.spp;
+                let n_px = (pixels.len() / n_pieces) as u64;
+                let n = done.fetch_add(n_px * samples, Ordering::Relaxed) + n_px * samples;
                 progress(n);
                 (tx, ty, pixels)
             })
@@ -264,21 +362,128 @@ pub fn render(
     };
     let results = in_pool(settings.threads, work)?;
     if out_of_time.load(Ordering::Relaxed) {
-        let per_pixel = |p: &crate::film::Pixel| p.channels[0].count();
+        let per_pixel = |p: &Pixel| p.channels[0].count();
         return Err(RenderError::OutOfTime {
             seconds: start.elapsed().as_secs_f64(),
             done: results.iter().flat_map(|r| &r.2).map(per_pixel).sum(),
-            total: (w * h) as u64 * settings.spp,
+            total: (w * h) as u64 * samples,
         });
     }
-    let mut film = Film::new(w, h);
-    film.truncated_paths = truncated.load(Ordering::Relaxed);
+    let mut pieces = vec![vec![Pixel::default(); w * h]; n_pieces];
     for (tx, ty, pixels) in results {
         let (x0, y0) = (tx * TILE, ty * TILE);
         let tw = (x0 + TILE).min(w) - x0;
-        for (i, p) in pixels.into_iter().enumerate() {
-            film.pixels[(y0 + i / tw) * w + x0 + i % tw] = p;
+        for (i, states) in pixels.chunks_exact(n_pieces).enumerate() {
+            let at = (y0 + i / tw) * w + x0 + i % tw;
+            for (piece, state) in pieces.iter_mut().zip(states) {
+                piece[at] = *state;
+            }
         }
     }
-    Ok(film)
+    Ok((pieces, truncated.load(Ordering::Relaxed)))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::film::blocks::{merge_parts, Piece};
+    use std::path::Path;
+
+    fn settings(spp: u64, threads: usize) -> RenderSettings {
+        RenderSettings {
+            width: 12,
+            height: 12,
+            spp,
+            seed: 11,
+            threads,
+            integrator: PathTracer {
+                max_depth: Some(4),
+                ..PathTracer::default()
+            },
+            observer: Default::default(),
+            sampler: Sampler::Independent,
+            spectral: Default::default(),
+            deadline: None,
+        }
+    }
+
+    fn cornell_box() -> Scene {
+        Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml")).unwrap()
+    }
+
+    /// Bits of every pixel statistic, so that NaN compares equal to itself.
+    pub(crate) fn film_bits(film: &Film) -> Vec<u64> {
+        film.pixels
+            .iter()
+            .flat_map(|p| &p.channels)
+            .flat_map(|m| {
+                std::iter::once(m.count()).chain(m.moments().into_iter().map(f64::to_bits))
+            })
+            .collect()
+    }
+
+    /// Merges parts in memory (reversed, to show that the order of parts does not matter).
+    pub(crate) fn merge_in_memory(parts: Vec<PartialFilm>) -> Vec<Pixel> {
+        let total = parts[0].header.total_blocks;
+        let pieces = parts
+            .into_iter()
+            .rev()
+            .flat_map(|p| {
+                let spans = p.header.spans();
+                spans
+                    .into_iter()
+                    .zip(p.pieces)
+                    .map(|(span, state)| Piece { span, state })
+            })
+            .collect();
+        merge_parts(pieces, total, |a: &mut Vec<Pixel>, b: &Vec<Pixel>| {
+            crate::film::merge_pixels(a, b)
+        })
+        .unwrap()
+        .unwrap()
+    }
+
+    #[test]
+    fn a_render_cut_into_parts_merges_to_the_same_bits() {
+        let scene = cornell_box();
+        // 7 blocks, the last one short (100 = 6·16 + 4)
+        let s = settings(100, 2);
+        let whole = render(&scene, &s, &|_| {}).unwrap();
+        let blocks = sample_blocks(s.spp);
+        assert_eq!(blocks, 7);
+        for n_parts in [1, 2, 3, 7] {
+            let parts: Vec<PartialFilm> = (0..n_parts)
+                .map(|k| {
+                    let range = k * blocks / n_parts..(k + 1) * blocks / n_parts;
+                    render_part(&scene, &s, range, &|_| {}).unwrap()
+                })
+                .collect();
+            let truncated: u64 = parts.iter().map(|p| p.header.truncated_paths).sum();
+            let merged = Film {
+                width: s.width,
+                height: s.height,
+                pixels: merge_in_memory(parts),
+                truncated_paths: truncated,
+            };
+            assert_eq!(film_bits(&merged), film_bits(&whole), "{n_parts} parts");
+            assert_eq!(merged.truncated_paths, whole.truncated_paths);
+        }
+        // and for one thread
+        let one = render(&scene, &settings(100, 1), &|_| {}).unwrap();
+        assert_eq!(film_bits(&one), film_bits(&whole));
+    }
+
+    #[test]
+    fn parts_outside_the_render_are_refused() {
+        let scene = cornell_box();
+        let s = settings(32, 1);
+        for (a, b) in [(0, 0), (1, 3), (2, 1)] {
+            let range = a..b;
+            let e = render_part(&scene, &s, range.clone(), &|_| {}).unwrap_err();
+            assert!(
+                e.to_string().contains("not a non-empty part"),
+                "{range:?}: {e}"
+            );
+        }
+    }
 }

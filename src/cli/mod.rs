@@ -7,6 +7,7 @@ mod compare;
 mod converge;
 mod export;
 mod merge;
+mod merge_films;
 mod render;
 mod report;
 mod serve_models;
@@ -40,6 +41,8 @@ enum Command {
     Report(report::ReportArgs),
     /// Merge the JSON results of the shards of one `check --shard K/N` run into one run's JSON, JUnit, Markdown and HTML; exit 0 all pass, 1 a check failed, 2 the shards do not make one run.
     Merge(merge::MergeArgs),
+    /// Merge the partial films of a sharded `render --shard K/N` into the EXR and PNG the whole render writes, bit for bit; exit 2 when the parts do not make one render.
+    MergeFilms(merge_films::MergeFilmsArgs),
     /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
     Export(export::ExportArgs),
     /// Serve furnace's own BSDFs, phase functions and emitters over the model protocol on stdin/stdout (docs/model-protocol.md).
@@ -72,6 +75,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         Command::Compare(args) => compare::run(args),
         Command::Export(args) => export::run(args),
         Command::Merge(args) => merge::run(args),
+        Command::MergeFilms(args) => merge_films::run(args),
         Command::Report(args) => report::run(args),
         Command::Converge(args) => converge::run(args),
         Command::ServeModels(args) => serve_models::run(args),

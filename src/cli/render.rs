@@ -71,6 +71,12 @@ pub struct RenderArgs {
     /// Multiplier applied to linear sRGB before the PNG's sRGB encoding.
     #[arg(long, default_value_t = 1.0)]
     exposure: f64,
+    /// Render only part K of N (1-based) of the samples (of the light paths' 64 chunks with
+    /// --integrator light) and write its exact accumulator state as a partial film (.film;
+    /// --out defaults to out/<scene>.part-K-of-N.film); `furnace merge-films` joins the N parts
+    /// into the EXR the whole render writes, bit for bit. Parts cut the samples at blocks of 16.
+    #[arg(long, value_name = "K/N")]
+    shard: Option<String>,
     /// No progress bar (the closing lines on stdout stay; redirect them to silence them).
     #[arg(short, long)]
     quiet: bool,
@@ -132,10 +138,21 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .file_stem()
         .map(|s| s.to_string_lossy().into_owned())
         .unwrap_or_else(|| "render".into());
-    let exr_path = a
-        .out
-        .clone()
-        .unwrap_or_else(|| Path::new("out").join(format!("{stem}.exr")));
+    let shard = a
+        .shard
+        .as_deref()
+        .map(furnace::harness::shard::Shard::parse)
+        .transpose()?;
+    let exr_path = a.out.clone().unwrap_or_else(|| match shard {
+        Some(k) => Path::new("out").join(format!("{stem}.part-{}-of-{}.film", k.index, k.count)),
+        None => Path::new("out").join(format!("{stem}.exr")),
+    });
+    if shard.is_some() && a.png.is_some() {
+        return Err(anyhow::anyhow!(
+            "--png with --shard: a part writes no preview; give --png to `furnace merge-films`"
+        )
+        .into());
+    }
     let png_path = a
         .png
         .clone()
@@ -172,7 +189,60 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    let bar = if a.quiet {
+    let attrs = attributes(&a, &settings, &scene, light, total);
+    if let Some(k) = shard {
+        return render_shard(&a, &scene, &settings, light, total, k, attrs, &exr_path);
+    }
+    let bar = progress_bar(a.quiet, total)?;
+    let start = Instant::now();
+    let film = if light {
+        render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
+    } else {
+        render(&scene, &settings, &|n| bar.set_position(n))
+    }
+    .context("cannot render")?;
+    let secs = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let code = write_film(&film, attrs, &exr_path, &png_path, a.exposure)?;
+    if light {
+        println!(
+            "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
+            settings.width,
+            settings.height,
+            total,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    } else {
+        println!(
+            "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
+            settings.width,
+            settings.height,
+            settings.spp,
+            secs,
+            total as f64 / secs / 1e6
+        );
+    }
+    // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
+    // image mean, and 1/(relative variance × time) — comparable across estimators.
+    let rel_var = relative_variance(&film);
+    println!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
+        1.0 / (rel_var * secs)
+    );
+    Ok(code)
+}
+
+/// Mean over pixels of Var(Y pixel mean) over the squared image mean.
+pub(super) fn relative_variance(film: &furnace::film::Film) -> f64 {
+    let (ym, yv) = (film.means(1), film.mean_variances(1));
+    let n = ym.len() as f64;
+    let mean = ym.iter().sum::<f64>() / n;
+    yv.iter().sum::<f64>() / n / (mean * mean).max(f64::MIN_POSITIVE)
+}
+
+fn progress_bar(quiet: bool, total: u64) -> Result<ProgressBar, Failure> {
+    let bar = if quiet {
         ProgressBar::hidden()
     } else {
         ProgressBar::new(total)
@@ -183,16 +253,79 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .context("progress bar template")?,
     );
-    let start = Instant::now();
-    let film = if light {
-        render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
+    Ok(bar)
+}
+
+/// Renders part `k` and writes it as a partial film.
+#[allow(clippy::too_many_arguments)]
+fn render_shard(
+    a: &RenderArgs,
+    scene: &Scene,
+    settings: &RenderSettings,
+    light: bool,
+    total: u64,
+    k: furnace::harness::shard::Shard,
+    attrs: Vec<(String, String)>,
+    path: &Path,
+) -> Result<i32, Failure> {
+    let blocks = if light {
+        furnace::render::light::CHUNKS
     } else {
-        render(&scene, &settings, &|n| bar.set_position(n))
+        furnace::render::sample_blocks(settings.spp)
+    };
+    let n = k.count as u64;
+    if n > blocks {
+        return Err(anyhow::anyhow!(
+            "--shard {}/{}: the render has {blocks} {} to share out, fewer than {n} parts",
+            k.index,
+            k.count,
+            if light {
+                "chunks of light paths"
+            } else {
+                "blocks of 16 samples per pixel"
+            }
+        )
+        .into());
     }
-    .context("cannot render")?;
+    let i = k.index as u64 - 1;
+    let range = i * blocks / n..(i + 1) * blocks / n;
+    let bar = progress_bar(a.quiet, total)?;
+    let start = Instant::now();
+    let part = if light {
+        furnace::render::render_light_part(scene, settings, total, range.clone(), &|n| {
+            bar.set_position(n)
+        })
+    } else {
+        furnace::render::render_part(scene, settings, range.clone(), &|n| bar.set_position(n))
+    };
+    let mut part = part.context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let bad = film.non_finite_pixels();
+    part.header.attributes = attrs;
+    part.write(path)
+        .with_context(|| format!("cannot write the partial film {}", path.display()))?;
+    println!(
+        "wrote {} (part {}/{}: {} {} of {}, {:.2} s wall); join the parts with `furnace merge-films`",
+        path.display(),
+        k.index,
+        k.count,
+        if light { "chunks" } else { "sample blocks" },
+        format_args!("{}..{}", range.start, range.end),
+        blocks,
+        secs
+    );
+    Ok(0)
+}
+
+/// The run's settings as EXR attributes (a sharded render stores them in each part, and the
+/// merged EXR carries them unchanged).
+fn attributes(
+    a: &RenderArgs,
+    settings: &RenderSettings,
+    scene: &Scene,
+    light: bool,
+    total: u64,
+) -> Vec<(String, String)> {
     let mut attrs = vec![
         ("furnace.version".to_string(), env!("CARGO_PKG_VERSION").to_string()),
         ("furnace.scene".to_string(), a.scene.display().to_string()),
@@ -221,14 +354,27 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         attrs.push(("furnace.light_paths".to_string(), total.to_string()));
         attrs.push(("furnace.pixels_correlated".to_string(), "true".to_string()));
     }
-    io::write_exr(&exr_path, &film.to_layers(attrs))
+    attrs
+}
+
+/// Writes the EXR and the PNG preview, warns about non-finite pixels and cut paths, and
+/// returns the exit code (1 when either happened).
+pub(super) fn write_film(
+    film: &furnace::film::Film,
+    attrs: Vec<(String, String)>,
+    exr_path: &Path,
+    png_path: &Path,
+    exposure: f64,
+) -> Result<i32, Failure> {
+    let bad = film.non_finite_pixels();
+    io::write_exr(exr_path, &film.to_layers(attrs))
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
     io::write_png_srgb(
-        &png_path,
+        png_path,
         film.width,
         film.height,
         &film.linear_srgb(),
-        a.exposure,
+        exposure,
     )
     .with_context(|| format!("cannot write {}", png_path.display()))?;
     if bad > 0 {
@@ -242,35 +388,6 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         );
     }
     println!("wrote {} and {}", exr_path.display(), png_path.display());
-    if light {
-        println!(
-            "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
-            settings.width,
-            settings.height,
-            total,
-            secs,
-            total as f64 / secs / 1e6
-        );
-    } else {
-        println!(
-            "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
-            settings.width,
-            settings.height,
-            settings.spp,
-            secs,
-            total as f64 / secs / 1e6
-        );
-    }
-    // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
-    // image mean, and 1/(relative variance × time) — comparable across estimators.
-    let (ym, yv) = (film.means(1), film.mean_variances(1));
-    let n = ym.len() as f64;
-    let mean = ym.iter().sum::<f64>() / n;
-    let rel_var = yv.iter().sum::<f64>() / n / (mean * mean).max(f64::MIN_POSITIVE);
-    println!(
-        "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
-        1.0 / (rel_var * secs)
-    );
     Ok(if bad > 0 || film.truncated_paths > 0 {
         1
     } else {

@@ -4,6 +4,9 @@
 //! `variance.*` channels hold the variance of each pixel mean (s²/n). Box filter: pixels are
 //! independent estimates. Details and EXR channels: docs/rendering.md, "`film`".
 
+pub mod blocks;
+pub mod partial;
+
 use crate::stats::MeanVar;
 
 /// Channel names in storage order: X, Y, Z, then linear sRGB R, G, B.
@@ -25,6 +28,21 @@ impl Pixel {
             self.channels[k].push(xyz[k]);
             self.channels[k + 3].push(rgb[k]);
         }
+    }
+
+    /// Adds the samples summarised by `other` (each channel by [`MeanVar::merge`]).
+    #[inline]
+    pub fn merge(&mut self, other: &Pixel) {
+        for (m, o) in self.channels.iter_mut().zip(&other.channels) {
+            m.merge(o);
+        }
+    }
+}
+
+/// Merges two images of the same size pixel by pixel (the block merge of [`blocks`]).
+pub fn merge_pixels(a: &mut [Pixel], b: &[Pixel]) {
+    for (p, q) in a.iter_mut().zip(b) {
+        p.merge(q);
     }
 }
 

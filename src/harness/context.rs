@@ -103,9 +103,8 @@ impl Context<'_> {
 /// Seed of a check: its own, or a hash (FNV-1a, then mixed) of the run seed and its name.
 pub fn check_seed(own: Option<u64>, name: &str, run_seed: u64) -> u64 {
     own.unwrap_or_else(|| {
-        let h = name.bytes().fold(0xcbf2_9ce4_8422_2325u64, |h, b| {
-            (h ^ b as u64).wrapping_mul(0x0100_0000_01b3)
-        });
-        mix64(h ^ mix64(run_seed))
+        let mut h = crate::math::Fnv1a::default();
+        h.eat(name.as_bytes());
+        mix64(h.0 ^ mix64(run_seed))
     })
 }

@@ -7,6 +7,8 @@
 //! ([`CHUNKS`] fixed chunks). Details: docs/rendering.md, "`render::light`".
 
 use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
+use crate::film::blocks::{BlockFold, Span};
+use crate::film::partial::{Header, PartialFilm};
 use crate::film::{Film, Pixel};
 use crate::integrators::light::{PinholeSensor, Sensor, Splat};
 use crate::integrators::LightTracer;
@@ -18,7 +20,7 @@ use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// Number of chunks the light paths are split into (fixed, so results do not depend on the
-/// thread count).
+/// thread count; the blocks of the merge tree of film::blocks, a power of two).
 pub const CHUNKS: u64 = 64;
 
 /// The "pixel" key of light-path random streams (light paths are not tied to a pixel; this
@@ -48,16 +50,21 @@ pub fn render_light_paths(
     n_paths: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
+    let sensor = pinhole(scene, settings)?;
+    trace_light_image(scene, settings, n_paths, &[], &sensor, progress).map(|i| i.film)
+}
+
+/// The scene's pinhole camera as the light tracer's sensor.
+fn pinhole(scene: &Scene, settings: &RenderSettings) -> Result<PinholeSensor, RenderError> {
     let camera = scene
         .camera
         .build(settings.width, settings.height)
         .map_err(RenderError::Settings)?;
-    let sensor = PinholeSensor {
+    Ok(PinholeSensor {
         camera,
         width: settings.width,
         height: settings.height,
-    };
-    trace_light_image(scene, settings, n_paths, &[], &sensor, progress).map(|i| i.film)
+    })
 }
 
 /// Per-chunk accumulators: Σc, Σc², Σc³ and Σc⁴ per pixel and channel (the last two give
@@ -99,6 +106,100 @@ pub fn trace_light_image<S: Sensor>(
     sensor: &S,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<LightImage, RenderError> {
+    let (mut pieces, cut) = light_blocks(
+        scene,
+        settings,
+        n_paths,
+        regions,
+        sensor,
+        0..CHUNKS,
+        true,
+        progress,
+    )?;
+    let (_, state) = pieces.pop().expect("a whole run is one piece");
+    Ok(LightImage {
+        film: Film {
+            width: settings.width,
+            height: settings.height,
+            pixels: state.pixels,
+            truncated_paths: cut,
+        },
+        regions: state.regions,
+        paths: n_paths,
+    })
+}
+
+/// Light-traces the chunks `chunks` (of [`CHUNKS`]) of a run of `n_paths` paths through the
+/// scene's pinhole: one part of a sharded render with the exact state of its pieces. Merging
+/// the parts of all chunks (film::partial::merge_files) gives [`render_light_paths`]'s film
+/// bit for bit. The header's attributes are left empty for the caller.
+pub fn render_light_part(
+    scene: &Scene,
+    settings: &RenderSettings,
+    n_paths: u64,
+    chunks: std::ops::Range<u64>,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<PartialFilm, RenderError> {
+    if !(chunks.start < chunks.end && chunks.end <= CHUNKS) {
+        return Err(RenderError::Settings(format!(
+            "chunks {}..{} are not a non-empty part of a light-traced render's {CHUNKS} chunks",
+            chunks.start, chunks.end
+        )));
+    }
+    if n_paths < CHUNKS {
+        return Err(RenderError::Settings(format!(
+            "{n_paths} light paths cannot be split into parts; a sharded light-traced render needs at least {CHUNKS}"
+        )));
+    }
+    let sensor = pinhole(scene, settings)?;
+    let (pieces, cut) = light_blocks(
+        scene,
+        settings,
+        n_paths,
+        &[],
+        &sensor,
+        chunks,
+        false,
+        progress,
+    )?;
+    let bound = |c: u64| (c as u128 * n_paths as u128 / CHUNKS as u128) as u64;
+    Ok(PartialFilm {
+        header: Header {
+            furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+            width: settings.width,
+            height: settings.height,
+            total_blocks: CHUNKS,
+            pieces: pieces
+                .iter()
+                .map(|(s, _)| (s.start, s.level, bound(s.end()) - bound(s.start)))
+                .collect(),
+            truncated_paths: cut,
+            scene_fingerprint: super::scene_fingerprint(scene),
+            attributes: Vec::new(),
+        },
+        pieces: pieces.into_iter().map(|(_, st)| st.pixels).collect(),
+    })
+}
+
+/// A chunk range's state: pixel and region statistics.
+struct LightState {
+    pixels: Vec<Pixel>,
+    regions: Vec<[MeanVar; 6]>,
+}
+
+/// The light tracer over chunks `chunks`: the part's pieces (one, the finished run, if
+/// `whole`) and the count of cut paths.
+#[allow(clippy::too_many_arguments)]
+fn light_blocks<S: Sensor>(
+    scene: &Scene,
+    settings: &RenderSettings,
+    n_paths: u64,
+    regions: &[[usize; 4]],
+    sensor: &S,
+    chunks: std::ops::Range<u64>,
+    whole: bool,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<(Vec<(Span, LightState)>, u64), RenderError> {
     check_common(settings)?;
     let (w, h) = (settings.width, settings.height);
     if sensor.resolution() != (w, h) {
@@ -129,6 +230,21 @@ pub fn trace_light_image<S: Sensor>(
     {
         return Err(RenderError::Settings(format!(
             "region {r:?} is empty or does not fit the {w}x{h} image"
+        )));
+    }
+    // Memory: pending tree nodes (at most log2(CHUNKS) + 1 images) plus each chunk in flight
+    // (its power sums and their conversion to a state).
+    let pixels = (w * h + regions.len()) as u64;
+    let node = std::mem::size_of::<Pixel>() as u64 * pixels;
+    let in_flight = (std::mem::size_of::<[f64; 24]>() as u64 * pixels).saturating_add(node);
+    let pending = node.saturating_mul(CHUNKS.trailing_zeros() as u64 + 1);
+    let max_batch =
+        crate::limits::MAX_LIGHT_TRACER_BYTES.saturating_sub(pending) / in_flight.max(1);
+    if max_batch == 0 {
+        return Err(RenderError::Settings(format!(
+            "a {w}x{h} light-traced image needs {:.1} GiB of film state, over the light tracer's {} GiB (limits::MAX_LIGHT_TRACER_BYTES): render fewer pixels or use the path tracer",
+            (pending + in_flight) as f64 / (1u64 << 30) as f64,
+            crate::limits::MAX_LIGHT_TRACER_BYTES >> 30
         )));
     }
     let grey = settings.spectral.grey_mode && scene.is_grey();
@@ -210,38 +326,53 @@ pub fn trace_light_image<S: Sensor>(
         progress(n);
         sums
     };
+    let merge = |a: &mut LightState, b: &LightState| {
+        crate::film::merge_pixels(&mut a.pixels, &b.pixels);
+        for (r, q) in a.regions.iter_mut().zip(&b.regions) {
+            for (m, o) in r.iter_mut().zip(q) {
+                m.merge(o);
+            }
+        }
+    };
     let work = || {
-        let mut pixels = vec![Pixel::default(); w * h];
-        let mut region_stats = vec![[MeanVar::default(); 6]; regions.len()];
-        let mut cut = 0;
         // Chunks run a pool's width at a time (bounding memory to that many accumulators) and
-        // are merged in chunk order, so the batch width does not change the result.
-        let batch = rayon::current_num_threads().max(1) as u64;
-        let mut c0 = 0;
-        while c0 < CHUNKS {
-            let c1 = (c0 + batch).min(CHUNKS);
-            let results: Vec<ChunkSums> = (c0..c1).into_par_iter().map(chunk).collect();
-            for r in results {
-                cut += r.cut;
-                for (px, acc) in pixels.iter_mut().zip(&r.pixels) {
-                    for (m, s) in px.channels.iter_mut().zip(&stats_of(r.paths, acc)) {
-                        m.merge(s);
-                    }
-                }
-                for (st, acc) in region_stats.iter_mut().zip(&r.regions) {
-                    for (m, s) in st.iter_mut().zip(&stats_of(r.paths, acc)) {
-                        m.merge(s);
-                    }
-                }
+        // are merged along the fixed tree of film::blocks in chunk order, so neither the batch
+        // width nor a split into parts changes the result.
+        let mut fold = BlockFold::new(chunks.start);
+        let mut cut = 0;
+        let batch = rayon::current_num_threads().clamp(1, max_batch as usize) as u64;
+        let mut c0 = chunks.start;
+        while c0 < chunks.end {
+            let c1 = (c0 + batch).min(chunks.end);
+            let results: Vec<(LightState, u64)> = (c0..c1)
+                .into_par_iter()
+                .map(|c| {
+                    let r = chunk(c);
+                    let state = LightState {
+                        pixels: r
+                            .pixels
+                            .iter()
+                            .map(|acc| Pixel {
+                                channels: stats_of(r.paths, acc),
+                            })
+                            .collect(),
+                        regions: r.regions.iter().map(|acc| stats_of(r.paths, acc)).collect(),
+                    };
+                    (state, r.cut)
+                })
+                .collect();
+            for (state, c) in results {
+                cut += c;
+                fold.push(state, &merge);
             }
             c0 = c1;
             if out_of_time.load(Ordering::Relaxed) {
                 break;
             }
         }
-        (pixels, region_stats, cut)
+        (fold, cut)
     };
-    let (pixels, regions, cut) = in_pool(settings.threads, work)?;
+    let (fold, cut) = in_pool(settings.threads, work)?;
     if out_of_time.load(Ordering::Relaxed) {
         return Err(RenderError::OutOfTime {
             seconds: start_time.elapsed().as_secs_f64(),
@@ -249,16 +380,24 @@ pub fn trace_light_image<S: Sensor>(
             total: n_paths,
         });
     }
-    Ok(LightImage {
-        film: Film {
-            width: w,
-            height: h,
-            pixels,
-            truncated_paths: cut,
-        },
-        regions,
-        paths: n_paths,
-    })
+    let pieces = if whole {
+        let all = fold.finish(&merge).expect("at least one chunk");
+        vec![(span_all(), all)]
+    } else {
+        fold.into_pieces()
+            .into_iter()
+            .map(|p| (p.span, p.state))
+            .collect()
+    };
+    Ok((pieces, cut))
+}
+
+/// Stand-in span of a whole run's single state.
+fn span_all() -> Span {
+    Span {
+        start: 0,
+        level: CHUNKS.trailing_zeros(),
+    }
 }
 
 #[cfg(test)]
@@ -323,6 +462,37 @@ mod tests {
         let whole = light_image(&scene, &s, 200_000).regions[0][1];
         let (mean, se) = (whole.mean() / n_px, whole.std_error() / n_px);
         assert!((mean - 1.75).abs() < 4.5 * se, "{mean} ± {se}");
+    }
+
+    #[test]
+    fn a_light_traced_render_cut_into_parts_merges_to_the_same_bits() {
+        use crate::render::tests::{film_bits, merge_in_memory};
+        let scene = scene_file("scenes/cornell-box.toml");
+        let s = settings(10, 10, 2, Some(3));
+        let n = 3000;
+        let whole = render_light_paths(&scene, &s, n, &|_| {}).unwrap();
+        for n_parts in [1, 2, 3, 7] {
+            let parts: Vec<PartialFilm> = (0..n_parts)
+                .map(|k| {
+                    let range = k * CHUNKS / n_parts..(k + 1) * CHUNKS / n_parts;
+                    render_light_part(&scene, &s, n, range, &|_| {}).unwrap()
+                })
+                .collect();
+            let paths: u64 = parts
+                .iter()
+                .flat_map(|p| p.header.pieces.iter().map(|x| x.2))
+                .sum();
+            assert_eq!(paths, n);
+            let merged = Film {
+                width: s.width,
+                height: s.height,
+                pixels: merge_in_memory(parts),
+                truncated_paths: whole.truncated_paths,
+            };
+            assert_eq!(film_bits(&merged), film_bits(&whole), "{n_parts} parts");
+        }
+        let e = render_light_part(&scene, &s, 63, 0..1, &|_| {}).unwrap_err();
+        assert!(e.to_string().contains("at least 64"), "{e}");
     }
 
     #[test]
@@ -551,5 +721,11 @@ emission = { blackbody = 5000.0, scale = 1e-3 }
             .unwrap_err()
             .to_string();
         assert!(e.contains("participating media"), "{e}");
+        // a film state past limits::MAX_LIGHT_TRACER_BYTES, refused before it is allocated
+        let scene = Scene::parse(TWO_LIGHTS, Path::new("two-lights.toml")).unwrap();
+        let e = render_light_paths(&scene, &settings(4096, 4096, 1, Some(2)), 100, &|_| {})
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("GiB of film state"), "{e}");
     }
 }

@@ -97,6 +97,25 @@ impl MeanVar {
         self.n = n;
     }
 
+    /// The mean and the second to fourth central sums [mean, m2, m3, m4] (for storing a
+    /// summary exactly; [`MeanVar::from_moments`] restores it).
+    pub fn moments(&self) -> [f64; 4] {
+        [self.mean, self.m2, self.m3, self.m4]
+    }
+
+    /// The summary of `n` observations with [mean, m2, m3, m4] as [`MeanVar::moments`] gives
+    /// them (stored values, not checked).
+    pub fn from_moments(n: u64, moments: [f64; 4]) -> Self {
+        let [mean, m2, m3, m4] = moments;
+        MeanVar {
+            n,
+            mean,
+            m2,
+            m3,
+            m4,
+        }
+    }
+
     /// Number of observations.
     pub fn count(&self) -> u64 {
         self.n

@@ -8,6 +8,7 @@ mod digests;
 mod docs_consistency;
 mod export;
 mod false_alarms;
+mod film_shards;
 mod hostile;
 mod layering;
 mod manifest_errors;
@@ -27,4 +28,13 @@ use std::path::PathBuf;
 /// Path of a file relative to the crate root.
 pub fn root(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// Runs the `furnace` binary from the crate root with `args`.
+pub fn run_furnace(args: &[&str]) -> std::process::Output {
+    std::process::Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args(args)
+        .output()
+        .unwrap()
 }

@@ -5,14 +5,10 @@
 use crate::root;
 use furnace::harness::outcome::RunReport;
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 fn furnace(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_furnace"))
-        .current_dir(root(""))
-        .args(args)
-        .output()
-        .unwrap()
+    crate::run_furnace(args)
 }
 
 /// A fresh scratch folder for one test (removed first if an earlier run left it).

@@ -1,0 +1,52 @@
+//! `furnace merge-films`: the partial films of a sharded render (`render --shard K/N`) joined
+//! into the EXR and PNG the whole render writes, bit for bit.
+
+use super::Failure;
+use anyhow::Context;
+use clap::Args;
+use std::path::PathBuf;
+
+#[derive(Debug, Args)]
+pub struct MergeFilmsArgs {
+    /// The parts' partial films (`furnace render --shard K/N`), every part, in any order.
+    #[arg(required = true)]
+    parts: Vec<PathBuf>,
+    /// Output EXR path.
+    #[arg(short, long)]
+    out: PathBuf,
+    /// PNG preview path [default: the EXR path with extension .png].
+    #[arg(long)]
+    png: Option<PathBuf>,
+    /// Multiplier applied to linear sRGB before the PNG's sRGB encoding.
+    #[arg(long, default_value_t = 1.0)]
+    exposure: f64,
+}
+
+/// Runs `furnace merge-films`; returns the exit code (as `render`'s: 1 when pixels are not
+/// finite or paths were cut).
+pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
+    if !(a.exposure.is_finite() && a.exposure >= 0.0) {
+        return Err(
+            anyhow::anyhow!("--exposure {} must be a finite number >= 0", a.exposure).into(),
+        );
+    }
+    let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
+    if png == a.out {
+        return Err(anyhow::anyhow!(
+            "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
+            a.out.display()
+        )
+        .into());
+    }
+    let (header, film) =
+        furnace::film::partial::merge_files(&a.parts).context("cannot merge the partial films")?;
+    let code = super::render::write_film(&film, header.attributes, &a.out, &png, a.exposure)?;
+    println!(
+        "{}x{} px from {} parts; noise: mean relative variance of the Y pixel means {:.4e}",
+        film.width,
+        film.height,
+        a.parts.len(),
+        super::render::relative_variance(&film)
+    );
+    Ok(code)
+}
