@@ -165,7 +165,8 @@ pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Resul
             write_file(&path_for(p, i, report), &json::to_json(report))?;
         }
         if let Some(p) = &out.junit {
-            write_file(&path_for(p, i, report), &junit::to_junit(report))?;
+            let xml = junit::to_junit(report).context("cannot serialise the JUnit XML")?;
+            write_file(&path_for(p, i, report), &xml)?;
         }
         if let Some(p) = &out.markdown {
             write_file(&path_for(p, i, report), &text::table_markdown(report))?;

@@ -1,15 +1,20 @@
 //! JUnit XML for CI test reporters (Jenkins, GitLab, GitHub actions that read
-//! `junit.xml`): one `<testsuite name="furnace">` with one `<testcase>` per check.
+//! `junit.xml`): one `<testsuite name="furnace">` with one `<testcase>` per check, written by
+//! `quick-junit` (the crate cargo-nextest writes its JUnit with), which escapes markup and
+//! drops what XML 1.0 cannot carry (control characters, ANSI escapes).
 //!
 //! Mapping: FAIL → `<failure type="fail">`, UNSTABLE → `<failure type="unstable">`
 //! (so both count in `failures`), ERROR → `<error type="error">`, SKIP → `<skipped/>`.
-//! Every test case carries its text line in `<system-out>`. Text is escaped for XML 1.0
-//! and characters XML 1.0 cannot carry (most control characters) are dropped.
+//! Every test case carries its text line in `<system-out>`. Attribute values are one line:
+//! tabs and line breaks in names and messages become spaces (XML would turn raw ones into
+//! spaces when read anyway).
 
-use std::fmt::Write as _;
+use std::time::Duration;
+
+use quick_junit::{NonSuccessKind, Property, Report, TestCase, TestCaseStatus, TestSuite};
 
 use crate::harness::outcome::{Outcome, RunReport, Verdict};
-use crate::report::text::{self, Tally};
+use crate::report::text;
 
 /// The run as a JUnit XML document (UTF-8, ending with a newline).
 ///
@@ -17,28 +22,11 @@ use crate::report::text::{self, Tally};
 /// UNSTABLE), `errors`, `skipped` and `time` (seconds, 3 decimals); the suite also lists
 /// the run settings as `<properties>`. Each `<testcase>` has the check name, the class
 /// name `furnace.<kind>` (`furnace.regression.<kind>` for a regression baseline) and its time.
-pub fn to_junit(r: &RunReport) -> String {
-    let t = Tally::of(r);
-    let counts = format!(
-        "tests=\"{}\" failures=\"{}\" errors=\"{}\" skipped=\"{}\" time=\"{}\"",
-        r.outcomes.len(),
-        t.failed + t.unstable,
-        t.errors,
-        t.skipped,
-        seconds(r.seconds)
-    );
-    let mut x = String::from("<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n");
-    let _ = writeln!(x, "<testsuites name=\"furnace\" {counts}>");
-    let _ = writeln!(x, "  <testsuite name=\"furnace\" {counts}>");
-
-    x.push_str("    <properties>\n");
+pub fn to_junit(r: &RunReport) -> Result<String, quick_junit::SerializeError> {
+    let mut suite = TestSuite::new("furnace");
+    suite.set_time(duration(r.seconds));
     let mut property = |name: &str, value: &str| {
-        let _ = writeln!(
-            x,
-            "      <property name=\"{}\" value=\"{}\"/>",
-            escape(name),
-            escape(value)
-        );
+        suite.add_property(Property::new(name, one_line(value)));
     };
     property("furnace_version", &r.furnace_version);
     for manifest in &r.manifests {
@@ -48,17 +36,15 @@ pub fn to_junit(r: &RunReport) -> String {
     property("family_alpha", &text::sig(r.family_alpha, 6, true));
     property("correction", &r.correction);
     property("stochastic_tests", &r.stochastic_tests.to_string());
-    x.push_str("    </properties>\n");
-
-    for o in &r.outcomes {
-        testcase(&mut x, o);
-    }
-    x.push_str("  </testsuite>\n</testsuites>\n");
-    x
+    suite.add_test_cases(r.outcomes.iter().map(testcase));
+    let mut report = Report::new("furnace");
+    report.set_time(duration(r.seconds));
+    report.add_test_suite(suite);
+    report.to_string()
 }
 
-/// Appends one `<testcase>` element.
-fn testcase(x: &mut String, o: &Outcome) {
+/// One `<testcase>` element.
+fn testcase(o: &Outcome) -> TestCase {
     let kind = o.kind.trim();
     // Regression baselines get a class of their own, so CI views list them apart.
     let root = if o.regression {
@@ -71,18 +57,7 @@ fn testcase(x: &mut String, o: &Outcome) {
     } else {
         format!("{root}.{kind}")
     };
-    let _ = writeln!(
-        x,
-        "    <testcase name=\"{}\" classname=\"{}\" time=\"{}\">",
-        escape(if o.name.trim().is_empty() {
-            "(unnamed)"
-        } else {
-            &o.name
-        }),
-        escape(&classname),
-        seconds(o.seconds)
-    );
-    let line = escape(&text::line(o));
+    let line = xml_chars(&text::line(o));
     let numbers = text::numbers(o);
     let numbers = if numbers.is_empty() {
         text::verdict_label(o.verdict).to_string()
@@ -90,71 +65,57 @@ fn testcase(x: &mut String, o: &Outcome) {
         numbers
     };
     let message = text::one_line(o.message.trim());
-    match o.verdict {
-        Verdict::Pass => {}
+    let status = match o.verdict {
+        Verdict::Pass => TestCaseStatus::success(),
         Verdict::Fail | Verdict::Unstable => {
-            let kind = if o.verdict == Verdict::Fail {
-                "fail"
-            } else {
-                "unstable"
-            };
-            let _ = writeln!(
-                x,
-                "      <failure message=\"{}\" type=\"{kind}\">{line}</failure>",
-                escape(&numbers)
-            );
+            let mut s = TestCaseStatus::non_success(NonSuccessKind::Failure);
+            s.set_message(one_line(&numbers))
+                .set_type(if o.verdict == Verdict::Fail {
+                    "fail"
+                } else {
+                    "unstable"
+                })
+                .set_description(line.as_str());
+            s
         }
         Verdict::Error => {
             let summary = if message.is_empty() { numbers } else { message };
-            let _ = writeln!(
-                x,
-                "      <error message=\"{}\" type=\"error\">{line}</error>",
-                escape(&summary)
-            );
+            let mut s = TestCaseStatus::non_success(NonSuccessKind::Error);
+            s.set_message(one_line(&summary))
+                .set_type("error")
+                .set_description(line.as_str());
+            s
         }
         Verdict::Skipped => {
-            if message.is_empty() {
-                x.push_str("      <skipped/>\n");
-            } else {
-                let _ = writeln!(x, "      <skipped message=\"{}\"/>", escape(&message));
+            let mut s = TestCaseStatus::skipped();
+            if !message.is_empty() {
+                s.set_message(one_line(&message));
             }
+            s
         }
-    }
-    let _ = writeln!(x, "      <system-out>{line}</system-out>");
-    x.push_str("    </testcase>\n");
-}
-
-/// Seconds with 3 decimals; `0.000` for negative or non-finite times, which CI
-/// reporters would reject.
-fn seconds(s: f64) -> String {
-    if s.is_finite() && s > 0.0 {
-        format!("{s:.3}")
+    };
+    let name = if o.name.trim().is_empty() {
+        "(unnamed)"
     } else {
-        "0.000".to_string()
-    }
+        &o.name
+    };
+    let mut case = TestCase::new(one_line(name), status);
+    case.set_classname(one_line(&classname))
+        .set_time(duration(o.seconds))
+        .set_system_out(line.as_str());
+    case
 }
 
-/// Escapes text for an XML 1.0 attribute value or element content: the five markup
-/// characters become entities, tab/newline/CR become character references (so
-/// attribute-value normalization keeps them), and characters that XML 1.0 does not
-/// allow at all are dropped.
-fn escape(s: &str) -> String {
-    let mut out = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => out.push_str("&amp;"),
-            '<' => out.push_str("&lt;"),
-            '>' => out.push_str("&gt;"),
-            '"' => out.push_str("&quot;"),
-            '\'' => out.push_str("&apos;"),
-            '\t' => out.push_str("&#9;"),
-            '\n' => out.push_str("&#10;"),
-            '\r' => out.push_str("&#13;"),
-            c if is_xml10_char(c) => out.push(c),
-            _ => {}
-        }
-    }
-    out
+/// An attribute value on one line (tabs and line breaks become spaces, other control
+/// characters visible escapes), without what XML 1.0 cannot carry.
+fn one_line(s: &str) -> String {
+    xml_chars(&text::one_line(s))
+}
+
+/// `s` without the characters XML 1.0 does not allow (quick-junit drops control characters
+/// but passes the non-characters U+FFFE and U+FFFF, which XML parsers reject).
+fn xml_chars(s: &str) -> String {
+    s.chars().filter(|&c| is_xml10_char(c)).collect()
 }
 
 /// XML 1.0 `Char` production (surrogates cannot occur in a Rust `char`).
@@ -164,6 +125,11 @@ fn is_xml10_char(c: char) -> bool {
         | '\u{20}'..='\u{D7FF}'
         | '\u{E000}'..='\u{FFFD}'
         | '\u{10000}'..='\u{10FFFF}')
+}
+
+/// A check's time; zero for negative or non-finite times, which CI reporters would reject.
+fn duration(s: f64) -> Duration {
+    Duration::try_from_secs_f64(s).unwrap_or(Duration::ZERO)
 }
 
 #[cfg(test)]
@@ -178,7 +144,7 @@ mod tests {
 
     #[test]
     fn to_junit_fixture() {
-        insta::assert_snapshot!("to_junit", to_junit(&fixture::report()));
+        insta::assert_snapshot!("to_junit", to_junit(&fixture::report()).unwrap());
     }
 
     /// One `<testcase>` as parsed back.
@@ -327,7 +293,7 @@ mod tests {
     #[test]
     fn structure_and_counts() {
         let r = fixture::report();
-        let p = parse(&to_junit(&r));
+        let p = parse(&to_junit(&r).unwrap());
         assert_eq!(p.root, "testsuites");
         assert_eq!(p.suites.len(), 1);
         assert_eq!(p.suites[0]["name"], "furnace");
@@ -385,14 +351,17 @@ mod tests {
             message: "<b>&amp;</b> \u{0}".into(),
             ..Outcome::new(name, "k<&>\"'\u{2}")
         });
-        let xml = to_junit(&r);
+        let xml = to_junit(&r).unwrap();
         assert!(xml.contains("odd &lt;&amp;&gt;&quot;&apos; name"), "{xml}");
         let p = parse(&xml);
         let case = p.cases.last().expect("case");
-        // The name comes back as written, minus the characters XML 1.0 cannot carry;
-        // tab and newline survive attribute-value normalization as character references.
-        assert_eq!(case.attrs["name"], "odd <&>\"' name\ttab\nnewlineü🦀");
-        assert_eq!(case.attrs["classname"], "furnace.k<&>\"'");
+        // The name comes back as written on one line: control characters as visible
+        // escapes, tab and newline as spaces, and what XML 1.0 cannot carry dropped.
+        assert_eq!(
+            case.attrs["name"],
+            "odd <&>\"' name\\u{1}\\u{1b} tab newlineü🦀"
+        );
+        assert_eq!(case.attrs["classname"], "furnace.k<&>\"'\\u{2}");
         // The text line shows the control characters as visible escapes instead.
         assert!(
             case.system_out.contains("name\\u{1}\\u{1b} tab newline"),
@@ -494,7 +463,7 @@ mod tests {
             seconds: f64::NEG_INFINITY,
             shard: None,
         };
-        let p = parse(&to_junit(&r));
+        let p = parse(&to_junit(&r).unwrap());
         assert_eq!(p.cases.len(), r.outcomes.len());
         for o in &r.outcomes {
             let l = text::line(o);
@@ -516,18 +485,16 @@ mod tests {
     }
 
     #[test]
-    fn escape_keeps_whitespace_and_drops_illegal_characters() {
-        assert_eq!(escape("a\tb\nc\rd"), "a&#9;b&#10;c&#13;d");
-        assert_eq!(escape("\u{0}\u{8}\u{b}\u{c}\u{1f}\u{fffe}\u{ffff}"), "");
-        assert_eq!(escape("\u{7f}é\u{10ffff}"), "\u{7f}é\u{10ffff}");
-    }
-
-    #[test]
-    fn times_are_seconds_with_three_decimals() {
-        assert_eq!(seconds(0.4137), "0.414");
-        assert_eq!(seconds(12.0), "12.000");
-        assert_eq!(seconds(f64::NAN), "0.000");
-        assert_eq!(seconds(-1.0), "0.000");
-        assert_eq!(seconds(f64::INFINITY), "0.000");
+    fn times_are_durations_and_bad_ones_zero() {
+        assert_eq!(duration(0.4137), Duration::from_secs_f64(0.4137));
+        for bad in [f64::NAN, -1.0, f64::INFINITY, f64::NEG_INFINITY] {
+            assert_eq!(duration(bad), Duration::ZERO, "{bad}");
+        }
+        let mut r = fixture::report();
+        r.outcomes[0].seconds = 0.4137;
+        r.outcomes[1].seconds = f64::NAN;
+        let p = parse(&to_junit(&r).unwrap());
+        assert_eq!(p.cases[0].attrs["time"], "0.414");
+        assert_eq!(p.cases[1].attrs["time"], "0.000");
     }
 }

@@ -221,11 +221,6 @@ pub(crate) struct Tally {
 }
 
 impl Tally {
-    /// Counts the verdicts of `r`.
-    pub(crate) fn of(r: &RunReport) -> Tally {
-        Tally::of_outcomes(r.outcomes.iter())
-    }
-
     /// Counts the verdicts of `outcomes`.
     pub(crate) fn of_outcomes<'a>(outcomes: impl Iterator<Item = &'a Outcome>) -> Tally {
         let mut t = Tally::default();
