@@ -345,9 +345,9 @@ fn emit(bar: &ProgressBar, format: &str, renderer: &str, o: &Outcome) {
         let v = serde_json::json!({"event": "outcome", "renderer": renderer, "outcome": o});
         bar.suspend(|| println!("{v}"));
     } else if !bar.is_hidden() {
-        bar.println(text::line(o));
+        bar.println(super::verdict_line(o));
     } else {
-        println!("{}", text::line(o));
+        println!("{}", super::verdict_line(o));
     }
 }
 

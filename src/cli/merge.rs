@@ -55,7 +55,7 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
                 println!("== {renderer}");
             }
             for o in &merged.outcomes {
-                println!("{}", text::line(o));
+                println!("{}", super::verdict_line(o));
             }
             println!("{}", text::summary(&merged));
         }

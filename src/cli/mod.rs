@@ -25,6 +25,42 @@ use std::path::{Path, PathBuf};
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Colour the verdicts: auto (when stdout is a terminal and NO_COLOR is not set), always or never.
+    #[arg(long, global = true, value_enum, default_value_t = ColorWhen::Auto)]
+    color: ColorWhen,
+}
+
+/// When verdict labels are coloured.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+enum ColorWhen {
+    Auto,
+    Always,
+    Never,
+}
+
+/// Whether verdict labels are coloured, set once from `--color` before any command runs.
+static COLOR: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// A check's text line, its verdict label coloured when `--color` says so (PASS green, FAIL
+/// and ERROR red, UNSTABLE yellow, SKIP dimmed).
+pub(crate) fn verdict_line(o: &furnace::harness::outcome::Outcome) -> String {
+    use anstyle::{AnsiColor, Style};
+    use furnace::harness::outcome::Verdict;
+    let line = text::line(o);
+    if !COLOR.load(std::sync::atomic::Ordering::Relaxed) {
+        return line;
+    }
+    let label = text::verdict_label(o.verdict);
+    let Some(rest) = line.strip_prefix(label) else {
+        return line;
+    };
+    let style = match o.verdict {
+        Verdict::Pass => Style::new().fg_color(Some(AnsiColor::Green.into())),
+        Verdict::Fail | Verdict::Error => Style::new().bold().fg_color(Some(AnsiColor::Red.into())),
+        Verdict::Unstable => Style::new().bold().fg_color(Some(AnsiColor::Yellow.into())),
+        Verdict::Skipped => Style::new().dimmed(),
+    };
+    format!("{style}{label}{style:#}{rest}")
 }
 
 #[derive(Debug, Subcommand)]
@@ -69,6 +105,16 @@ impl<E: Into<anyhow::Error>> From<E> for Failure {
 
 /// Runs the parsed command line; returns the exit code on success.
 pub fn run(cli: Cli) -> Result<i32, Failure> {
+    use std::io::IsTerminal;
+    let color = match cli.color {
+        ColorWhen::Always => true,
+        ColorWhen::Never => false,
+        ColorWhen::Auto => {
+            std::io::stdout().is_terminal()
+                && std::env::var_os("NO_COLOR").is_none_or(|v| v.is_empty())
+        }
+    };
+    COLOR.store(color, std::sync::atomic::Ordering::Relaxed);
     match cli.command {
         Command::Render(args) => render::run(args),
         Command::Check(args) => check::run(args),

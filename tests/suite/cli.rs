@@ -329,3 +329,43 @@ fn a_closed_stdout_pipe_ends_quietly() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(out.status.code(), Some(141), "{stderr}");
 }
+
+#[test]
+fn color_colours_verdicts_only_when_asked_or_on_a_terminal() {
+    let run = |extra: &[&str], no_color: bool| {
+        let mut c = furnace();
+        c.args([
+            "check",
+            "tests/manifests/lambert.toml",
+            "--filter",
+            "lambert/sky",
+        ])
+        .args(extra);
+        if no_color {
+            c.env("NO_COLOR", "1");
+        } else {
+            c.env_remove("NO_COLOR");
+        }
+        let out = c.output().unwrap();
+        (
+            out.status.code(),
+            String::from_utf8_lossy(&out.stdout).into_owned(),
+        )
+    };
+    let (code, always) = run(&["--color", "always"], true);
+    assert_eq!(code, Some(0), "{always}");
+    assert!(
+        always.contains("\u{1b}[32mPASS\u{1b}[0m      lambert/sky"),
+        "{always:?}"
+    );
+    // stdout is a pipe here, so auto means no colour; never means none anywhere
+    for extra in [&[][..], &["--color", "auto"], &["--color", "never"]] {
+        let (_, plain) = run(extra, false);
+        assert!(
+            plain.contains("PASS      lambert/sky") && !plain.contains('\u{1b}'),
+            "{plain:?}"
+        );
+    }
+    let (code, _) = run(&["--color", "sometimes"], false);
+    assert_eq!(code, Some(2));
+}
