@@ -326,7 +326,9 @@ fn recorded_seconds(p: &Path) -> Result<BTreeMap<String, f64>, Failure> {
 
 /// The renderer table: `--renderers`, else the user's (~/.config/furnace/renderers.toml, or
 /// under $XDG_CONFIG_HOME), else the one built into furnace; never the working directory's.
-fn renderer_table(explicit: Option<&Path>) -> Result<BTreeMap<String, RendererDesc>, Failure> {
+pub(super) fn renderer_table(
+    explicit: Option<&Path>,
+) -> Result<BTreeMap<String, RendererDesc>, Failure> {
     let user = std::env::var_os("XDG_CONFIG_HOME")
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".config")))

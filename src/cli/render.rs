@@ -77,6 +77,14 @@ pub struct RenderArgs {
     /// into the EXR the whole render writes, bit for bit. Parts cut the samples at blocks of 16.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
+    /// Render through another renderer of the renderer table (NAME[:VARIANT], as `check
+    /// --renderer`): the scene is exported and rendered in the entry's `batches` independent
+    /// runs, whose images make the EXR's means and variances; with --shard, part K of those runs.
+    #[arg(long, value_name = "NAME[:VARIANT]")]
+    renderer: Option<String>,
+    /// Renderer table for --renderer [default: as `check`: ~/.config/furnace/renderers.toml, else the built-in one].
+    #[arg(long, value_name = "FILE", requires = "renderer")]
+    renderers: Option<PathBuf>,
     /// No progress bar (the closing lines on stdout stay; redirect them to silence them).
     #[arg(short, long)]
     quiet: bool,
@@ -190,6 +198,11 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .into());
     }
     let attrs = attributes(&a, &settings, &scene, light, total);
+    if let Some(spec) = &a.renderer {
+        return render_external(
+            &a, spec, &scene, &settings, shard, attrs, &exr_path, &png_path,
+        );
+    }
     if let Some(k) = shard {
         return render_shard(&a, &scene, &settings, light, total, k, attrs, &exr_path);
     }
@@ -254,6 +267,90 @@ fn progress_bar(quiet: bool, total: u64) -> Result<ProgressBar, Failure> {
         .context("progress bar template")?,
     );
     Ok(bar)
+}
+
+/// Renders through an external renderer: the whole image (EXR and PNG) or, with `shard`, part
+/// of its independent runs as a partial film.
+#[allow(clippy::too_many_arguments)]
+fn render_external(
+    a: &RenderArgs,
+    spec: &str,
+    scene: &Scene,
+    settings: &RenderSettings,
+    shard: Option<furnace::harness::shard::Shard>,
+    mut attrs: Vec<(String, String)>,
+    out: &Path,
+    png: &Path,
+) -> Result<i32, Failure> {
+    use furnace::harness::Renderer;
+    if a.integrator == "light" {
+        return Err(anyhow::anyhow!(
+            "--integrator light is furnace's light tracer; --renderer {spec} renders with that renderer's own estimator"
+        )
+        .into());
+    }
+    let table = super::check::renderer_table(a.renderers.as_deref())?;
+    let ext = furnace::harness::adapter::External::from_spec(spec, &table, Path::new("."))
+        .map_err(|e| anyhow::anyhow!(e))?;
+    ext.probe()
+        .map_err(|e| anyhow::anyhow!("renderer {spec} is not available: {e}"))?;
+    let k = ext.batches();
+    // the EXR's variances come from k independent runs: k − 1 degrees of freedom
+    // furnace's own estimator settings do not describe the other renderer's image
+    let furnace_only = [
+        "furnace.integrator",
+        "furnace.strategy",
+        "furnace.rr_depth",
+        "furnace.sampler",
+        "furnace.wavelengths",
+        "furnace.grey_mode",
+        "furnace.media_code",
+    ];
+    attrs.retain(|(name, _)| !furnace_only.contains(&name.as_str()));
+    attrs.push(("furnace.renderer".into(), spec.to_string()));
+    attrs.push(("furnace.variance_dof".into(), (k - 1).to_string()));
+    let start = Instant::now();
+    if let Some(part) = shard {
+        let n = part.count as u64;
+        if n > k {
+            return Err(anyhow::anyhow!(
+                "--shard {}/{}: {spec} renders the image in {k} independent runs (renderers.toml `batches`), fewer than {n} parts",
+                part.index,
+                part.count
+            )
+            .into());
+        }
+        let i = part.index as u64 - 1;
+        let range = i * k / n..(i + 1) * k / n;
+        let mut film = ext
+            .render_part(scene, settings, range.clone())
+            .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
+        film.header.attributes = attrs;
+        film.write(out)
+            .with_context(|| format!("cannot write the partial film {}", out.display()))?;
+        println!(
+            "wrote {} (part {}/{}: runs {}..{} of {k} through {spec}, {:.2} s wall); join the parts with `furnace merge-films`",
+            out.display(),
+            part.index,
+            part.count,
+            range.start,
+            range.end,
+            start.elapsed().as_secs_f64()
+        );
+        return Ok(0);
+    }
+    let film = ext
+        .render(scene, settings)
+        .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
+    let code = write_film(&film, attrs, out, png, a.exposure)?;
+    println!(
+        "{}x{} px, {} spp in {k} runs through {spec}, {:.2} s wall",
+        settings.width,
+        settings.height,
+        settings.spp,
+        start.elapsed().as_secs_f64()
+    );
+    Ok(code)
 }
 
 /// Renders part `k` and writes it as a partial film.

@@ -7,7 +7,9 @@
 
 use super::renderer::{Renderer, RendererError};
 use crate::export;
-use crate::film::Film;
+use crate::film::blocks::BlockFold;
+use crate::film::partial::{Header, PartialFilm};
+use crate::film::{merge_pixels, Film, Pixel};
 use crate::integrators::Strategy;
 use crate::io::image as io;
 use crate::render::RenderSettings;
@@ -413,6 +415,62 @@ impl Renderer for External {
 impl External {
     /// Renders the image as `batches` independent runs of the command.
     fn render_batches(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
+        let fold = self.render_batch_range(scene, s, 0..self.batches())?;
+        let pixels = fold
+            .finish(&|a: &mut Vec<Pixel>, b: &Vec<Pixel>| merge_pixels(a, b))
+            .ok_or_else(|| format!("{}: no batch ran", self.label))?;
+        Ok(Film {
+            width: s.width,
+            height: s.height,
+            pixels,
+            truncated_paths: 0,
+        })
+    }
+
+    /// Renders batches `batches` (of [`External::batches`]) of the image: one part of a
+    /// sharded reference render, each batch a block of the merge tree of film::blocks, so that
+    /// the parts merge (film::partial) to the film of all batches bit for bit. Each pixel
+    /// holds one value per batch (its count is the batch count). The header's attributes are
+    /// left empty for the caller.
+    pub fn render_part(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        batches: std::ops::Range<u64>,
+    ) -> Result<PartialFilm, String> {
+        let total = self.batches();
+        if !(batches.start < batches.end && batches.end <= total) {
+            return Err(format!(
+                "batches {}..{} are not a non-empty part of {}'s {total} runs per image",
+                batches.start, batches.end, self.label
+            ));
+        }
+        let pieces = self.render_batch_range(scene, s, batches)?.into_pieces();
+        Ok(PartialFilm {
+            header: Header {
+                furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+                width: s.width,
+                height: s.height,
+                total_blocks: total,
+                pieces: pieces
+                    .iter()
+                    .map(|p| (p.span.start, p.span.level, p.span.end() - p.span.start))
+                    .collect(),
+                truncated_paths: 0,
+                scene_fingerprint: crate::render::scene_fingerprint(scene),
+                attributes: Vec::new(),
+            },
+            pieces: pieces.into_iter().map(|p| p.state).collect(),
+        })
+    }
+
+    /// Runs the command for each batch in `batches`, folding the batch images in order.
+    fn render_batch_range(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        batches: std::ops::Range<u64>,
+    ) -> Result<BlockFold<Vec<Pixel>>, String> {
         if s.integrator.strategy != Strategy::Mis {
             return Err(format!(
                 "{} runs its own estimator; checks that select BSDF-only or light-only sampling do not apply",
@@ -460,8 +518,8 @@ impl External {
         } else {
             s.threads
         };
-        let mut film = Film::new(s.width, s.height);
-        for b in 0..k {
+        let mut fold = BlockFold::new(batches.start);
+        for b in batches {
             let out = dir.join(format!("batch-{b}.exr"));
             // Seeds below 2^31 (Mitsuba's sampler seed is a 32-bit integer).
             let seed = crate::math::rng::mix64(s.seed ^ b) % (1 << 31);
@@ -515,7 +573,8 @@ impl External {
                 plane(&channels[1])?,
                 plane(&channels[2])?,
             ];
-            for (i, px) in film.pixels.iter_mut().enumerate() {
+            let mut batch = vec![Pixel::default(); s.width * s.height];
+            for (i, px) in batch.iter_mut().enumerate() {
                 let native_rgb = [rgb[0][i] as f64, rgb[1][i] as f64, rgb[2][i] as f64];
                 let xyz = native.rgb_to_xyz(native_rgb).map(|v| v * y_scale);
                 let out_rgb = if s.observer == native {
@@ -525,8 +584,11 @@ impl External {
                 };
                 px.add(xyz, out_rgb);
             }
+            fold.push(batch, &|a: &mut Vec<Pixel>, b: &Vec<Pixel>| {
+                merge_pixels(a, b)
+            });
         }
-        Ok(film)
+        Ok(fold)
     }
 }
 

@@ -244,3 +244,67 @@ fn the_documented_local_workflow_script_merges_to_the_whole_render() {
     assert_eq!(exr_bits(&out.join("image.exr")), exr_bits(&whole));
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// A renderer table whose one entry, `stand-in`, is `furnace render` of a fixed scene (the
+/// exported scene is ignored), in 4 independent runs per image.
+fn stand_in_table(dir: &Path) -> PathBuf {
+    let p = dir.join("renderers.toml");
+    let text = format!(
+        "[renderer.stand-in]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 4\ncommand = [{:?}, \"render\", \"scenes/cornell-box.toml\", \"--out\", \"{{out}}\", \"--spp\", \"{{spp}}\", \"--seed\", \"{{seed}}\", \"--width\", \"{{width}}\", \"--height\", \"{{height}}\", \"--threads\", \"{{threads}}\", \"--quiet\"]\n",
+        env!("CARGO_BIN_EXE_furnace")
+    );
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+#[test]
+fn a_reference_render_through_another_renderer_merges_from_its_runs() {
+    let dir = scratch("external");
+    let table = stand_in_table(&dir);
+    let opts = [
+        "--renderer",
+        "stand-in",
+        "--renderers",
+        s(&table),
+        "--spp",
+        "32",
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ];
+    for parts in [2, 4] {
+        assert_parts_merge_exactly(&dir, "scenes/cornell-box.toml", &opts, parts);
+    }
+    // each pixel's variance comes from the 4 runs
+    let layers = furnace::io::image::read_exr(&dir.join("whole-4.exr")).unwrap();
+    let attr = |k: &str| {
+        layers
+            .attributes
+            .iter()
+            .find(|(n, _)| n == k)
+            .map(|(_, v)| v.clone())
+    };
+    assert_eq!(attr("furnace.variance_dof").as_deref(), Some("3"));
+    assert_eq!(attr("furnace.renderer").as_deref(), Some("stand-in"));
+    assert_eq!(attr("furnace.integrator"), None);
+    // more parts than runs, and light tracing through another renderer, are refused
+    let x = dir.join("x.film");
+    for (extra, msg) in [
+        (&["--shard", "1/5"][..], "fewer than 5 parts"),
+        (&["--integrator", "light"][..], "own estimator"),
+    ] {
+        let o = furnace(
+            &[
+                &["render", "scenes/cornell-box.toml", "-q", "-o", s(&x)][..],
+                &opts,
+                extra,
+            ]
+            .concat(),
+        );
+        assert_eq!(o.status.code(), Some(2));
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert!(e.contains(msg), "{extra:?}: {e}");
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}
