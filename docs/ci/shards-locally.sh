@@ -4,12 +4,13 @@
 # failed, 2 the shards do not make one run).
 #
 #   cargo build --release && docs/ci/shards-locally.sh [N] [check options...]
+# FURNACE (the binary) and OUT (the folder, emptied first) override the defaults.
 set -eu
 cd "$(dirname "$0")/../.."
 n=${1:-4}
 [ $# -gt 0 ] && shift
-bin=target/release/furnace
-out=out/shards
+bin=${FURNACE:-target/release/furnace}
+out=${OUT:-out/shards}
 rm -rf "$out" && mkdir -p "$out"
 k=1
 while [ "$k" -le "$n" ]; do
@@ -17,5 +18,5 @@ while [ "$k" -le "$n" ]; do
     "$bin" check -q --shard "$k/$n" --json "$out/shard-$k.json" "$@" || [ $? -eq 1 ]
     k=$((k + 1))
 done
-"$bin" merge "$out"/shard-*.json --junit "$out/junit.xml" --markdown "$out/summary.md" \
-    --report "$out/report.html"
+"$bin" merge "$out"/shard-*.json --json "$out/merged.json" --junit "$out/junit.xml" \
+    --markdown "$out/summary.md" --report "$out/report.html"

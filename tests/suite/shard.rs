@@ -46,23 +46,29 @@ fn shard_run(dir: &Path, extra: &[&str], k: usize, n: usize) -> String {
 
 #[test]
 fn four_shards_merge_into_the_single_runs_numbers() {
+    // the README's workflow, run as its documented local script: 4 shard jobs, then the merge
     let dir = scratch("four");
-    let parts: Vec<String> = (1..=4).map(|k| shard_run(&dir, &[], k, 4)).collect();
+    let o = std::process::Command::new("sh")
+        .arg(root("docs/ci/shards-locally.sh"))
+        .arg("4")
+        .env("FURNACE", env!("CARGO_BIN_EXE_furnace"))
+        .env("OUT", &dir)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // each shard runs only its checks, but the correction spans all of them
     let first: RunReport =
-        serde_json::from_str(&std::fs::read_to_string(&parts[0]).unwrap()).unwrap();
+        serde_json::from_str(&std::fs::read_to_string(dir.join("shard-1.json")).unwrap()).unwrap();
     let all = first.shard.as_ref().unwrap().suite.len();
     assert!(
         first.outcomes.len() < all,
         "{} of {all}",
         first.outcomes.len()
     );
+    for f in ["junit.xml", "summary.md", "report.html"] {
+        assert!(dir.join(f).is_file(), "the script wrote no {f}");
+    }
     let merged = dir.join("merged.json");
-    let mut args = vec!["merge", "-q", "--json", merged.to_str().unwrap()];
-    // in any order
-    args.extend(parts.iter().rev().map(String::as_str));
-    let o = furnace(&args);
-    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let report: RunReport =
         serde_json::from_str(&std::fs::read_to_string(&merged).unwrap()).unwrap();
     assert_eq!(report.outcomes.len(), all);
