@@ -8,8 +8,8 @@ pub mod light;
 
 pub use light::{render_light_part, render_light_paths, LightImage};
 
-use crate::film::blocks::{spans, BlockFold};
-use crate::film::partial::{Header, PartialFilm};
+use crate::film::blocks::{spans, BlockFold, Piece};
+use crate::film::partial::PartialFilm;
 use crate::film::{Film, Pixel};
 use crate::integrators::PathTracer;
 use crate::math::rng::{SampleStream, Sampler};
@@ -240,25 +240,19 @@ pub fn render_part(
     }
     let layout = spans(blocks.clone());
     let (pieces, truncated_paths) = render_blocks(scene, settings, blocks, false, progress)?;
-    let samples = |s: &crate::film::blocks::Span| {
-        (s.end() * BLOCK_SAMPLES).min(settings.spp) - s.start * BLOCK_SAMPLES
-    };
-    Ok(PartialFilm {
-        header: Header {
-            furnace_version: env!("CARGO_PKG_VERSION").to_string(),
-            width: settings.width,
-            height: settings.height,
-            total_blocks: total,
-            pieces: layout
-                .iter()
-                .map(|s| (s.start, s.level, samples(s)))
-                .collect(),
-            truncated_paths,
-            scene_fingerprint: scene_fingerprint(scene),
-            attributes: Vec::new(),
-        },
+    let pieces = layout
+        .into_iter()
+        .zip(pieces)
+        .map(|(span, state)| Piece { span, state })
+        .collect();
+    Ok(PartialFilm::new(
+        (settings.width, settings.height),
+        total,
         pieces,
-    })
+        |s| (s.end() * BLOCK_SAMPLES).min(settings.spp) - s.start * BLOCK_SAMPLES,
+        truncated_paths,
+        scene_fingerprint(scene),
+    ))
 }
 
 /// The pixel loop over sample blocks `blocks`: per piece of the part (one piece, the

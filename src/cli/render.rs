@@ -311,17 +311,15 @@ fn render_external(
     attrs.push(("furnace.variance_dof".into(), (k - 1).to_string()));
     let start = Instant::now();
     if let Some(part) = shard {
-        let n = part.count as u64;
-        if n > k {
+        let Some(range) = part.part_of(k) else {
             return Err(anyhow::anyhow!(
-                "--shard {}/{}: {spec} renders the image in {k} independent runs (renderers.toml `batches`), fewer than {n} parts",
+                "--shard {}/{}: {spec} renders the image in {k} independent runs (renderers.toml `batches`), fewer than {} parts",
                 part.index,
+                part.count,
                 part.count
             )
             .into());
-        }
-        let i = part.index as u64 - 1;
-        let range = i * k / n..(i + 1) * k / n;
+        };
         let mut film = ext
             .render_part(scene, settings, range.clone())
             .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
@@ -370,22 +368,20 @@ fn render_shard(
     } else {
         furnace::render::sample_blocks(settings.spp)
     };
-    let n = k.count as u64;
-    if n > blocks {
+    let Some(range) = k.part_of(blocks) else {
         return Err(anyhow::anyhow!(
-            "--shard {}/{}: the render has {blocks} {} to share out, fewer than {n} parts",
+            "--shard {}/{}: the render has {blocks} {} to share out, fewer than {} parts",
             k.index,
             k.count,
             if light {
                 "chunks of light paths"
             } else {
                 "blocks of 16 samples per pixel"
-            }
+            },
+            k.count
         )
         .into());
-    }
-    let i = k.index as u64 - 1;
-    let range = i * blocks / n..(i + 1) * blocks / n;
+    };
     let bar = progress_bar(a.quiet, total)?;
     let start = Instant::now();
     let part = if light {

@@ -131,6 +131,35 @@ fn format_err(path: &Path, message: impl Into<String>) -> PartialFilmError {
 }
 
 impl PartialFilm {
+    /// A part of a render of `width`×`height` pixels and `total_blocks` blocks from its pieces
+    /// (in block order), `count` giving the count each pixel holds in a piece (samples, light
+    /// paths or runs); the attributes are left empty for the caller.
+    pub fn new(
+        (width, height): (usize, usize),
+        total_blocks: u64,
+        pieces: Vec<Piece<Vec<Pixel>>>,
+        count: impl Fn(&Span) -> u64,
+        truncated_paths: u64,
+        scene_fingerprint: String,
+    ) -> PartialFilm {
+        PartialFilm {
+            header: Header {
+                furnace_version: env!("CARGO_PKG_VERSION").to_string(),
+                width,
+                height,
+                total_blocks,
+                pieces: pieces
+                    .iter()
+                    .map(|p| (p.span.start, p.span.level, count(&p.span)))
+                    .collect(),
+                truncated_paths,
+                scene_fingerprint,
+                attributes: Vec::new(),
+            },
+            pieces: pieces.into_iter().map(|p| p.state).collect(),
+        }
+    }
+
     /// Writes the part to `path` (through a temporary file: a failed write leaves what was
     /// there). Every pixel of a piece must hold the piece's sample count.
     pub fn write(&self, path: &Path) -> Result<(), PartialFilmError> {

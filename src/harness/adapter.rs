@@ -8,7 +8,7 @@
 use super::renderer::{Renderer, RendererError};
 use crate::export;
 use crate::film::blocks::BlockFold;
-use crate::film::partial::{Header, PartialFilm};
+use crate::film::partial::PartialFilm;
 use crate::film::{merge_pixels, Film, Pixel};
 use crate::integrators::Strategy;
 use crate::io::image as io;
@@ -446,22 +446,14 @@ impl External {
             ));
         }
         let pieces = self.render_batch_range(scene, s, batches)?.into_pieces();
-        Ok(PartialFilm {
-            header: Header {
-                furnace_version: env!("CARGO_PKG_VERSION").to_string(),
-                width: s.width,
-                height: s.height,
-                total_blocks: total,
-                pieces: pieces
-                    .iter()
-                    .map(|p| (p.span.start, p.span.level, p.span.end() - p.span.start))
-                    .collect(),
-                truncated_paths: 0,
-                scene_fingerprint: crate::render::scene_fingerprint(scene),
-                attributes: Vec::new(),
-            },
-            pieces: pieces.into_iter().map(|p| p.state).collect(),
-        })
+        Ok(PartialFilm::new(
+            (s.width, s.height),
+            total,
+            pieces,
+            |span| span.end() - span.start,
+            0,
+            crate::render::scene_fingerprint(scene),
+        ))
     }
 
     /// Runs the command for each batch in `batches`, folding the batch images in order.

@@ -43,6 +43,14 @@ impl Shard {
         }
         Ok(Shard { index, count })
     }
+
+    /// This shard's contiguous part of `total` ordered units (sample blocks, chunks, runs):
+    /// [(K−1)·total/N, K·total/N); None when there are fewer units than shards.
+    pub fn part_of(&self, total: u64) -> Option<std::ops::Range<u64>> {
+        let n = self.count as u64;
+        let i = self.index as u64 - 1;
+        (n <= total).then(|| i * total / n..(i + 1) * total / n)
+    }
 }
 
 /// The shard (1-based) of each check: longest-processing-time-first over `costs` (seconds, or

@@ -7,8 +7,8 @@
 //! ([`CHUNKS`] fixed chunks). Details: docs/rendering.md, "`render::light`".
 
 use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
-use crate::film::blocks::{BlockFold, Span};
-use crate::film::partial::{Header, PartialFilm};
+use crate::film::blocks::{BlockFold, Piece, Span};
+use crate::film::partial::PartialFilm;
 use crate::film::{Film, Pixel};
 use crate::integrators::light::{PinholeSensor, Sensor, Splat};
 use crate::integrators::LightTracer;
@@ -163,22 +163,21 @@ pub fn render_light_part(
         progress,
     )?;
     let bound = |c: u64| (c as u128 * n_paths as u128 / CHUNKS as u128) as u64;
-    Ok(PartialFilm {
-        header: Header {
-            furnace_version: env!("CARGO_PKG_VERSION").to_string(),
-            width: settings.width,
-            height: settings.height,
-            total_blocks: CHUNKS,
-            pieces: pieces
-                .iter()
-                .map(|(s, _)| (s.start, s.level, bound(s.end()) - bound(s.start)))
-                .collect(),
-            truncated_paths: cut,
-            scene_fingerprint: super::scene_fingerprint(scene),
-            attributes: Vec::new(),
-        },
-        pieces: pieces.into_iter().map(|(_, st)| st.pixels).collect(),
-    })
+    let pieces = pieces
+        .into_iter()
+        .map(|(span, st)| Piece {
+            span,
+            state: st.pixels,
+        })
+        .collect();
+    Ok(PartialFilm::new(
+        (settings.width, settings.height),
+        CHUNKS,
+        pieces,
+        |s| bound(s.end()) - bound(s.start),
+        cut,
+        super::scene_fingerprint(scene),
+    ))
 }
 
 /// A chunk range's state: pixel and region statistics.

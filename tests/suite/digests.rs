@@ -12,12 +12,8 @@ use std::fmt::Write;
 
 /// FNV-1a over the bits of every accumulator (count, mean, M2) of every pixel and channel.
 fn film_digest(film: &Film) -> String {
-    let mut h = 0xcbf2_9ce4_8422_2325u64;
-    let mut eat = |x: u64| {
-        for b in x.to_le_bytes() {
-            h = (h ^ b as u64).wrapping_mul(0x0100_0000_01b3);
-        }
-    };
+    let mut h = furnace::math::Fnv1a::default();
+    let mut eat = |x: u64| h.eat(&x.to_le_bytes());
     for p in &film.pixels {
         for c in &p.channels {
             eat(c.count());
@@ -25,7 +21,7 @@ fn film_digest(film: &Film) -> String {
             eat(c.variance().to_bits());
         }
     }
-    format!("{h:016x}")
+    format!("{:016x}", h.0)
 }
 
 /// Compares `actual` with the committed baseline `rel`, or writes it when FURNACE_BLESS is set.
