@@ -52,7 +52,7 @@ pub struct Retest {
     pub se: f64,
     /// Degrees of freedom of `se`.
     pub dof: f64,
-    /// X = Σ rᵢ²/vᵢ over the pixels with vᵢ > 0 ([`residual_chi2`]).
+    /// X = Σ rᵢ²/vᵢ over the pixels with Monte Carlo noise ([`residual_chi2`]).
     pub chi2: f64,
     /// Pixels in `chi2`, less one when the residuals are taken about their own mean.
     pub pixels: usize,
@@ -73,13 +73,21 @@ impl Retest {
     }
 }
 
-/// X = Σ rᵢ²/vᵢ of residuals against their estimated variances, over pixels with vᵢ > 0:
-/// (X, pixels).
-pub fn residual_chi2(resid: &[f64], vars: &[f64]) -> (f64, usize) {
+/// Whether a pixel's variance of the mean `var` holds Monte Carlo noise in an image whose
+/// largest |value| is `scale`: a standard error at or below the rounding allowance
+/// (`stats::ROUNDING`·scale) is rounding, and a residual divided by it says nothing (an
+/// absorber's e^(−330) transmittance read as 0 beside a 1e-317 variance gave z ≈ 7e14).
+pub fn has_noise(var: f64, scale: f64) -> bool {
+    var > (crate::stats::ROUNDING * scale).powi(2)
+}
+
+/// X = Σ rᵢ²/vᵢ of residuals against their estimated variances, over the pixels with Monte
+/// Carlo noise ([`has_noise`]) in an image whose largest |value| is `scale`: (X, pixels).
+pub fn residual_chi2(resid: &[f64], vars: &[f64], scale: f64) -> (f64, usize) {
     resid
         .iter()
         .zip(vars)
-        .filter(|(_, v)| **v > 0.0)
+        .filter(|(_, v)| has_noise(**v, scale))
         .fold((0.0, 0), |(x, n), (r, v)| (x + r * r / v, n + 1))
 }
 
@@ -247,7 +255,7 @@ pub fn region_stats_of(
     let retest = (!stable && !infinite)
         .then(|| {
             let raw = stability::diagnose(&resid, alpha);
-            let (chi2, pixels) = residual_chi2(&resid, &vars);
+            let (chi2, pixels) = residual_chi2(&resid, &vars, scale);
             // residuals about their own mean (no per-pixel closed form) lose one dof
             let pixels = pixels.saturating_sub(usize::from(expected_px.is_none()));
             raw.se_by_batch_size
@@ -280,15 +288,16 @@ pub fn region_stats_of(
 /// mean, whether the failure rests on an infinite-variance tail or on no test at all).
 /// Residuals are standardised by their own standard errors first when the variances differ
 /// by more than 100× (emitters in view), so that bright pixels do not pass for a heavy tail;
-/// the batch-means standard error is then not used (0). Residuals without Monte Carlo noise
-/// (all variances below (1e-12·scale)²) are reported as deterministic.
+/// the batch-means standard error is then not used (0), and pixels without Monte Carlo noise
+/// ([`has_noise`]) are left out. Residuals without any (all variances below
+/// (1e-12·scale)²) are reported as deterministic.
 pub fn residual_stability(
     resid: &[f64],
     vars: &[f64],
     scale: f64,
     alpha: f64,
 ) -> (bool, String, f64, bool) {
-    if vars.iter().all(|v| *v <= (1e-12 * scale).powi(2)) {
+    if !vars.iter().any(|v| has_noise(*v, scale)) {
         return (
             true,
             "no Monte Carlo noise: every pixel is exact up to rounding".into(),
@@ -297,7 +306,11 @@ pub fn residual_stability(
         );
     }
     let n = resid.len() as f64;
-    let mut sorted: Vec<f64> = vars.iter().copied().filter(|v| *v > 0.0).collect();
+    let mut sorted: Vec<f64> = vars
+        .iter()
+        .copied()
+        .filter(|v| has_noise(*v, scale))
+        .collect();
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
     let hetero = median > 0.0 && sorted.last().copied().unwrap_or(0.0) > 100.0 * median;
@@ -305,7 +318,7 @@ pub fn residual_stability(
         resid
             .iter()
             .zip(vars)
-            .filter(|(_, v)| **v > 0.0)
+            .filter(|(_, v)| has_noise(**v, scale))
             .map(|(r, v)| r / v.sqrt())
             .collect()
     } else {
@@ -397,5 +410,59 @@ pub fn region_measurement(
             "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{retest_text}",
             r.pixels, r.se_within, r.se_between, r.stability
         ),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::SampleStream;
+
+    /// Residuals shaped like `media/transmittance[sigma=10000]`: background pixels with
+    /// spectral noise (variance 1e-4), a few silhouette pixels 1000× noisier, and an opaque
+    /// disk that reads 0 for an expected e^(−330) with a variance at the bottom of f64.
+    fn absorber_like(seed: u64, rounding_pixels: &[(f64, f64)]) -> (Vec<f64>, Vec<f64>) {
+        let mut s = SampleStream::new(seed, 0, 0);
+        let mut normal = || {
+            // Box & Muller 1958, Ann. Math. Stat. 29: sqrt(−2 ln u1)·cos(2π u2).
+            let (u1, u2) = (1.0 - s.next_f64(), s.next_f64());
+            (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        };
+        let mut resid = Vec::new();
+        let mut vars = Vec::new();
+        for i in 0..256 {
+            let v: f64 = if i % 40 == 0 { 1e-1 } else { 1e-4 };
+            resid.push(v.sqrt() * normal());
+            vars.push(v);
+        }
+        for &(r, v) in rounding_pixels {
+            resid.push(r);
+            vars.push(v);
+        }
+        (resid, vars)
+    }
+
+    #[test]
+    fn pixels_whose_error_is_rounding_do_not_enter_the_diagnosis() {
+        let rounding = [(-6.18e-144, 7.9e-317), (-6.18e-144, 0.0), (1e-20, 1e-60)];
+        let (resid, vars) = absorber_like(1018, &rounding);
+        let (stable, why, _, _) = residual_stability(&resid, &vars, 2.0, 1e-4);
+        assert!(stable, "{why}");
+        let (x, n) = residual_chi2(&resid, &vars, 2.0);
+        assert_eq!(n, 256);
+        assert!(x < 400.0, "Σr²/v {x} over {n} px");
+        // Negative control: the same residuals with the old rule (any variance above 0 is
+        // noise) hold a standardised residual of 7e14 and read as an infinite-variance tail.
+        let (_, _, _, infinite) = residual_stability(&resid, &vars, 0.0, 1e-4);
+        assert!(infinite);
+    }
+
+    #[test]
+    fn a_pixel_with_real_noise_still_counts() {
+        // a pixel far off its expected value with a variance well above rounding is kept
+        let (resid, vars) = absorber_like(7, &[(0.5, 1e-8)]);
+        let (x, n) = residual_chi2(&resid, &vars, 2.0);
+        assert_eq!(n, 257);
+        assert!(x > 1e7, "{x}");
     }
 }

@@ -97,7 +97,7 @@ impl Kind for EstimatorAgreement {
                 // Pixels are independent estimates, so structure in the differences is a
                 // difference that varies across the region: Σd²/v against its null moments
                 // asks whether it is real (region::structure_p).
-                let (chi2, n) = residual_chi2(&d, &v);
+                let (chi2, n) = residual_chi2(&d, &v, scale);
                 // each pixel's variance: a sum of two estimates on spp − 1 dof each (at least)
                 let dof = films[a].2 as f64 - 1.0;
                 match structure_p(chi2, n, dof) {
