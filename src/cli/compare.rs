@@ -136,7 +136,15 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
     }
     if a.report.is_some() || a.markdown.is_some() {
         let differ = c.differ;
-        let sec = section(&a.test, &a.reference, &test, &reference, c.clone(), a.alpha)?;
+        let sec = section(
+            &a.test,
+            &a.reference,
+            &test,
+            &reference,
+            c.clone(),
+            &regions,
+            a.alpha,
+        )?;
         if let Some(p) = &a.report {
             write_file(
                 p,

@@ -59,18 +59,20 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
             };
             let l = convergence::ladder(check, params, &ctx)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", check.name))?;
-            let summary = convergence::summarize(&check.name, &l, a.target)
+            let summary = convergence::summarize(&check.name, &l, params.slope, a.target)
                 .ok_or_else(|| anyhow::anyhow!("{}: the ladder has no rungs", check.name))?;
             println!("{}", line(&summary));
             table.push(summary);
             let mean = l.rungs[0].reference_mean.abs().max(f64::MIN_POSITIVE);
             let label = check.name.rsplit('/').next().unwrap_or(&check.name);
-            let curve = |x: &dyn Fn(&convergence::Rung) -> f64| Series {
+            let curve = |x: &dyn Fn(&convergence::Rung) -> f64, guide: Option<f64>| Series {
                 name: label.to_string(),
                 points: l.rungs.iter().map(|r| (x(r), r.rmse / mean)).collect(),
+                guide_slope: guide,
             };
-            series.push(curve(&|r| r.spp as f64));
-            time_error.push(curve(&|r| r.seconds));
+            let predicted = 0.5 * (params.slope[0] + params.slope[1]);
+            series.push(curve(&|r| r.spp as f64, Some(predicted)));
+            time_error.push(curve(&|r| r.seconds, None));
         }
         manifests.push(ManifestLadders {
             manifest: f.display().to_string(),
@@ -78,7 +80,12 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         });
     }
     if let Some(p) = &a.report {
-        write_file(p, &page(a.seed, a.target, &table, &manifests, &time_error)?)?;
+        // 1 % family-wise over the ladders of the run (Šidák)
+        let alpha = 1.0 - 0.99f64.powf(1.0 / table.len().max(1) as f64);
+        write_file(
+            p,
+            &page(a.seed, a.target, alpha, &table, &manifests, &time_error)?,
+        )?;
         println!("wrote {}", p.display());
     }
     Ok(0)

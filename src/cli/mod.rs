@@ -157,6 +157,7 @@ pub(crate) fn section(
     test: &RgbImage,
     reference: &RgbImage,
     c: image_compare::Comparison,
+    regions: &[image_compare::Region],
     family_alpha: f64,
 ) -> Result<html::ComparisonSection, Failure> {
     let panels = html::comparison_panels(test, reference, &c).map_err(|e| anyhow::anyhow!(e))?;
@@ -165,6 +166,7 @@ pub(crate) fn section(
         comparison: c,
         family_alpha,
         panels,
+        regions: regions.to_vec(),
     })
 }
 

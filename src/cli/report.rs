@@ -69,7 +69,7 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
         let (t, r) = (load_rgb(&pair[0])?, load_rgb(&pair[1])?);
         let c = compare::compare(&t, &r, &regions, a.alpha, 0.01, 0.0)
             .map_err(|e| anyhow::anyhow!(e))?;
-        sections.push(section(&pair[0], &pair[1], &t, &r, c, a.alpha)?);
+        sections.push(section(&pair[0], &pair[1], &t, &r, c, &regions, a.alpha)?);
     }
     if runs.is_empty() && sections.is_empty() {
         return Err(anyhow::anyhow!("nothing to report: give --results and/or --compare").into());

@@ -1,10 +1,11 @@
-//! The convergence page of `furnace converge`: a table of fitted rates, efficiencies and times
-//! to a target error, a log-log plot of relative RMSE against samples per manifest, and one of
-//! relative RMSE against render time over every rung.
+//! The convergence page of `furnace converge`: a table of fitted rates against the rates
+//! theory predicts, with a verdict each, efficiencies and times to a target error; a log-log
+//! plot of relative RMSE against samples per manifest (the predicted rate dashed beside each
+//! ladder), and one of relative RMSE against render time over every rung.
 
-use super::html::escape;
 use super::plot::{loglog, PlotError, Series};
 use crate::harness::checks::convergence::LadderSummary;
+use maud::{html, PreEscaped, DOCTYPE};
 
 /// One manifest's ladders: its name and one series (relative RMSE against spp) per check.
 #[derive(Debug, Clone, PartialEq)]
@@ -31,37 +32,102 @@ pub fn line(r: &LadderSummary) -> String {
     )
 }
 
-/// The self-contained HTML page.
+/// The verdict of a ladder at per-ladder level `alpha`.
+pub fn verdict(r: &LadderSummary, alpha: f64) -> &'static str {
+    if r.p.is_nan() {
+        "ERROR"
+    } else if r.p > alpha {
+        "PASS"
+    } else {
+        "FAIL"
+    }
+}
+
+/// The self-contained HTML page; `alpha` is the per-ladder level of the verdicts.
 pub fn page(
     seed: u64,
     target: f64,
+    alpha: f64,
     table: &[LadderSummary],
     manifests: &[ManifestLadders],
     time_error: &[Series],
 ) -> Result<String, PlotError> {
-    let mut h = String::from("<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>furnace converge</title><style>body{font-family:system-ui,sans-serif;margin:2em}table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:0.2em 0.5em;text-align:right}td.l{text-align:left}</style></head><body><h1>Convergence</h1>\n");
-    h.push_str(&format!("<p>seed {seed}; RMSE of each pixel against its closed-form footprint average, over the region and 8 seeds per rung; slope and constant of ln RMSE = ln C + slope·ln N by least squares (95 % CI, Student t); efficiency 1/(MSE·time) at the top rung; N* and time to reach RMSE = {target} × mean from the fitted line.</p>\n"));
-    h.push_str("<table><tr><th>configuration</th><th>sampler</th><th>slope ± 95 % CI</th><th>C</th><th>s / sample</th><th>efficiency</th><th>N*</th><th>time to target, s</th></tr>\n");
-    for r in table {
-        h.push_str(&format!("<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{:.3} ± {:.3}</td><td>{:.3e}</td><td>{:.3e}</td><td>{:.3e}</td><td>{:.0}</td><td>{:.3e}</td></tr>\n", escape(&r.name), r.sampler, r.slope, r.slope_ci95, r.constant, r.seconds_per_sample, r.efficiency, r.n_star, r.seconds_to_target));
-    }
-    h.push_str("</table>\n");
+    let mut plots = Vec::new();
     for m in manifests {
-        h.push_str(&format!("<h2>{}</h2>\n", escape(&m.manifest)));
-        h.push_str(&loglog(
-            "relative RMSE vs samples per pixel",
-            "samples per pixel",
-            "RMSE / mean",
-            &m.series,
-        )?);
+        plots.push((
+            m.manifest.as_str(),
+            loglog(
+                "relative RMSE vs samples per pixel (dashed: the rate theory predicts)",
+                "samples per pixel",
+                "RMSE / mean",
+                &m.series,
+            )?,
+        ));
     }
-    h.push_str("<h2>Time against error (all rungs)</h2>\n");
-    h.push_str(&loglog(
+    let time_plot = loglog(
         "relative RMSE vs render time",
         "seconds per render",
         "RMSE / mean",
         time_error,
-    )?);
-    h.push_str("</body></html>\n");
-    Ok(h)
+    )?;
+    let passed = table.iter().filter(|r| verdict(r, alpha) == "PASS").count();
+    Ok(html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                title { "furnace converge" }
+                style { (PreEscaped(STYLE)) }
+            }
+            body {
+                h1 { "Convergence" }
+                p #verdict class=(if passed == table.len() { "pass" } else { "fail" }) {
+                    strong { (passed) " of " (table.len()) " ladders at their predicted rate" }
+                }
+                p {
+                    "seed " (seed) "; RMSE of each pixel against its closed-form footprint average, over "
+                    "the region and the seeds of each rung; slope and constant of ln RMSE = ln C + "
+                    "slope·ln N by least squares (95 % CI, Student t); expected: the allowed slope "
+                    "range the manifest states (−0.5 for independent samples); verdict: the slope "
+                    "test and the power law's lack of fit, Šidák-combined, at a per-ladder α of "
+                    (format!("{alpha:.2e}")) " (1 % family-wise); efficiency 1/(MSE·time) at the top "
+                    "rung; N* and time to reach RMSE = " (target) " × mean from the fitted line."
+                }
+                table {
+                    tr {
+                        th.l { "configuration" } th.l { "sampler" } th { "verdict" } th { "p" }
+                        th { "slope ± 95 % CI" } th { "expected" } th { "C" } th { "s / sample" }
+                        th { "efficiency" } th { "N*" } th { "time to target, s" }
+                    }
+                    @for r in table {
+                        @let v = verdict(r, alpha);
+                        tr class=(if v == "PASS" { "pass" } else { "fail" }) {
+                            td.l { (r.name) }
+                            td.l { (r.sampler) }
+                            td { (v) }
+                            td { (format!("{:.2e}", r.p)) }
+                            td { (format!("{:.3} ± {:.3}", r.slope, r.slope_ci95)) }
+                            td { (format!("[{}, {}]", r.expected_slope[0], r.expected_slope[1])) }
+                            td { (format!("{:.3e}", r.constant)) }
+                            td { (format!("{:.3e}", r.seconds_per_sample)) }
+                            td { (format!("{:.3e}", r.efficiency)) }
+                            td { (format!("{:.0}", r.n_star)) }
+                            td { (format!("{:.3e}", r.seconds_to_target)) }
+                        }
+                    }
+                }
+                @for (name, svg) in &plots {
+                    h2 { (name) }
+                    (PreEscaped(svg))
+                }
+                h2 { "Time against error (all rungs)" }
+                (PreEscaped(time_plot))
+            }
+        }
+    }
+    .into_string())
 }
+
+const STYLE: &str = "body{font-family:system-ui,sans-serif;margin:2em;color:#222}\
+table{border-collapse:collapse}td,th{border:1px solid #ccc;padding:0.2em 0.5em;text-align:right}\
+td.l,th.l{text-align:left}.pass{background:#dff5df}.fail{background:#f8d7d7}";

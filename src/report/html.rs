@@ -1,12 +1,17 @@
 //! Self-contained HTML reports (images embedded as data URIs, no scripts, no external files)
-//! and a Markdown summary for CI job pages.
+//! and a Markdown summary for CI job pages. The markup is built with `maud`, whose templates
+//! escape every interpolated string, so no text reaches the page unescaped.
 //!
 //! Check results are read in the JSON schema `furnace.check-results/1` ([`super::json`]), as
 //! `serde_json::Value`, so a report can gather results from several runs or renderers.
-//! Comparisons carry their images: test, reference, a |z| map and a relative-error map.
+//! Comparisons carry their images: test, reference, a |z| map and a relative-error map, with
+//! the tested regions drawn over them.
 
-use crate::harness::compare::{Comparison, RgbImage, CHANNELS};
+use super::plot::{deviation_dots, Deviations, DEVIATION_CLIP};
+use super::text::power_text;
+use crate::harness::compare::{Comparison, Region, RgbImage, CHANNELS};
 use crate::io::image::encode_png_srgb;
+use maud::{html, Markup, PreEscaped, DOCTYPE};
 use serde_json::Value;
 use std::fmt::Write as _;
 
@@ -30,6 +35,8 @@ pub struct ComparisonSection {
     pub family_alpha: f64,
     /// Test, reference, |z| and relative-error images.
     pub panels: Vec<Panel>,
+    /// The regions tested, drawn over the images.
+    pub regions: Vec<Region>,
 }
 
 fn luminance(img: &RgbImage, i: usize) -> f64 {
@@ -97,42 +104,16 @@ pub fn comparison_panels(
     Ok(panels)
 }
 
-/// Escapes text for HTML element content and attribute values.
+/// Escapes text for HTML element content and attribute values (maud's escaping, for the
+/// few callers that build markup outside a template).
 pub fn escape(s: &str) -> String {
-    let mut o = String::with_capacity(s.len());
-    for c in s.chars() {
-        match c {
-            '&' => o.push_str("&amp;"),
-            '<' => o.push_str("&lt;"),
-            '>' => o.push_str("&gt;"),
-            '"' => o.push_str("&quot;"),
-            '\'' => o.push_str("&#39;"),
-            c => o.push(c),
-        }
-    }
-    o
+    html! { (s) }.into_string()
 }
 
-/// Standard base64 (RFC 4648 §4) with padding.
+/// Standard base64 (RFC 4648 §4) with padding, for data URIs.
 pub fn base64(bytes: &[u8]) -> String {
-    const T: &[u8; 64] = b"ABCDEFGHIJKLMNOPQRSTUVWXYZabcdefghijklmnopqrstuvwxyz0123456789+/";
-    let mut o = String::with_capacity(bytes.len().div_ceil(3) * 4);
-    for chunk in bytes.chunks(3) {
-        let b = [
-            chunk[0],
-            *chunk.get(1).unwrap_or(&0),
-            *chunk.get(2).unwrap_or(&0),
-        ];
-        let v = (b[0] as u32) << 16 | (b[1] as u32) << 8 | b[2] as u32;
-        for k in 0..4 {
-            if k <= chunk.len() {
-                o.push(T[(v >> (18 - 6 * k) & 63) as usize] as char);
-            } else {
-                o.push('=');
-            }
-        }
-    }
-    o
+    use base64::Engine as _;
+    base64::engine::general_purpose::STANDARD.encode(bytes)
 }
 
 fn num(v: &Value) -> String {
@@ -185,13 +166,53 @@ table{border-collapse:collapse;margin:1em 0;font-size:0.9em}\
 td,th{border:1px solid #ccc;padding:0.25em 0.5em;text-align:right}\
 td.l,th.l{text-align:left}.pass{background:#dff5df}.fail{background:#f8d7d7}.skip{background:#eee}\
 figure{display:inline-block;margin:0.5em;vertical-align:top}\
-figure img{width:256px;image-rendering:pixelated;border:1px solid #999}\
-figcaption{font-size:0.8em;max-width:256px}.msg{font-size:0.8em;text-align:left;max-width:40em}";
+.img{position:relative;width:256px}.img svg{position:absolute;left:0;top:0;width:256px;height:100%}\
+figure img{width:256px;display:block;image-rendering:pixelated;border:1px solid #999}\
+figcaption{font-size:0.8em;max-width:256px}.msg{font-size:0.8em;text-align:left;max-width:40em}\
+tr:target{outline:3px solid #06c}";
 
 /// The whole report page: a verdict banner, each check run's table, each comparison with its
 /// images and region table.
 pub fn page(title: &str, runs: &[Value], comparisons: &[ComparisonSection]) -> String {
     page_with_notes(title, runs, comparisons, None)
+}
+
+/// A fragment identifier for a check's row in a renderer's table: letters, digits, `-` and
+/// `_` kept, everything else `_`.
+pub fn row_id(renderer: &str, check: &str) -> String {
+    let clean = |s: &str| -> String {
+        s.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect()
+    };
+    format!("{}--{}", clean(renderer), clean(check))
+}
+
+fn renderer_of(run: &Value) -> &str {
+    run["renderer"].as_str().unwrap_or("furnace")
+}
+
+/// The checks that did not pass, over every run: (renderer, check, verdict).
+fn not_passed(runs: &[Value]) -> Vec<(&str, &str, &str)> {
+    runs.iter()
+        .flat_map(|r| {
+            r["outcomes"]
+                .as_array()
+                .into_iter()
+                .flatten()
+                .map(move |o| (renderer_of(r), o))
+        })
+        .filter_map(|(r, o)| {
+            let v = o["verdict"].as_str().unwrap_or("?");
+            (!matches!(v, "PASS" | "SKIPPED")).then(|| (r, o["name"].as_str().unwrap_or(""), v))
+        })
+        .collect()
 }
 
 /// [`page`] with a notes section (plain text: paragraphs separated by blank lines, lines
@@ -202,100 +223,153 @@ pub fn page_with_notes(
     comparisons: &[ComparisonSection],
     notes: Option<&str>,
 ) -> String {
-    let mut h = String::new();
-    let ok = all_pass(runs, comparisons);
-    let _ = write!(
-        h,
-        "<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{}</title><style>{STYLE}</style></head><body>\n<h1>{}</h1>\n",
-        escape(title),
-        escape(title)
-    );
-    let _ = writeln!(
-        h,
-        "<p id=\"verdict\" class=\"{}\"><strong>{}</strong> — furnace {}</p>",
-        if ok { "pass" } else { "fail" },
-        if ok {
-            "ALL PASS"
-        } else {
-            "FAILURES: see the red rows"
-        },
-        env!("CARGO_PKG_VERSION")
-    );
-    if let Some(n) = notes {
-        h.push_str("<h2>Notes and findings</h2>\n");
-        for para in n.split("\n\n").map(str::trim).filter(|p| !p.is_empty()) {
-            if para.lines().all(|l| l.trim_start().starts_with("- ")) {
-                h.push_str("<ul>");
-                for l in para.lines() {
-                    let _ = write!(
-                        h,
-                        "<li>{}</li>",
-                        escape(l.trim_start().trim_start_matches("- "))
-                    );
-                }
-                h.push_str("</ul>\n");
-            } else if let Some(head) = para.strip_prefix("## ") {
-                let _ = writeln!(h, "<h3>{}</h3>", escape(head));
-            } else {
-                let _ = writeln!(h, "<p>{}</p>", escape(para));
+    html! {
+        (DOCTYPE)
+        html lang="en" {
+            head {
+                meta charset="utf-8";
+                title { (title) }
+                style { (PreEscaped(STYLE)) }
+            }
+            body {
+                h1 { (title) }
+                (banner(runs, comparisons))
+                @if let Some(n) = notes { (notes_html(n)) }
+                @if runs.len() > 1 { (side_by_side(runs)) }
+                @for run in runs { (run_table(run)) }
+                @for (i, c) in comparisons.iter().enumerate() { (comparison_html(i, c)) }
             }
         }
     }
-    if runs.len() > 1 {
-        side_by_side(&mut h, runs);
-    }
-    for run in runs {
-        let _ = writeln!(
-            h,
-            "<h2>Checks: {}</h2>\n<p>manifests {}; seed {}; family-wise false-alarm rate {} ({}, {} stochastic tests); renderer {}</p>",
-            escape(run["renderer"].as_str().unwrap_or("furnace")),
-            escape(&run["manifests"].as_array().map(|m| m.iter().filter_map(|x| x.as_str()).collect::<Vec<_>>().join(", ")).unwrap_or_default()),
-            num(&run["seed"]),
-            num(&run["family_alpha"]),
-            escape(run["correction"].as_str().unwrap_or("")),
-            num(&run["stochastic_tests"]),
-            escape(run["renderer"].as_str().unwrap_or("furnace")),
-        );
-        h.push_str("<table><tr><th class=\"l\">check</th><th class=\"l\">kind</th><th>verdict</th><th>estimate</th><th>± se</th><th>expected</th><th>p</th><th>α</th><th>power</th><th>s</th><th class=\"l\">what was measured</th></tr>\n");
-        for o in run["outcomes"].as_array().into_iter().flatten() {
-            let v = o["verdict"].as_str().unwrap_or("?");
-            let power = o["detection_power"]
-                .as_f64()
-                .map(|p| format!("{:.3} %", 100.0 * p))
-                .unwrap_or("–".into());
-            let _ = writeln!(
-                h,
-                "<tr class=\"{}\"><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{:.2}</td><td class=\"msg\">{}</td></tr>",
-                verdict_class(v),
-                escape(o["name"].as_str().unwrap_or("")),
-                escape(o["kind"].as_str().unwrap_or("")),
-                if o["regression"].as_bool() == Some(true) {
-                    format!("{v} (regression baseline)")
-                } else {
-                    v.to_string()
-                },
-                num(&o["estimate"]),
-                num(&o["std_error"]),
-                num(&o["expected"]),
-                num(&o["p_value"]),
-                num(&o["alpha"]),
-                power,
-                o["seconds"].as_f64().unwrap_or(0.0),
-                escape(o["message"].as_str().unwrap_or("")),
-            );
+    .into_string()
+}
+
+/// The verdict, the counts of each verdict per renderer, and a link to every check that did
+/// not pass and every comparison that found a difference.
+fn banner(runs: &[Value], comparisons: &[ComparisonSection]) -> Markup {
+    let ok = all_pass(runs, comparisons);
+    let bad = not_passed(runs);
+    let counts = |run: &Value| -> String {
+        counts_where(std::slice::from_ref(run), |_| true)
+            .into_iter()
+            .map(|(v, n)| format!("{n} {v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    html! {
+        div #verdict class=(if ok { "pass" } else { "fail" }) {
+            p {
+                strong { (if ok { "ALL PASS" } else { "FAILURES" }) }
+                " — furnace " (env!("CARGO_PKG_VERSION"))
+            }
+            @if !runs.is_empty() {
+                ul {
+                    @for run in runs { li { (renderer_of(run)) ": " (counts(run)) } }
+                }
+            }
+            @if !bad.is_empty() {
+                p { "Not passed:" }
+                ul #not-passed {
+                    @for (r, name, v) in &bad {
+                        li { a href={ "#" (row_id(r, name)) } { (name) } " (" (r) "): " (v) }
+                    }
+                }
+            }
+            @for (i, c) in comparisons.iter().enumerate() {
+                @if c.comparison.differ {
+                    p { a href={ "#comparison-" (i) } { (c.title) } ": DIFFERENT" }
+                }
+            }
         }
-        h.push_str("</table>\n");
     }
-    for c in comparisons {
-        comparison_html(&mut h, c);
+}
+
+/// Notes: "## " lines as headings, paragraphs of "- " lines as lists, other paragraphs as text.
+fn notes_html(n: &str) -> Markup {
+    let paras: Vec<&str> = n
+        .split("\n\n")
+        .map(str::trim)
+        .filter(|p| !p.is_empty())
+        .collect();
+    html! {
+        h2 { "Notes and findings" }
+        @for para in paras {
+            @if para.lines().all(|l| l.trim_start().starts_with("- ")) {
+                ul { @for l in para.lines() { li { (l.trim_start().trim_start_matches("- ")) } } }
+            } @else if let Some(head) = para.strip_prefix("## ") {
+                h3 { (head) }
+            } @else {
+                p { (para) }
+            }
+        }
     }
-    h.push_str("</body></html>\n");
-    h
+}
+
+/// One run's table: a row per check with its numbers and message.
+fn run_table(run: &Value) -> Markup {
+    let manifests = run["manifests"]
+        .as_array()
+        .map(|m| {
+            m.iter()
+                .filter_map(|x| x.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        })
+        .unwrap_or_default();
+    let renderer = renderer_of(run);
+    html! {
+        h2 { "Checks: " (renderer) }
+        p {
+            "manifests " (manifests) "; seed " (num(&run["seed"]))
+            "; family-wise false-alarm rate " (num(&run["family_alpha"]))
+            " (" (run["correction"].as_str().unwrap_or("")) ", " (num(&run["stochastic_tests"]))
+            " stochastic tests); renderer " (renderer)
+        }
+        table {
+            tr {
+                th.l { "check" } th.l { "kind" } th { "verdict" } th { "estimate" } th { "± se" }
+                th { "expected" } th { "p" } th { "α" } th { "power" } th { "s" }
+                th.l { "what was measured" }
+            }
+            @for o in run["outcomes"].as_array().into_iter().flatten() {
+                @let v = o["verdict"].as_str().unwrap_or("?");
+                @let name = o["name"].as_str().unwrap_or("");
+                tr class=(verdict_class(v)) id=(row_id(renderer, name)) {
+                    td.l { (name) }
+                    td.l { (o["kind"].as_str().unwrap_or("")) }
+                    td {
+                        (v)
+                        @if o["regression"].as_bool() == Some(true) { " (regression baseline)" }
+                    }
+                    td { (num(&o["estimate"])) }
+                    td { (num(&o["std_error"])) }
+                    td { (num(&o["expected"])) }
+                    td { (num(&o["p_value"])) }
+                    td { (num(&o["alpha"])) }
+                    td { (o["detection_power"].as_f64().map(power_text).unwrap_or("–".into())) }
+                    td { (format!("{:.2}", o["seconds"].as_f64().unwrap_or(0.0))) }
+                    td.msg { (o["message"].as_str().unwrap_or("")) }
+                }
+            }
+        }
+    }
+}
+
+/// (estimate − expected)/se of an outcome, where it has a real standard error (not one at the
+/// rounding level).
+fn sigmas(o: &Value) -> Option<f64> {
+    let (e, x, se) = (
+        o["estimate"].as_f64()?,
+        o["expected"].as_f64()?,
+        o["std_error"].as_f64()?,
+    );
+    (se > 1e-9 * x.abs().max(e.abs()) && se > 0.0).then(|| (e - x) / se)
 }
 
 /// Renderers side by side: per check, each renderer's estimate ± standard error, its deviation
-/// from the expected value in % and in standard errors, verdict, time and samples per second.
-fn side_by_side(h: &mut String, runs: &[Value]) {
+/// from the expected value in % and in standard errors, verdict, time and samples per second;
+/// above the table, the deviations in standard errors as a dot plot.
+fn side_by_side(runs: &[Value]) -> Markup {
     let mut names: Vec<(String, String)> = Vec::new();
     for r in runs {
         for o in r["outcomes"].as_array().into_iter().flatten() {
@@ -305,133 +379,209 @@ fn side_by_side(h: &mut String, runs: &[Value]) {
             }
         }
     }
-    h.push_str("<h2>Renderers side by side</h2>\n<table><tr><th class=\"l\">check</th><th class=\"l\">kind</th><th>expected</th>");
-    for r in runs {
-        let _ = write!(
-            h,
-            "<th colspan=\"5\">{}</th>",
-            escape(r["renderer"].as_str().unwrap_or("?"))
-        );
-    }
-    h.push_str("</tr>\n<tr><th></th><th></th><th></th>");
-    for _ in runs {
-        h.push_str(
-            "<th>verdict</th><th>estimate ± se</th><th>deviation</th><th>s</th><th>samples/s</th>",
-        );
-    }
-    h.push_str("</tr>\n");
-    for (name, kind) in &names {
-        let find = |r: &Value| -> Option<Value> {
-            r["outcomes"]
-                .as_array()?
-                .iter()
-                .find(|o| o["name"].as_str() == Some(name.as_str()))
-                .cloned()
-        };
-        let expected = runs
+    let find = |r: &Value, name: &str| -> Option<Value> {
+        r["outcomes"]
+            .as_array()?
             .iter()
-            .filter_map(&find)
-            .map(|o| o["expected"].clone())
-            .find(|e| !e.is_null())
-            .unwrap_or(Value::Null);
-        let _ = write!(
-            h,
-            "<tr><td class=\"l\">{}</td><td class=\"l\">{}</td><td>{}</td>",
-            escape(name),
-            escape(kind),
-            num(&expected)
-        );
-        for r in runs {
-            match find(r) {
-                None => h.push_str("<td class=\"skip\" colspan=\"5\">not run</td>"),
-                Some(o) => {
-                    let v = o["verdict"].as_str().unwrap_or("?");
-                    let dev = match (
-                        o["estimate"].as_f64(),
-                        o["expected"].as_f64(),
-                        o["std_error"].as_f64(),
-                    ) {
-                        (Some(e), Some(x), se) if x != 0.0 => format!(
-                            "{:+.3} %{}",
-                            100.0 * (e / x - 1.0),
-                            // σ only for a real standard error (not rounding-level)
-                            se.filter(|s| *s > 1e-9 * x.abs())
-                                .map(|s| format!(" ({:+.1}σ)", (e - x) / s))
-                                .unwrap_or_default()
-                        ),
-                        _ => "–".into(),
-                    };
-                    let secs = o["seconds"].as_f64().unwrap_or(0.0);
-                    let rate = o["samples"]
-                        .as_f64()
-                        .filter(|_| secs > 0.0)
-                        .map(|n| format!("{:.3e}", n / secs))
-                        .unwrap_or("–".into());
-                    let _ = write!(
-                        h,
-                        "<td class=\"{}\">{v}</td><td>{} ± {}</td><td>{dev}</td><td>{secs:.2}</td><td>{rate}</td>",
-                        verdict_class(v),
-                        num(&o["estimate"]),
-                        num(&o["std_error"]),
-                    );
+            .find(|o| o["name"].as_str() == Some(name))
+            .cloned()
+    };
+    // the plot shows the checks some renderer measured with a standard error
+    let plotted: Vec<&(String, String)> = names
+        .iter()
+        .filter(|(n, _)| {
+            runs.iter()
+                .any(|r| find(r, n).as_ref().and_then(sigmas).is_some())
+        })
+        .collect();
+    let deviations: Vec<Deviations> = runs
+        .iter()
+        .map(|r| Deviations {
+            name: renderer_of(r).to_string(),
+            sigmas: plotted
+                .iter()
+                .map(|(n, _)| find(r, n).as_ref().and_then(sigmas))
+                .collect(),
+        })
+        .collect();
+    // the two-sided bound at the smallest per-test α any run used
+    let alpha = runs
+        .iter()
+        .flat_map(|r| r["outcomes"].as_array().into_iter().flatten())
+        .filter_map(|o| o["alpha"].as_f64())
+        .fold(f64::INFINITY, f64::min);
+    let bound = if alpha.is_finite() && alpha > 0.0 {
+        crate::stats::power::z_critical(alpha)
+    } else {
+        3.0
+    };
+    let check_names: Vec<String> = plotted.iter().map(|(n, _)| n.clone()).collect();
+    let plot = deviation_dots(
+        "deviation from the expected value, in standard errors",
+        &check_names,
+        &deviations,
+        bound,
+    );
+    html! {
+        h2 { "Renderers side by side" }
+        @match &plot {
+            Ok(svg) => {
+                figure.plot {
+                    (PreEscaped(svg))
+                    figcaption style="max-width:none" {
+                        "Each dot is one renderer's (estimate − expected)/se for a check with a standard error; "
+                        "dashed: ±" (format!("{bound:.2}")) ", the two-sided bound at the smallest per-test α ("
+                        (format!("{alpha:.2e}")) "); beyond ±" (DEVIATION_CLIP) " drawn at the edge as ×."
+                    }
+                }
+            }
+            Err(e) => { p.fail { (e.to_string()) } }
+        }
+        table {
+            tr {
+                th.l { "check" } th.l { "kind" } th { "expected" }
+                @for r in runs { th colspan="5" { (renderer_of(r)) } }
+            }
+            tr {
+                th {} th {} th {}
+                @for _ in runs {
+                    th { "verdict" } th { "estimate ± se" } th { "deviation" } th { "s" } th { "samples/s" }
+                }
+            }
+            @for (name, kind) in &names {
+                @let expected = runs
+                    .iter()
+                    .filter_map(|r| find(r, name))
+                    .map(|o| o["expected"].clone())
+                    .find(|e| !e.is_null())
+                    .unwrap_or(Value::Null);
+                tr {
+                    td.l { (name) } td.l { (kind) } td { (num(&expected)) }
+                    @for r in runs {
+                        @match find(r, name) {
+                            None => { td.skip colspan="5" { "not run" } }
+                            Some(o) => {
+                                @let v = o["verdict"].as_str().unwrap_or("?");
+                                @let secs = o["seconds"].as_f64().unwrap_or(0.0);
+                                td class=(verdict_class(v)) {
+                                    a href={ "#" (row_id(renderer_of(r), name)) } { (v) }
+                                }
+                                td { (num(&o["estimate"])) " ± " (num(&o["std_error"])) }
+                                td { (deviation_text(&o)) }
+                                td { (format!("{secs:.2}")) }
+                                td {
+                                    (o["samples"].as_f64().filter(|_| secs > 0.0)
+                                        .map(|n| format!("{:.3e}", n / secs)).unwrap_or("–".into()))
+                                }
+                            }
+                        }
+                    }
                 }
             }
         }
-        h.push_str("</tr>\n");
     }
-    h.push_str("</table>\n");
 }
 
-fn comparison_html(h: &mut String, s: &ComparisonSection) {
+/// "+0.123 % (+1.2σ)": relative deviation, and in standard errors where there is a real one.
+fn deviation_text(o: &Value) -> String {
+    match (o["estimate"].as_f64(), o["expected"].as_f64()) {
+        (Some(e), Some(x)) if x != 0.0 => format!(
+            "{:+.3} %{}",
+            100.0 * (e / x - 1.0),
+            sigmas(o)
+                .map(|s| format!(" ({s:+.1}σ)"))
+                .unwrap_or_default()
+        ),
+        _ => "–".into(),
+    }
+}
+
+/// The regions over an image, in the image's fractional coordinates: red where some channel
+/// differs at the comparison's level, yellow elsewhere.
+fn region_overlay(s: &ComparisonSection) -> Markup {
+    let differs = |name: &str| {
+        s.comparison
+            .regions
+            .iter()
+            .any(|r| r.region == name && r.p <= s.comparison.alpha)
+    };
+    html! {
+        @if !s.regions.is_empty() {
+            svg viewBox="0 0 1 1" preserveAspectRatio="none" {
+                @for r in &s.regions {
+                    rect x=(r.rect[0]) y=(r.rect[1]) width=(r.rect[2] - r.rect[0])
+                        height=(r.rect[3] - r.rect[1]) fill="none"
+                        stroke=(if differs(&r.name) { "#e00" } else { "#fd0" })
+                        stroke-width="2" vector-effect="non-scaling-stroke" {
+                        title { (r.name) }
+                    }
+                }
+            }
+        }
+    }
+}
+
+fn comparison_html(i: usize, s: &ComparisonSection) -> Markup {
     let c = &s.comparison;
-    let _ = writeln!(
-        h,
-        "<h2>{}</h2>\n<p class=\"{}\"><strong>{}</strong>: {} region × channel z tests at Šidák per-test α {:.2e} (family-wise {}){}{}</p>",
-        escape(&s.title),
-        if c.differ { "fail" } else { "pass" },
-        if c.differ { "DIFFERENT" } else { "AGREE" },
-        c.regions.len(),
-        c.alpha,
-        s.family_alpha,
-        if c.reference_has_variance { "" } else { "; the reference has no variance channels and is treated as exact" },
-        c.flagged_pixels.map(|k| format!("; {k} pixels differ beyond noise (Benjamini–Hochberg)")).unwrap_or_default(),
-    );
-    h.push_str("<div>");
-    for p in &s.panels {
-        let _ = write!(
-            h,
-            "<figure><img alt=\"{}\" src=\"data:image/png;base64,{}\"><figcaption>{}</figcaption></figure>",
-            escape(&p.caption),
-            base64(&p.png),
-            escape(&p.caption)
-        );
+    html! {
+        h2 id={ "comparison-" (i) } { (s.title) }
+        p class=(if c.differ { "fail" } else { "pass" }) {
+            strong { (if c.differ { "DIFFERENT" } else { "AGREE" }) }
+            ": " (c.regions.len()) " region × channel z tests at Šidák per-test α "
+            (format!("{:.2e}", c.alpha)) " (family-wise " (s.family_alpha) ")"
+            @if !c.reference_has_variance {
+                "; the reference has no variance channels and is treated as exact"
+            }
+            @if let Some(k) = c.flagged_pixels {
+                "; " (k) " pixels differ beyond noise (Benjamini–Hochberg)"
+            }
+            @if !s.regions.is_empty() { "; regions drawn over the images (red: differs)" }
+        }
+        div {
+            @for p in &s.panels {
+                figure {
+                    div.img {
+                        img alt=(p.caption) src={ "data:image/png;base64," (base64(&p.png)) };
+                        (region_overlay(s))
+                    }
+                    figcaption { (p.caption) }
+                }
+            }
+        }
+        table {
+            tr {
+                th.l { "channel" } th { "mean test" } th { "mean reference" } th { "RMSE" }
+                th { "relMSE" } th { "SMAPE" }
+            }
+            @for (ch, m) in CHANNELS.iter().zip(&c.metrics) {
+                tr {
+                    td.l { (ch) }
+                    td { (format!("{:.6}", m.mean_test)) }
+                    td { (format!("{:.6}", m.mean_reference)) }
+                    td { (format!("{:.4e}", m.rmse)) }
+                    td { (format!("{:.4e}", m.rel_mse)) }
+                    td { (format!("{:.4}", m.smape)) }
+                }
+            }
+        }
+        table {
+            tr {
+                th.l { "region" } th { "ch" } th { "test ± se" } th { "reference ± se" }
+                th { "difference" } th { "z" } th { "p" }
+            }
+            @for r in &c.regions {
+                tr class=(if r.p <= c.alpha { "fail" } else { "pass" }) {
+                    td.l { (r.region) }
+                    td { (r.channel) }
+                    td { (format!("{:.6} ± {:.1e}", r.test.0, r.test.1)) }
+                    td { (format!("{:.6} ± {:.1e}", r.reference.0, r.reference.1)) }
+                    td { (format!("{:+.3} %", r.difference_percent())) }
+                    td { (format!("{:.2}", r.z)) }
+                    td { (format!("{:.2e}", r.p)) }
+                }
+            }
+        }
     }
-    h.push_str("</div>\n<table><tr><th class=\"l\">channel</th><th>mean test</th><th>mean reference</th><th>RMSE</th><th>relMSE</th><th>SMAPE</th></tr>\n");
-    for (ch, m) in CHANNELS.iter().zip(&c.metrics) {
-        let _ = writeln!(
-            h,
-            "<tr><td class=\"l\">{ch}</td><td>{:.6}</td><td>{:.6}</td><td>{:.4e}</td><td>{:.4e}</td><td>{:.4}</td></tr>",
-            m.mean_test, m.mean_reference, m.rmse, m.rel_mse, m.smape
-        );
-    }
-    h.push_str("</table>\n<table><tr><th class=\"l\">region</th><th>ch</th><th>test ± se</th><th>reference ± se</th><th>difference</th><th>z</th><th>p</th></tr>\n");
-    for r in &c.regions {
-        let _ = writeln!(
-            h,
-            "<tr class=\"{}\"><td class=\"l\">{}</td><td>{}</td><td>{:.6} ± {:.1e}</td><td>{:.6} ± {:.1e}</td><td>{:+.3} %</td><td>{:.2}</td><td>{:.2e}</td></tr>",
-            if r.p <= c.alpha { "fail" } else { "pass" },
-            escape(&r.region),
-            r.channel,
-            r.test.0,
-            r.test.1,
-            r.reference.0,
-            r.reference.1,
-            r.difference_percent(),
-            r.z,
-            r.p
-        );
-    }
-    h.push_str("</table>\n");
 }
 
 /// A Markdown summary for a CI job page: overall verdict, counts, failing checks, comparisons.
@@ -543,9 +693,10 @@ mod tests {
 
     #[test]
     fn escape_covers_markup() {
+        // attributes are always double-quoted, so ' needs no escape
         assert_eq!(
             escape("<a href=\"x\">&'"),
-            "&lt;a href=&quot;x&quot;&gt;&amp;&#39;"
+            "&lt;a href=&quot;x&quot;&gt;&amp;'"
         );
     }
 
@@ -573,6 +724,7 @@ mod tests {
             panels: comparison_panels(&t, &r, &c).unwrap(),
             comparison: c,
             family_alpha: 0.01,
+            regions: regions.to_vec(),
         };
         assert_eq!(s.panels.len(), 4);
         let run: Value = serde_json::from_str(
@@ -589,8 +741,22 @@ mod tests {
         assert_eq!(html.matches("<img ").count(), 4);
         assert_eq!(html.matches("data:image/png;base64,iVBORw0KGgo").count(), 4);
         assert!(html.contains("left &lt;half&gt;") && html.contains("DIFFERENT"));
-        assert!(html.contains("class=\"fail\"><td class=\"l\">b</td>"));
-        assert!(html.contains("FAILURES"));
+        assert!(html.contains("<tr class=\"fail\" id=\"furnace--b\"><td class=\"l\">b</td>"));
+        // the banner counts the verdicts and links the failing check's row
+        assert!(
+            html.contains("FAILURES") && html.contains("furnace: 1 FAIL, 1 PASS"),
+            "{html}"
+        );
+        assert!(
+            html.contains("<a href=\"#furnace--b\">b</a> (furnace): FAIL"),
+            "{html}"
+        );
+        assert!(html.contains("<a href=\"#comparison-0\">t vs r</a>: DIFFERENT"));
+        // the region is drawn over each of the four images, red as it differs
+        assert_eq!(html.matches("<title>left &lt;half&gt;</title>").count(), 4);
+        assert!(html.contains("stroke=\"#e00\""));
+        // power with significant digits
+        assert!(html.contains("<td>0.2 %</td>"), "{html}");
         let md = markdown(&[run], &[s]);
         assert!(md.starts_with("## furnace: failures"), "{md}");
         assert!(

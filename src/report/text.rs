@@ -331,10 +331,9 @@ fn family_line(r: &RunReport) -> String {
     s
 }
 
-/// A Markdown (GitHub-flavoured) table of every outcome, ending with a newline, with the
 /// A detection power for display: a zero-variance estimator detects any bias above the
 /// rounding allowance, which "0 %" would misrepresent.
-fn power_text(p: f64) -> String {
+pub(crate) fn power_text(p: f64) -> String {
     if p == 0.0 {
         "exact (zero variance)".to_string()
     } else {
@@ -342,6 +341,7 @@ fn power_text(p: f64) -> String {
     }
 }
 
+/// A Markdown (GitHub-flavoured) table of every outcome, ending with a newline, with the
 /// columns check, verdict, estimate ± se, expected, statistic, p, α, power, samples, time.
 /// Unknown values show as `—`; failing verdicts are bold; names are code spans.
 pub fn table_markdown(r: &RunReport) -> String {

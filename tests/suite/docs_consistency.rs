@@ -203,8 +203,10 @@ fn the_convergence_table_is_the_committed_reports() {
             .captures_iter(&r[1])
             .map(|c| tag.replace_all(&c[1], "").trim().to_string())
             .collect();
-        if cells.len() == 8 && cells[0].starts_with("convergence/") {
-            report.push((cells[2].clone(), cells[7].parse().unwrap()));
+        // configuration, sampler, verdict, p, slope ± CI, expected, C, s/sample, efficiency,
+        // N*, time to target
+        if cells.len() == 11 && cells[0].starts_with("convergence/") {
+            report.push((cells[4].clone(), cells[10].parse().unwrap()));
         }
     }
     let doc = read("docs/convergence.md");

@@ -206,10 +206,48 @@ pub struct LadderSummary {
     pub n_star: f64,
     /// Seconds per render to reach it.
     pub seconds_to_target: f64,
+    /// The allowed slope range [min, max] (the rate theory predicts, with its tolerance).
+    pub expected_slope: [f64; 2],
+    /// p of the ladder against that range ([`ladder_p`]).
+    pub p: f64,
 }
 
-/// Summarises a measured ladder for a target relative RMSE (`target` × region mean).
-pub fn summarize(name: &str, l: &Ladder, target: f64) -> Option<LadderSummary> {
+/// p of a ladder against its allowed slope range: the slope test (H0: the slope lies in the
+/// range; the p at the range's nearer boundary, as `z_with_tolerance` with t tails) and, where
+/// it was measured, the power law's lack of fit, Šidák-combined. A failing rate or a bent
+/// ladder both give a small p.
+pub fn ladder_p(l: &Ladder, slope: [f64; 2]) -> f64 {
+    let [lo, hi] = slope;
+    let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+    let f = l.fit;
+    let d = (f.slope - mid).abs();
+    let tail = |t: f64| {
+        if f.dof.is_finite() {
+            t_sf(t, f.dof)
+        } else {
+            normal_sf(t)
+        }
+    };
+    let p = if f.se_slope > 0.0 {
+        tail((d - half) / f.se_slope) + tail((d + half) / f.se_slope)
+    } else if d > half {
+        0.0
+    } else {
+        1.0
+    };
+    let p = match l.lack_of_fit {
+        Some((_, p_lof)) if p_lof.is_finite() => {
+            let p_min = p.min(p_lof);
+            -((-p_min).ln_1p() * 2.0).exp_m1()
+        }
+        _ => p,
+    };
+    p.min(1.0)
+}
+
+/// Summarises a measured ladder for a target relative RMSE (`target` × region mean), with the
+/// allowed slope range `slope` and the ladder's p against it ([`ladder_p`]).
+pub fn summarize(name: &str, l: &Ladder, slope: [f64; 2], target: f64) -> Option<LadderSummary> {
     let last = l.rungs.last()?;
     let mean = last.reference_mean.abs().max(f64::MIN_POSITIVE);
     let n_star = (target * mean / l.fit.intercept.exp()).powf(1.0 / l.fit.slope);
@@ -228,6 +266,8 @@ pub fn summarize(name: &str, l: &Ladder, target: f64) -> Option<LadderSummary> {
         efficiency: 1.0 / (last.rmse * last.rmse * last.seconds),
         n_star,
         seconds_to_target: n_star * last.seconds / last.spp as f64,
+        expected_slope: slope,
+        p: ladder_p(l, slope),
     })
 }
 
@@ -431,33 +471,9 @@ impl Kind for Convergence {
     fn run(check: &Check, params: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let l = ladder(check, params, ctx)?;
         let [lo, hi] = params.slope;
-        let (mid, half) = (0.5 * (lo + hi), 0.5 * (hi - lo));
+        let mid = 0.5 * (lo + hi);
         let f = l.fit;
-        let d = (f.slope - mid).abs();
-        // p of H0: |slope − mid| ≤ half, at the boundary (as z_with_tolerance, with t tails).
-        let tail = |t: f64| {
-            if f.dof.is_finite() {
-                t_sf(t, f.dof)
-            } else {
-                normal_sf(t)
-            }
-        };
-        let p = if f.se_slope > 0.0 {
-            tail((d - half) / f.se_slope) + tail((d + half) / f.se_slope)
-        } else if d > half {
-            0.0
-        } else {
-            1.0
-        };
-        // Two tests: the slope range, and whether a power law describes the ladder at all
-        // (lack of fit). Šidák-combined; a failing rate or a bent ladder both fail the check.
-        let p = match l.lack_of_fit {
-            Some((_, p_lof)) if p_lof.is_finite() => {
-                let p_min = p.min(p_lof);
-                -((-p_min).ln_1p() * 2.0).exp_m1()
-            }
-            _ => p,
-        };
+        let p = ladder_p(&l, params.slope);
         let ci = if f.dof.is_finite() {
             t_two_sided_quantile(0.05, f.dof)
         } else {
@@ -483,7 +499,7 @@ impl Kind for Convergence {
             statistic: Some(Statistic::Z {
                 z: (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE),
             }),
-            p_value: Some(p.min(1.0)),
+            p_value: Some(p),
             samples: l.rungs.iter().map(|r| r.samples).sum::<u64>() * params.seeds,
             message: format!(
                 "{} sampler, {:?}: RMSE ∝ N^{:.3} (95% CI ±{:.3}, {} dof; weighted by each rung's seed spread), constant {:.3e}; allowed slope [{lo}, {hi}]; lack of fit {}; {} seeds per rung; {}",
