@@ -37,9 +37,6 @@ pub struct CheckArgs {
     /// Output: text (a line per check as it ends, then a summary) or json (one JSON object per line: each check's outcome as it ends, then a summary).
     #[arg(long, default_value = "text", value_parser = ["text", "json"])]
     format: String,
-    /// Print no per-check lines and no progress bar, only errors (the exit code still tells).
-    #[arg(short, long)]
-    quiet: bool,
     /// Exit 0 when the manifests or --filter select no check (by default that is an error).
     #[arg(long)]
     allow_empty: bool,
@@ -86,7 +83,15 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
     }
     let inputs = if a.manifests.is_empty() {
-        vec![PathBuf::from("tests/manifests")]
+        let default = PathBuf::from("tests/manifests");
+        if !default.is_dir() {
+            return Err(anyhow::anyhow!(
+                "no manifests given, and the default suite's folder tests/manifests is not here ({}): run from a furnace checkout, or name manifest files or folders, e.g. `furnace check path/to/furnace/tests/manifests`",
+                std::env::current_dir().map_or("?".into(), |d| d.display().to_string())
+            )
+            .into());
+        }
+        vec![default]
     } else {
         a.manifests.clone()
     };
@@ -214,7 +219,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     let mut o = Outcome::new(&s.name, s.kind_name());
                     o.verdict = Verdict::Skipped;
                     o.message = format!("renderer {label} is not available: {why}");
-                    if !a.quiet {
+                    if !super::quiet() {
                         emit(&ProgressBar::hidden(), &a.format, label, &o);
                     }
                     r.outcomes.push(o);
@@ -225,7 +230,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                 // With a terminal: a progress bar with an ETA, the lines printed above it as
                 // checks end. Without one (CI): each line as its check ends. Under Holm's
                 // correction verdicts settle only at the end, so the lines wait for it.
-                let tty = std::io::stdout().is_terminal() && !a.quiet && a.format == "text";
+                let tty = std::io::stdout().is_terminal() && !super::quiet() && a.format == "text";
                 let bar = if tty {
                     ProgressBar::new(specs.len() as u64)
                 } else {
@@ -248,7 +253,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                         }
                         Progress::Finished(o) => {
                             bar.inc(1);
-                            if streaming && !a.quiet {
+                            if streaming && !super::quiet() {
                                 emit(&bar, &a.format, label, o);
                             }
                         }
@@ -256,7 +261,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                 });
                 running.stop();
                 bar.finish_and_clear();
-                if !streaming && !a.quiet {
+                if !streaming && !super::quiet() {
                     for o in &r.outcomes {
                         emit(&bar, &a.format, label, o);
                     }
@@ -280,11 +285,11 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                 "seconds": report.seconds,
             });
             println!("{summary}");
-        } else if !a.quiet {
+        } else if !super::quiet() {
             println!("{}", text::summary(&report));
         }
         let now = harness::model::client::traffic();
-        if now.queries > traffic.queries && a.format != "json" && !a.quiet {
+        if now.queries > traffic.queries && a.format != "json" && !super::quiet() {
             let q = now.queries - traffic.queries;
             let t = now.seconds - traffic.seconds;
             println!(

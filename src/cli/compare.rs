@@ -60,7 +60,7 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
     };
     let c = compare::compare(&test, &reference, &regions, a.alpha, a.fdr, a.rel_tolerance)
         .map_err(|e| anyhow::anyhow!(e))?;
-    println!(
+    super::say!(
         "test {} vs reference {} ({}x{}){}",
         a.test.display(),
         a.reference.display(),
@@ -72,22 +72,38 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
             "; the reference has no variance channels and is treated as exact"
         }
     );
-    println!(
+    super::say!(
         "{:<8} {:>12} {:>12} {:>12} {:>12} {:>10}",
-        "channel", "mean test", "mean ref", "RMSE", "relMSE", "SMAPE"
+        "channel",
+        "mean test",
+        "mean ref",
+        "RMSE",
+        "relMSE",
+        "SMAPE"
     );
     for (ch, m) in compare::CHANNELS.iter().zip(&c.metrics) {
-        println!(
+        super::say!(
             "{:<8} {:>12.6} {:>12.6} {:>12.4e} {:>12.4e} {:>10.4}",
-            ch, m.mean_test, m.mean_reference, m.rmse, m.rel_mse, m.smape
+            ch,
+            m.mean_test,
+            m.mean_reference,
+            m.rmse,
+            m.rel_mse,
+            m.smape
         );
     }
-    println!(
+    super::say!(
         "{:<22} {:>3} {:>22} {:>22} {:>11} {:>8} {:>9}",
-        "region", "ch", "test ± se", "reference ± se", "difference", "z", "p"
+        "region",
+        "ch",
+        "test ± se",
+        "reference ± se",
+        "difference",
+        "z",
+        "p"
     );
     for r in &c.regions {
-        println!(
+        super::say!(
             "{:<22} {:>3} {:>13.6} ± {:<7.1e} {:>13.6} ± {:<7.1e} {:>+10.3}% {:>8.2} {:>9.2e}{}",
             r.region,
             r.channel,
@@ -102,7 +118,7 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
         );
     }
     if let Some(k) = c.flagged_pixels {
-        println!(
+        super::say!(
             "{k} of {} pixels differ beyond noise (Benjamini-Hochberg, FDR {})",
             test.width * test.height,
             a.fdr
@@ -157,7 +173,7 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
         debug_assert_eq!(differ, sec.comparison.differ);
     }
     let verdict = if c.differ { "DIFFERENT" } else { "AGREE" };
-    println!(
+    super::say!(
         "{verdict}: {} region x channel tests at Sidak per-test alpha {:.2e} (family-wise {})",
         c.regions.len(),
         c.alpha,

@@ -61,7 +61,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
                 .map_err(|e| anyhow::anyhow!("{}: {e}", check.name))?;
             let summary = convergence::summarize(&check.name, &l, params.slope, a.target)
                 .ok_or_else(|| anyhow::anyhow!("{}: the ladder has no rungs", check.name))?;
-            println!("{}", line(&summary));
+            super::say!("{}", line(&summary));
             table.push(summary);
             let mean = l.rungs[0].reference_mean.abs().max(f64::MIN_POSITIVE);
             let label = check.name.rsplit('/').next().unwrap_or(&check.name);
@@ -86,7 +86,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
             p,
             &page(a.seed, a.target, alpha, &table, &manifests, &time_error)?,
         )?;
-        println!("wrote {}", p.display());
+        super::say!("wrote {}", p.display());
     }
     Ok(0)
 }

@@ -32,6 +32,6 @@ pub fn run(a: ExportArgs) -> Result<i32, Failure> {
         furnace::export::mitsuba::write(&scene, &a.out)
             .with_context(|| format!("cannot export {}", a.scene.display()))?
     };
-    println!("wrote {}", written.display());
+    super::say!("wrote {}", written.display());
     Ok(0)
 }

@@ -26,9 +26,6 @@ pub struct MergeArgs {
     /// Write the HTML report here (renderers side by side).
     #[arg(long)]
     report: Option<PathBuf>,
-    /// Print no check lines, only errors.
-    #[arg(short, long)]
-    quiet: bool,
 }
 
 /// Runs `furnace merge`; returns the exit code.
@@ -50,14 +47,14 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
     for renderer in &order {
         let merged = shard::merge(&groups[renderer])
             .map_err(|e| anyhow::anyhow!("cannot merge the shards of {renderer}: {e}"))?;
-        if !a.quiet {
+        if !super::quiet() {
             if order.len() > 1 {
-                println!("== {renderer}");
+                super::say!("== {renderer}");
             }
             for o in &merged.outcomes {
-                println!("{}", super::verdict_line(o));
+                super::say!("{}", super::verdict_line(o));
             }
-            println!("{}", text::summary(&merged));
+            super::say!("{}", text::summary(&merged));
         }
         reports.push(merged);
     }

@@ -28,7 +28,28 @@ pub struct Cli {
     /// Colour the verdicts: auto (when stdout is a terminal and NO_COLOR is not set), always or never.
     #[arg(long, global = true, value_enum, default_value_t = ColorWhen::Auto)]
     color: ColorWhen,
+    /// Print nothing on stdout (no check lines, summaries or progress bars); errors and warnings still go to stderr and the exit code still tells. `check --format json` keeps its JSON lines.
+    #[arg(short, long, global = true)]
+    quiet: bool,
 }
+
+/// Whether `--quiet` was given, set once before any command runs.
+static QUIET: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// True under `--quiet`.
+pub(crate) fn quiet() -> bool {
+    QUIET.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// `println!` unless `--quiet` was given: for a command's informational lines on stdout.
+macro_rules! say {
+    ($($arg:tt)*) => {
+        if !$crate::cli::quiet() {
+            println!($($arg)*);
+        }
+    };
+}
+pub(crate) use say;
 
 /// When verdict labels are coloured.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -115,6 +136,7 @@ pub fn run(cli: Cli) -> Result<i32, Failure> {
         }
     };
     COLOR.store(color, std::sync::atomic::Ordering::Relaxed);
+    QUIET.store(cli.quiet, std::sync::atomic::Ordering::Relaxed);
     match cli.command {
         Command::Render(args) => render::run(args),
         Command::Check(args) => check::run(args),

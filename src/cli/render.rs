@@ -32,9 +32,9 @@ pub struct RenderArgs {
     /// Image height in pixels [default: the scene's render.height, else 256].
     #[arg(long)]
     height: Option<usize>,
-    /// Maximum number of bounces (0 = emitters only, 1 = direct light) [default: the scene's render.max_depth, else unlimited]. Mitsuba's max_depth is this + 1.
-    #[arg(long)]
-    max_depth: Option<u32>,
+    /// Maximum number of bounces (0 = emitters only, 1 = direct light) or "unlimited" [default: the scene's render.max_depth, else unlimited]. Mitsuba's max_depth is this + 1.
+    #[arg(long, value_parser = parse_max_depth)]
+    max_depth: Option<MaxDepth>,
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
@@ -85,13 +85,23 @@ pub struct RenderArgs {
     /// Renderer table for --renderer [default: as `check`: ~/.config/furnace/renderers.toml, else the built-in one].
     #[arg(long, value_name = "FILE", requires = "renderer")]
     renderers: Option<PathBuf>,
-    /// No progress bar (the closing lines on stdout stay; redirect them to silence them).
-    #[arg(short, long)]
-    quiet: bool,
     /// Work budget: the most samples (width × height × spp camera paths, or light paths) a
     /// render may take; the default is about 5 hours at 1 M samples/s.
     #[arg(long, default_value_t = furnace::limits::DEFAULT_MAX_SAMPLES, help_heading = "Limits")]
     max_samples: u64,
+}
+
+/// A bounce limit, or None for "unlimited" (the scene's own limit is then overridden too).
+#[derive(Debug, Clone, Copy)]
+struct MaxDepth(Option<u32>);
+
+fn parse_max_depth(s: &str) -> Result<MaxDepth, String> {
+    if s == "unlimited" {
+        return Ok(MaxDepth(None));
+    }
+    s.parse::<u32>().map(|d| MaxDepth(Some(d))).map_err(|_| {
+        format!("{s:?} is not a bounce count; give a whole number >= 0 or \"unlimited\"")
+    })
 }
 
 /// Russian-roulette start depth, or None for "off".
@@ -119,7 +129,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         seed: a.seed,
         threads: a.threads,
         integrator: PathTracer {
-            max_depth: a.max_depth.or(d.max_depth),
+            max_depth: a.max_depth.map_or(d.max_depth, |m| m.0),
             rr_depth: a.rr_depth.0,
             strategy: match a.strategy.as_str() {
                 "bsdf" => Strategy::BsdfOnly,
@@ -204,9 +214,9 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         );
     }
     if let Some(k) = shard {
-        return render_shard(&a, &scene, &settings, light, total, k, attrs, &exr_path);
+        return render_shard(&scene, &settings, light, total, k, attrs, &exr_path);
     }
-    let bar = progress_bar(a.quiet, total)?;
+    let bar = progress_bar(super::quiet(), total)?;
     let start = Instant::now();
     let film = if light {
         render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
@@ -218,7 +228,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     bar.finish_and_clear();
     let code = write_film(&film, attrs, &exr_path, &png_path, a.exposure)?;
     if light {
-        println!(
+        super::say!(
             "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
             settings.width,
             settings.height,
@@ -227,7 +237,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             total as f64 / secs / 1e6
         );
     } else {
-        println!(
+        super::say!(
             "{}x{} px, {} spp, {:.2} s wall, {:.3} M samples/s",
             settings.width,
             settings.height,
@@ -239,7 +249,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
     // image mean, and 1/(relative variance × time) — comparable across estimators.
     let rel_var = relative_variance(&film);
-    println!(
+    super::say!(
         "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
         1.0 / (rel_var * secs)
     );
@@ -326,7 +336,7 @@ fn render_external(
         film.header.attributes = attrs;
         film.write(out)
             .with_context(|| format!("cannot write the partial film {}", out.display()))?;
-        println!(
+        super::say!(
             "wrote {} (part {}/{}: runs {}..{} of {k} through {spec}, {:.2} s wall); join the parts with `furnace merge-films`",
             out.display(),
             part.index,
@@ -341,7 +351,7 @@ fn render_external(
         .render(scene, settings)
         .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
     let code = write_film(&film, attrs, out, png, a.exposure)?;
-    println!(
+    super::say!(
         "{}x{} px, {} spp in {k} runs through {spec}, {:.2} s wall",
         settings.width,
         settings.height,
@@ -352,9 +362,7 @@ fn render_external(
 }
 
 /// Renders part `k` and writes it as a partial film.
-#[allow(clippy::too_many_arguments)]
 fn render_shard(
-    a: &RenderArgs,
     scene: &Scene,
     settings: &RenderSettings,
     light: bool,
@@ -382,7 +390,7 @@ fn render_shard(
         )
         .into());
     };
-    let bar = progress_bar(a.quiet, total)?;
+    let bar = progress_bar(super::quiet(), total)?;
     let start = Instant::now();
     let part = if light {
         furnace::render::render_light_part(scene, settings, total, range.clone(), &|n| {
@@ -397,7 +405,7 @@ fn render_shard(
     part.header.attributes = attrs;
     part.write(path)
         .with_context(|| format!("cannot write the partial film {}", path.display()))?;
-    println!(
+    super::say!(
         "wrote {} (part {}/{}: {} {} of {}, {:.2} s wall); join the parts with `furnace merge-films`",
         path.display(),
         k.index,
@@ -480,7 +488,7 @@ pub(super) fn write_film(
             furnace::integrators::MAX_PATH_EVENTS
         );
     }
-    println!("wrote {} and {}", exr_path.display(), png_path.display());
+    super::say!("wrote {} and {}", exr_path.display(), png_path.display());
     Ok(if bad > 0 || film.truncated_paths > 0 {
         1
     } else {

@@ -88,7 +88,7 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     if let Some(p) = &a.markdown {
         write_file(p, &html::markdown(&runs, &sections))?;
     }
-    println!("wrote {}", a.out.display());
+    super::say!("wrote {}", a.out.display());
     Ok(if html::all_pass(&runs, &sections) {
         0
     } else {

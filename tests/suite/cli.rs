@@ -43,7 +43,6 @@ fn render_writes_exr_and_png_and_reports_speed() {
             "16",
             "--height",
             "16",
-            "--quiet",
             "--out",
         ])
         .arg(&exr)
@@ -247,7 +246,6 @@ fn render_with_the_light_tracer() {
             "8",
             "--height",
             "8",
-            "--quiet",
             "--out",
         ])
         .arg(&exr)
@@ -315,7 +313,6 @@ fn a_closed_stdout_pipe_ends_quietly() {
             "8",
             "--height",
             "8",
-            "--quiet",
         ])
         .arg("--out")
         .arg(std::env::temp_dir().join("furnace-pipe-test.exr"))
@@ -328,6 +325,47 @@ fn a_closed_stdout_pipe_ends_quietly() {
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert_eq!(out.status.code(), Some(141), "{stderr}");
+}
+
+/// `--quiet` is accepted by every command, before or after it, and silences stdout.
+#[test]
+fn quiet_silences_stdout_on_every_command() {
+    let exr = std::env::temp_dir().join(format!("furnace-quiet-{}.exr", std::process::id()));
+    let exr = exr.to_str().unwrap();
+    let render = [
+        "render",
+        "scenes/furnace-sphere.toml",
+        "--spp",
+        "2",
+        "--width",
+        "4",
+        "--height",
+        "4",
+        "--out",
+        exr,
+    ];
+    for args in [
+        [&["-q"][..], &render[..]].concat(),
+        [&render[..], &["--quiet"][..]].concat(),
+        vec!["compare", exr, exr, "-q"],
+        vec![
+            "check",
+            "tests/manifests/furnace.toml",
+            "--filter",
+            "furnace/sphere-depth0*",
+            "-q",
+        ],
+    ] {
+        let out = furnace().args(&args).output().unwrap();
+        assert!(out.status.success(), "{args:?}: {out:?}");
+        assert!(
+            out.stdout.is_empty(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stdout)
+        );
+    }
+    let _ = std::fs::remove_file(exr);
+    let _ = std::fs::remove_file(exr.replace(".exr", ".png"));
 }
 
 #[test]
