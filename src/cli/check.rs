@@ -10,7 +10,7 @@ use furnace::harness::outcome::{Outcome, Verdict};
 use furnace::harness::runner::Progress;
 use furnace::harness::shard::{self, Shard};
 use furnace::harness::{self, manifest, BuiltIn, Correction, ModelSource, RunOptions, ShardPlan};
-use furnace::report::text;
+use furnace::report::{bundle, html, text};
 use indicatif::{ProgressBar, ProgressStyle};
 use std::collections::BTreeMap;
 use std::io::IsTerminal;
@@ -58,6 +58,12 @@ pub struct CheckArgs {
     /// Write a self-contained HTML report here (renderers side by side when several are given).
     #[arg(long)]
     report: Option<PathBuf>,
+    /// Write a reproducer bundle for each check that does not pass against an external renderer into this folder (exported scene, command.sh, images, README.md) [default: REPORT-bundles/ beside --report, none without --report].
+    #[arg(long, value_name = "DIR", conflicts_with = "no_bundles")]
+    bundles: Option<PathBuf>,
+    /// Write no reproducer bundles.
+    #[arg(long)]
+    no_bundles: bool,
     /// Run only shard K of N (1-based) of the selected checks, for a CI matrix: the family-wise correction still spans every check, and `furnace merge` joins the shards' --json files into one run's results.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
@@ -180,6 +186,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     } else {
         None
     };
+    let bundles = bundle_root(&a);
     let mut reports = Vec::new();
     let mut traffic = harness::model::client::traffic();
     for label in &a.renderers {
@@ -249,6 +256,9 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     match event {
                         Progress::Started(name) => {
                             running.now(name);
+                            if let (Some(e), Some(root)) = (&external, &bundles) {
+                                e.keep_runs_in(Some(root.join(html::row_id(label, name))));
+                            }
                             bar.set_message(format!("{label}: {name}"));
                         }
                         Progress::Finished(o) => {
@@ -261,6 +271,11 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                 });
                 running.stop();
                 bar.finish_and_clear();
+                let mut r = r;
+                if let (Some(e), Some(root)) = (&external, &bundles) {
+                    e.keep_runs_in(None);
+                    write_bundles(root, e, &a, &specs, &mut r.outcomes)?;
+                }
                 if !streaming && !super::quiet() {
                     for o in &r.outcomes {
                         emit(&bar, &a.format, label, o);
@@ -318,6 +333,92 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             0
         },
     )
+}
+
+/// Where reproducer bundles go: `--bundles`, else `REPORT-bundles/` beside `--report`; none
+/// under `--no-bundles` or without either.
+fn bundle_root(a: &CheckArgs) -> Option<PathBuf> {
+    if a.no_bundles {
+        return None;
+    }
+    a.bundles.clone().or_else(|| {
+        a.report.as_ref().map(|r| {
+            let stem = r
+                .file_stem()
+                .map_or("report".into(), |s| s.to_string_lossy().into_owned());
+            r.with_file_name(format!("{stem}-bundles"))
+        })
+    })
+}
+
+/// After an external renderer's run: a bundle for each check that did not pass (its kept
+/// renders, README.md, outcome.json), and the kept renders of the others removed.
+fn write_bundles(
+    root: &Path,
+    e: &adapter::External,
+    a: &CheckArgs,
+    specs: &[harness::Check],
+    outcomes: &mut [Outcome],
+) -> Result<(), Failure> {
+    let mut version = None;
+    for o in outcomes.iter_mut() {
+        let dir = root.join(html::row_id(&e.label, &o.name));
+        if !o.is_failure() {
+            if dir.exists() {
+                std::fs::remove_dir_all(&dir)
+                    .with_context(|| format!("cannot remove {}", dir.display()))?;
+            }
+            continue;
+        }
+        std::fs::create_dir_all(&dir)
+            .with_context(|| format!("cannot create the bundle folder {}", dir.display()))?;
+        let mut renders: Vec<String> = std::fs::read_dir(&dir)
+            .with_context(|| format!("cannot list {}", dir.display()))?
+            .filter_map(|d| d.ok())
+            .map(|d| d.file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with("render-"))
+            .collect();
+        renders.sort_by_key(|n| n[7..].parse::<u64>().unwrap_or(u64::MAX));
+        let origin = specs
+            .iter()
+            .find(|s| s.name == o.name)
+            .map_or(String::new(), |s| s.origin.clone());
+        let manifest = origin.rsplit_once(':').map_or(origin.as_str(), |(f, _)| f);
+        let mut rerun = format!(
+            "furnace check {} --filter {} --renderer {} --seed {}",
+            adapter::shell_quote(manifest),
+            adapter::shell_quote(&o.name),
+            adapter::shell_quote(&e.label),
+            a.seed
+        );
+        if let Some(t) = &a.renderers_file {
+            rerun.push_str(&format!(
+                " --renderers {}",
+                adapter::shell_quote(&t.display().to_string())
+            ));
+        }
+        let info = bundle::BundleInfo {
+            renderer: e.label.clone(),
+            renderer_version: version.get_or_insert_with(|| e.version()).clone(),
+            rerun,
+            origin,
+            renders,
+        };
+        super::write_file(&dir.join("README.md"), &bundle::readme(o, &info))?;
+        let json = serde_json::to_string_pretty(o).context("outcome as JSON")?;
+        super::write_file(&dir.join("outcome.json"), &json)?;
+        let readme = dir.join("README.md");
+        // as the HTML report beside the bundles folder links it
+        let shown = match &a.report {
+            Some(r) if a.bundles.is_none() => readme
+                .strip_prefix(r.parent().unwrap_or(Path::new("")))
+                .unwrap_or(&readme)
+                .to_path_buf(),
+            _ => readme,
+        };
+        o.bundle = Some(shown.display().to_string());
+    }
+    Ok(())
 }
 
 /// Each check's wall time in an earlier run's JSON results, by name.

@@ -2,7 +2,9 @@
 //! a command template fed the scene exported to the renderer's format, models through a model
 //! server (`docs/model-protocol.md`). Commands run with a cleared environment (PATH, HOME, LANG,
 //! TMPDIR and the table's `env`), a time limit, bounded captured output, and a temporary folder
-//! removed on every way out. A black box's image variance comes from `batches` independent runs
+//! removed on every way out — or, while a reproducer bundle is being gathered
+//! ([`External::keep_runs_in`]), a folder kept with the exported scene and a `command.sh` that
+//! re-runs the renderer. A black box's image variance comes from `batches` independent runs
 //! (docs/renderers.md).
 
 use super::renderer::{Renderer, RendererError};
@@ -21,6 +23,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 /// One `[renderer.NAME]` table.
@@ -66,6 +69,10 @@ pub struct RendererDesc {
     /// Longest wait for one model-server reply, seconds (default 60).
     #[serde(default)]
     pub model_timeout: Option<f64>,
+    /// A command ({variant}, {furnace}) that prints the renderer's version, recorded in
+    /// reproducer bundles.
+    #[serde(default)]
+    pub version: Option<Vec<String>>,
 }
 
 #[derive(Debug, Deserialize)]
@@ -182,6 +189,9 @@ pub struct External {
     /// Working directory of the command (relative paths in the template resolve here).
     pub workdir: PathBuf,
     counter: AtomicU64,
+    /// Where the runs of the check under way are kept (exported scene, command.sh, images),
+    /// when a reproducer bundle is being gathered.
+    keep: Mutex<Option<PathBuf>>,
 }
 
 impl External {
@@ -215,6 +225,7 @@ impl External {
             variant,
             workdir: workdir.to_path_buf(),
             counter: AtomicU64::new(0),
+            keep: Mutex::new(None),
         })
     }
 
@@ -300,9 +311,64 @@ impl External {
         })
     }
 
+    /// Keep every later render's exported scene, images and `command.sh` in a folder
+    /// `render-N` under `dir` (None: temporary folders again, removed after each render).
+    pub fn keep_runs_in(&self, dir: Option<PathBuf>) {
+        *self.keep.lock().unwrap_or_else(|e| e.into_inner()) = dir;
+    }
+
+    /// The renderer's version from the table's `version` command (its first line of output),
+    /// or why there is none.
+    pub fn version(&self) -> String {
+        let Some(v) = &self.desc.version else {
+            return "not recorded (the renderer table has no `version` command)".into();
+        };
+        let argv = self.expand(v, &|_| None);
+        match run_bounded(self.command(&argv), self.timeout()) {
+            Ok(out) if out.success => out.stdout.lines().next().unwrap_or("").trim().to_string(),
+            Ok(out) => format!("{:?} failed: {}", argv.join(" "), tail(&out.stderr)),
+            Err(e) => format!("{:?}: {e}", argv.join(" ")),
+        }
+    }
+
+    /// A shell script line running `argv` with the renderer's environment, every path under
+    /// `dir` written relative to the script's own folder (`$here`).
+    fn script_line(&self, argv: &[String], dir: &Path) -> String {
+        let prefix = dir.display().to_string();
+        let env: Vec<String> = self
+            .environment()
+            .iter()
+            .map(|(k, v)| format!("{k}={}", shell_quote(v)))
+            .collect();
+        let args: Vec<String> = argv
+            .iter()
+            .map(|a| match a.strip_prefix(&prefix) {
+                Some(rest) => format!("\"$here\"{}", shell_quote(rest)),
+                None => shell_quote(a),
+            })
+            .collect();
+        let env = if env.is_empty() {
+            String::new()
+        } else {
+            format!("env {} ", env.join(" "))
+        };
+        format!("{env}{}\n", args.join(" "))
+    }
+
     /// Independent runs per image.
     pub fn batches(&self) -> u64 {
         self.desc.batches.unwrap_or(4) as u64
+    }
+}
+
+/// `s` quoted for a POSIX shell: as is when it holds only safe characters, else in single
+/// quotes with each ' written '\''.
+pub fn shell_quote(s: &str) -> String {
+    let safe = |c: char| c.is_ascii_alphanumeric() || "-_./=:,+@%".contains(c);
+    if !s.is_empty() && s.chars().all(safe) {
+        s.to_string()
+    } else {
+        format!("'{}'", s.replace('\'', "'\\''"))
     }
 }
 
@@ -317,7 +383,6 @@ fn tail(s: &str) -> String {
     }
 }
 
-/// A temporary folder, removed when dropped (on every way out of a render, errors included).
 /// What a bounded run printed and how it ended.
 #[derive(Debug, Clone)]
 pub struct RunOutput {
@@ -327,6 +392,8 @@ pub struct RunOutput {
     pub status: String,
     /// The last [`OUTPUT_KEPT`] bytes of its stderr (lossy UTF-8).
     pub stderr: String,
+    /// The last [`OUTPUT_KEPT`] bytes of its stdout (lossy UTF-8).
+    pub stdout: String,
 }
 
 /// Runs `cmd` with stdin closed, stdout and stderr read to their ends but only their last
@@ -385,12 +452,13 @@ pub fn run_bounded(mut cmd: Command, timeout: Duration) -> Result<RunOutput, Str
             Err(e) => return Err(format!("cannot wait for the process: {e}")),
         }
     };
-    let _ = out.join();
+    let stdout = out.join().unwrap_or_default();
     let stderr = err.join().unwrap_or_default();
     Ok(RunOutput {
         success: status.success(),
         status: status.to_string(),
         stderr: String::from_utf8_lossy(&stderr).into_owned(),
+        stdout: String::from_utf8_lossy(&stdout).into_owned(),
     })
 }
 
@@ -487,13 +555,40 @@ impl External {
         let Some(command) = &self.desc.command else {
             return Err(format!("{} serves models only (no `command`)", self.label));
         };
-        let dir = crate::io::cleanup::Pending::new(std::env::temp_dir().join(format!(
-            "furnace-{}-{}-{}",
-            self.label.replace([':', '/'], "_"),
-            std::process::id(),
-            self.counter.fetch_add(1, Ordering::Relaxed)
-        )));
-        let dir = dir.path();
+        let n = self.counter.fetch_add(1, Ordering::Relaxed);
+        let kept = self
+            .keep
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .as_ref()
+            .map(|root| root.join(format!("render-{n}")));
+        // a kept folder outlives the process; a temporary one is removed on every way out
+        let temporary = match &kept {
+            Some(_) => None,
+            None => Some(crate::io::cleanup::Pending::new(std::env::temp_dir().join(
+                format!(
+                    "furnace-{}-{}-{n}",
+                    self.label.replace([':', '/'], "_"),
+                    std::process::id(),
+                ),
+            ))),
+        };
+        let dir = match (&kept, &temporary) {
+            (Some(d), _) => d.as_path(),
+            (None, Some(t)) => t.path(),
+            (None, None) => unreachable!("one of the two is set"),
+        };
+        let mut script = kept.as_ref().map(|_| {
+            format!(
+                "#!/bin/sh\n# {} as furnace ran it: {} independent runs of {} spp, {}x{} px; each writes batch-B.exr here.\nhere=$(cd \"$(dirname \"$0\")\" && pwd)\ncd {} || exit 1\n",
+                self.label,
+                k,
+                spp,
+                s.width,
+                s.height,
+                shell_quote(&self.workdir.canonicalize().unwrap_or(self.workdir.clone()).display().to_string())
+            )
+        });
         let xml = match self.desc.exporter.as_str() {
             "mitsuba3" => export::mitsuba::write(scene, dir).map_err(|e| e.to_string())?,
             other => return Err(format!("unknown exporter {other:?}")),
@@ -532,6 +627,12 @@ impl External {
                 })
             };
             let argv = self.expand(command, &value);
+            if let Some(script) = &mut script {
+                script.push_str(&self.script_line(&argv, dir));
+                let path = dir.join("command.sh");
+                std::fs::write(&path, script.as_bytes())
+                    .map_err(|e| format!("cannot write {}: {e}", path.display()))?;
+            }
             // the table's time limit, or what is left of the check's, whichever is shorter
             let left = s
                 .deadline
@@ -587,6 +688,14 @@ impl External {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn shell_words_survive_quotes_and_spaces() {
+        assert_eq!(shell_quote("a/b.toml"), "a/b.toml");
+        assert_eq!(shell_quote("x[a=0.5]"), "'x[a=0.5]'");
+        assert_eq!(shell_quote("it's"), "'it'\\''s'");
+        assert_eq!(shell_quote(""), "''");
+    }
 
     fn write(text: &str) -> PathBuf {
         let p = std::env::temp_dir().join(format!(

@@ -120,6 +120,10 @@ pub struct Outcome {
     /// reported apart from the physics checks and never counted as validation.
     #[serde(default)]
     pub regression: bool,
+    /// The reproducer bundle of a check that did not pass against an external renderer: its
+    /// README.md, relative to the HTML report's folder (or as `--bundles` gave it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub bundle: Option<String>,
 }
 
 impl Outcome {
@@ -141,6 +145,7 @@ impl Outcome {
             seconds: 0.0,
             message: String::new(),
             regression: false,
+            bundle: None,
         }
     }
 

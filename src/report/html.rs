@@ -348,7 +348,12 @@ fn run_table(run: &Value) -> Markup {
                     td { (num(&o["alpha"])) }
                     td { (o["detection_power"].as_f64().map(power_text).unwrap_or("–".into())) }
                     td { (format!("{:.2}", o["seconds"].as_f64().unwrap_or(0.0))) }
-                    td.msg { (o["message"].as_str().unwrap_or("")) }
+                    td.msg {
+                        (o["message"].as_str().unwrap_or(""))
+                        @if let Some(b) = o["bundle"].as_str() {
+                            " " a href=(b) { "reproducer bundle" }
+                        }
+                    }
                 }
             }
         }

@@ -1,6 +1,7 @@
 //! Renderings of check outcomes: text lines and summary, JSON, JUnit XML, Markdown, HTML.
 //! Pure formatting.
 
+pub mod bundle;
 pub mod convergence;
 pub mod html;
 pub mod json;

@@ -163,3 +163,105 @@ fn external_renderers_skip_checks_that_state_furnace_internals() {
         assert!(s.kind.not_applicable(&s, &builtin).is_none());
     }
 }
+
+/// A check that fails against an external renderer leaves a reproducer bundle beside the
+/// report: README.md with the numbers and the re-run command, outcome.json, and the exported
+/// scene with a command.sh that re-runs the renderer alone; the report links it. A passing
+/// check leaves none.
+#[test]
+fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
+    let dir = std::env::temp_dir().join(format!("furnace-bundle-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    // the stand-in renders albedo 0.45 where the check's scene says 0.5: FAIL
+    let wrong = dir.join("wrong.toml");
+    let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-sphere-0.5.toml"))
+        .unwrap()
+        .replace("reflectance = 0.5", "reflectance = 0.45");
+    std::fs::write(&wrong, text).unwrap();
+    let table = renderers(wrong.to_str().unwrap(), "\"true\"");
+    let report = dir.join("r.html");
+    let run = |filter: &str| {
+        Command::new(env!("CARGO_BIN_EXE_furnace"))
+            .current_dir(root(""))
+            .args([
+                "check",
+                "tests/manifests/furnace.toml",
+                "--filter",
+                filter,
+                "--renderer",
+                "stand-in",
+                "--alpha",
+                "1e-4",
+                "-q",
+                "--renderers",
+            ])
+            .arg(&table)
+            .arg("--report")
+            .arg(&report)
+            .output()
+            .unwrap()
+    };
+    let out = run("furnace/sphere[albedo=0.5]");
+    assert_eq!(out.status.code(), Some(1), "{out:?}");
+    let bundle = dir.join("r-bundles/stand-in--furnace_sphere_albedo_0_5_");
+    let readme = std::fs::read_to_string(bundle.join("README.md")).unwrap();
+    for part in [
+        "# furnace/sphere[albedo=0.5]: FAIL against stand-in",
+        "| expected | 2.000",
+        "furnace check tests/manifests/furnace.toml --filter 'furnace/sphere[albedo=0.5]' --renderer stand-in --seed 1 --renderers",
+        "sh render-0/command.sh",
+    ] {
+        assert!(readme.contains(part), "{part:?} missing from\n{readme}");
+    }
+    let outcome: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(bundle.join("outcome.json")).unwrap())
+            .unwrap();
+    assert_eq!(outcome["verdict"], "FAIL");
+    let render = bundle.join("render-0");
+    assert!(render.join("scene.xml").is_file());
+    let html = std::fs::read_to_string(&report).unwrap();
+    assert!(
+        html.contains(
+            "href=\"r-bundles/stand-in--furnace_sphere_albedo_0_5_/README.md\">reproducer bundle"
+        ),
+        "the report links the bundle"
+    );
+    // command.sh re-runs the renderer alone: its independent runs write their images again
+    for b in 0..4 {
+        std::fs::remove_file(render.join(format!("batch-{b}.exr"))).unwrap();
+    }
+    let sh = Command::new("sh")
+        .arg(render.join("command.sh"))
+        .output()
+        .unwrap();
+    assert!(sh.status.success(), "{sh:?}");
+    for b in 0..4 {
+        assert!(render.join(format!("batch-{b}.exr")).is_file(), "batch {b}");
+    }
+    // the same check against a stand-in that renders the right scene passes: no bundle
+    let right = renderers("tests/manifests/scenes/furnace-sphere-0.5.toml", "\"true\"");
+    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args([
+            "check",
+            "tests/manifests/furnace.toml",
+            "--filter",
+            "furnace/sphere[albedo=0.5]",
+            "--renderer",
+            "stand-in",
+            "-q",
+            "--renderers",
+        ])
+        .arg(&right)
+        .arg("--bundles")
+        .arg(dir.join("pass-bundles"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    let left = std::fs::read_dir(dir.join("pass-bundles"))
+        .map(|d| d.count())
+        .unwrap_or(0);
+    assert_eq!(left, 0, "a passing check keeps no renders");
+    let _ = std::fs::remove_dir_all(&dir);
+}
