@@ -1403,3 +1403,76 @@ fn half_space_rejects_single_scattering() {
         &SingleScattering,
     );
 }
+
+/// A renderer whose triangles do not meet at their shared edges: it renders the tessellated
+/// furnace enclosure (albedo 0.5) with every triangle of the mesh shrunk about its centroid by
+/// `shrink`, so light leaks through slits along every edge and around every vertex, as through
+/// a triangle test that is not watertight. With `shrink` 0 it is the clean twin: the same
+/// wrapper rendering the mesh as it is.
+struct LeakyEdges {
+    scene: Scene,
+}
+
+impl LeakyEdges {
+    fn new(shrink: f64) -> Self {
+        let meshes = root("tests/manifests/scenes/meshes");
+        let mesh = furnace::io::mesh::load_mesh(&meshes.join("icosphere-5120.ply")).unwrap();
+        let mut positions = Vec::new();
+        let mut triangles = Vec::new();
+        for t in &mesh.triangles {
+            let p = t.map(|i| Vec3::from(mesh.positions[i as usize]));
+            let c = (p[0] + p[1] + p[2]) / 3.0;
+            let n = positions.len() as u32;
+            positions.extend(p.map(|v| c + (v - c) * (1.0 - shrink)));
+            triangles.push([n, n + 1, n + 2]);
+        }
+        let dir = std::env::temp_dir().join(format!(
+            "furnace-leaky-{}-{}",
+            std::process::id(),
+            (shrink * 1e6) as u64
+        ));
+        std::fs::create_dir_all(dir.join("meshes")).unwrap();
+        std::fs::write(
+            dir.join("meshes/icosphere-5120.ply"),
+            furnace::io::mesh::ply_binary_f32(&positions, &triangles),
+        )
+        .unwrap();
+        let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-tessellated.toml"))
+            .unwrap()
+            .replace("${albedo}", "0.5");
+        let scene = Scene::parse(&text, &dir.join("furnace-tessellated.toml")).unwrap();
+        let _ = std::fs::remove_dir_all(&dir);
+        LeakyEdges { scene }
+    }
+}
+
+impl Renderer for LeakyEdges {
+    fn name(&self) -> String {
+        "leaky edges".into()
+    }
+    fn render(
+        &self,
+        _scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(&self.scene, s)
+    }
+}
+
+#[test]
+fn the_tessellated_furnace_rejects_triangles_that_leak_at_their_edges() {
+    let check = "furnace/tessellated-sphere[albedo=0.5]";
+    // clean twin: the same wrapper, the mesh unshrunk (its vertices unshared, so the edges
+    // still meet only to rounding)
+    assert_all(
+        "tests/manifests/furnace.toml",
+        check,
+        &LeakyEdges::new(0.0),
+        Verdict::Pass,
+    );
+    assert_rejected(
+        "tests/manifests/furnace.toml",
+        check,
+        &LeakyEdges::new(0.005),
+    );
+}
