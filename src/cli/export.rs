@@ -10,10 +10,10 @@ use std::path::PathBuf;
 pub struct ExportArgs {
     /// The furnace scene (TOML).
     scene: PathBuf,
-    /// Target format: mitsuba3 (scene.xml + meshes/*.ply) or pbrt-v4 (scene.pbrt, meshes inline; not verified with a pbrt build).
-    #[arg(long, default_value = "mitsuba3", value_parser = ["mitsuba3", "pbrt-v4"])]
+    /// Target format: mitsuba3 (scene.xml + meshes/*.ply), json (scene.json, furnace's scene interchange JSON for the Cycles and LuxCore drivers, docs/scene-json.md) or pbrt-v4 (scene.pbrt, meshes inline; not verified with a pbrt build).
+    #[arg(long, default_value = "mitsuba3", value_parser = ["mitsuba3", "json", "pbrt-v4"])]
     format: String,
-    /// Output folder (created); the scene file inside it is scene.xml or scene.pbrt.
+    /// Output folder (created); the scene file inside it is scene.xml, scene.json or scene.pbrt.
     #[arg(long)]
     out: PathBuf,
 }
@@ -28,6 +28,9 @@ pub fn run(a: ExportArgs) -> Result<i32, Failure> {
         let p = a.out.join("scene.pbrt");
         write_file(&p, &furnace::export::pbrt::export(&scene, "image.exr")?)?;
         p
+    } else if a.format == "json" {
+        furnace::export::json::write(&scene, &a.out)
+            .with_context(|| format!("cannot export {}", a.scene.display()))?
     } else {
         furnace::export::mitsuba::write(&scene, &a.out)
             .with_context(|| format!("cannot export {}", a.scene.display()))?

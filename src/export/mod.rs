@@ -5,6 +5,7 @@
 //! Exporters work on the validated scene (spectra resolved, meshes loaded, materials
 //! attached), not on the TOML text, so what is exported is exactly what furnace renders.
 
+pub mod json;
 pub mod mitsuba;
 pub mod pbrt;
 

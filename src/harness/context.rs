@@ -89,6 +89,13 @@ pub struct Context<'a> {
 }
 
 impl Context<'_> {
+    /// The relative tolerance of a region test against its expected value: the check's
+    /// `stated` model tolerance plus, for a renderer whose images carry more rounding than
+    /// furnace's f64 film, the excess of its allowance ([`Renderer::image_rounding`]).
+    pub fn rel_tolerance(&self, stated: f64) -> f64 {
+        stated + (self.renderer.image_rounding() - crate::stats::ROUNDING).max(0.0)
+    }
+
     /// The models under test, or an error naming the renderer that serves none.
     pub fn models(&self) -> Result<&dyn ModelSource, CheckError> {
         self.models.ok_or_else(|| {

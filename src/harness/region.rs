@@ -73,21 +73,22 @@ impl Retest {
     }
 }
 
-/// Whether a pixel's variance of the mean `var` holds Monte Carlo noise in an image whose
-/// largest |value| is `scale`: a standard error at or below the rounding allowance
-/// (`stats::ROUNDING`·scale) is rounding, and a residual divided by it says nothing (an
-/// absorber's e^(−330) transmittance read as 0 beside a 1e-317 variance gave z ≈ 7e14).
-pub fn has_noise(var: f64, scale: f64) -> bool {
-    var > (crate::stats::ROUNDING * scale).powi(2)
+/// Whether a pixel's variance of the mean `var` holds Monte Carlo noise beyond the absolute
+/// rounding `allowance` of its image (the renderer's relative rounding,
+/// [`super::Renderer::image_rounding`], times the image's largest |value|): a standard error
+/// at or below it is rounding, and a residual divided by it says nothing (an absorber's
+/// e^(−330) transmittance read as 0 beside a 1e-317 variance gave z ≈ 7e14).
+pub fn has_noise(var: f64, allowance: f64) -> bool {
+    var > allowance * allowance
 }
 
 /// X = Σ rᵢ²/vᵢ of residuals against their estimated variances, over the pixels with Monte
-/// Carlo noise ([`has_noise`]) in an image whose largest |value| is `scale`: (X, pixels).
-pub fn residual_chi2(resid: &[f64], vars: &[f64], scale: f64) -> (f64, usize) {
+/// Carlo noise beyond the absolute rounding `allowance` ([`has_noise`]): (X, pixels).
+pub fn residual_chi2(resid: &[f64], vars: &[f64], allowance: f64) -> (f64, usize) {
     resid
         .iter()
         .zip(vars)
-        .filter(|(_, v)| has_noise(**v, scale))
+        .filter(|(_, v)| has_noise(**v, allowance))
         .fold((0.0, 0), |(x, n), (r, v)| (x + r * r / v, n + 1))
 }
 
@@ -168,6 +169,7 @@ pub fn render_region(
         settings.spp,
         diag_alpha,
         expected_px,
+        ctx.renderer.image_rounding(),
     ))
 }
 
@@ -206,11 +208,13 @@ pub fn region_stats(
     spp: u64,
     alpha: f64,
     expected_px: Option<&[f64]>,
+    rounding: f64,
 ) -> RegionStats {
-    region_stats_of(film, region, spp, alpha, expected_px, 1)
+    region_stats_of(film, region, spp, alpha, expected_px, 1, rounding)
 }
 
-/// [`region_stats`] of XYZ `channel` (0 = X, 1 = Y, 2 = Z).
+/// [`region_stats`] of XYZ `channel` (0 = X, 1 = Y, 2 = Z); `rounding` is the renderer's
+/// relative rounding allowance ([`super::Renderer::image_rounding`]).
 pub fn region_stats_of(
     film: &Film,
     region: [usize; 4],
@@ -218,6 +222,7 @@ pub fn region_stats_of(
     alpha: f64,
     expected_px: Option<&[f64]>,
     channel: usize,
+    rounding: f64,
 ) -> RegionStats {
     let (px, vars) = region_pixels_of(film, region, channel);
     let n = px.len() as f64;
@@ -245,7 +250,9 @@ pub fn region_stats_of(
             retest: None,
         };
     }
-    let (stable, stability, se_between, infinite) = residual_stability(&resid, &vars, scale, alpha);
+    let allowance = rounding * scale;
+    let (stable, stability, se_between, infinite) =
+        residual_stability(&resid, &vars, allowance, alpha);
     let se = se_within.max(se_between);
     // each pixel's variance rests on (its sample count − 1) degrees of freedom
     let pixel_dof = film
@@ -255,7 +262,7 @@ pub fn region_stats_of(
     let retest = (!stable && !infinite)
         .then(|| {
             let raw = stability::diagnose(&resid, alpha);
-            let (chi2, pixels) = residual_chi2(&resid, &vars, scale);
+            let (chi2, pixels) = residual_chi2(&resid, &vars, allowance);
             // residuals about their own mean (no per-pixel closed form) lose one dof
             let pixels = pixels.saturating_sub(usize::from(expected_px.is_none()));
             raw.se_by_batch_size
@@ -289,16 +296,16 @@ pub fn region_stats_of(
 /// Residuals are standardised by their own standard errors first when the variances differ
 /// by more than 100× (emitters in view), so that bright pixels do not pass for a heavy tail;
 /// the batch-means standard error is then not used (0), and pixels without Monte Carlo noise
-/// ([`has_noise`]) are left out. Residuals without any (all variances below
-/// (1e-12·scale)²), or whose mean has a standard error within the rounding allowance
-/// (1e-12·scale), are reported as deterministic.
+/// beyond the absolute rounding `allowance` ([`has_noise`]) are left out. Residuals without
+/// any, or whose mean has a standard error within the allowance, are reported as
+/// deterministic.
 pub fn residual_stability(
     resid: &[f64],
     vars: &[f64],
-    scale: f64,
+    allowance: f64,
     alpha: f64,
 ) -> (bool, String, f64, bool) {
-    if !vars.iter().any(|v| has_noise(*v, scale)) {
+    if !vars.iter().any(|v| has_noise(*v, allowance)) {
         return (
             true,
             "no Monte Carlo noise: every pixel is exact up to rounding".into(),
@@ -312,12 +319,11 @@ pub fn residual_stability(
     // e.g. the exact next-event estimator inside a sphere, whose few pixels with rounding
     // errors of 1e-11 hold all the variance (a Hill index of 0.6 on pure rounding).
     let se_mean = vars.iter().sum::<f64>().sqrt() / n;
-    if se_mean <= crate::stats::ROUNDING * scale {
+    if se_mean <= allowance {
         return (
             true,
             format!(
-                "no Monte Carlo noise above rounding: the mean's standard error {se_mean:.2e} is within the rounding allowance 1e-12 × {}",
-                crate::harness::measurement::fmt_sig(scale)
+                "no Monte Carlo noise above rounding: the mean's standard error {se_mean:.2e} is within the rounding allowance {allowance:.2e}"
             ),
             0.0,
             false,
@@ -326,7 +332,7 @@ pub fn residual_stability(
     let mut sorted: Vec<f64> = vars
         .iter()
         .copied()
-        .filter(|v| has_noise(*v, scale))
+        .filter(|v| has_noise(*v, allowance))
         .collect();
     sorted.sort_by(f64::total_cmp);
     let median = sorted.get(sorted.len() / 2).copied().unwrap_or(0.0);
@@ -335,7 +341,7 @@ pub fn residual_stability(
         resid
             .iter()
             .zip(vars)
-            .filter(|(_, v)| has_noise(**v, scale))
+            .filter(|(_, v)| has_noise(**v, allowance))
             .map(|(r, v)| r / v.sqrt())
             .collect()
     } else {
@@ -463,9 +469,9 @@ mod tests {
     fn pixels_whose_error_is_rounding_do_not_enter_the_diagnosis() {
         let rounding = [(-6.18e-144, 7.9e-317), (-6.18e-144, 0.0), (1e-20, 1e-60)];
         let (resid, vars) = absorber_like(1018, &rounding);
-        let (stable, why, _, _) = residual_stability(&resid, &vars, 2.0, 1e-4);
+        let (stable, why, _, _) = residual_stability(&resid, &vars, 2e-12, 1e-4);
         assert!(stable, "{why}");
-        let (x, n) = residual_chi2(&resid, &vars, 2.0);
+        let (x, n) = residual_chi2(&resid, &vars, 2e-12);
         assert_eq!(n, 256);
         assert!(x < 400.0, "Σr²/v {x} over {n} px");
         // Negative control: the same residuals with the old rule (any variance above 0 is
@@ -482,14 +488,14 @@ mod tests {
         vars[17] = 2.7e-24;
         vars[200] = 1e-27;
         let resid: Vec<f64> = vars.iter().map(|v| 0.7 * v.sqrt()).collect();
-        let (stable, why, _, infinite) = residual_stability(&resid, &vars, 1.5, 1e-4);
+        let (stable, why, _, infinite) = residual_stability(&resid, &vars, 1.5e-12, 1e-4);
         assert!(stable && !infinite, "{why}");
         assert!(why.contains("above rounding"), "{why}");
         // Negative control: the same pattern 1000 times larger in standard error is above the
         // allowance, so the diagnosis runs on it.
         let big: Vec<f64> = vars.iter().map(|v| v * 1e6).collect();
         let resid: Vec<f64> = big.iter().map(|v| 0.7 * v.sqrt()).collect();
-        let (_, why, _, _) = residual_stability(&resid, &big, 1.5, 1e-4);
+        let (_, why, _, _) = residual_stability(&resid, &big, 1.5e-12, 1e-4);
         assert!(!why.contains("above rounding"), "{why}");
     }
 
@@ -497,7 +503,7 @@ mod tests {
     fn a_pixel_with_real_noise_still_counts() {
         // a pixel far off its expected value with a variance well above rounding is kept
         let (resid, vars) = absorber_like(7, &[(0.5, 1e-8)]);
-        let (x, n) = residual_chi2(&resid, &vars, 2.0);
+        let (x, n) = residual_chi2(&resid, &vars, 2e-12);
         assert_eq!(n, 257);
         assert!(x > 1e7, "{x}");
     }

@@ -18,9 +18,17 @@ impl From<String> for RendererError {
     }
 }
 
+/// How a [`RendererError`]'s message starts when the renderer or its exporter cannot express
+/// the scene (the scene-JSON drivers' `unsupported:` line, an exporter's refusal): the check
+/// is then SKIPPED with the reason, not an ERROR.
+pub const UNSUPPORTED: &str = "unsupported: ";
+
 impl From<RendererError> for super::error::CheckError {
     fn from(e: RendererError) -> Self {
-        super::error::CheckError::Renderer(e.0)
+        match e.0.strip_prefix(UNSUPPORTED) {
+            Some(why) => super::error::CheckError::Unsupported(why.to_string()),
+            None => super::error::CheckError::Renderer(e.0),
+        }
     }
 }
 
@@ -33,6 +41,12 @@ pub trait Renderer: Sync {
     /// True for furnace's own renderer: kinds that need its estimators or film run only for it.
     fn is_reference(&self) -> bool {
         true
+    }
+    /// Relative rounding allowance of its images in a region test against an expected value:
+    /// [`crate::stats::ROUNDING`] (1e-12) for furnace's f64 film; more for a renderer whose
+    /// images are 32-bit floats.
+    fn image_rounding(&self) -> f64 {
+        crate::stats::ROUNDING
     }
     /// False for a renderer that serves only models (no image command).
     fn renders_images(&self) -> bool {

@@ -160,6 +160,14 @@ pub fn run_with(
         o.rel_tolerance = check.rel_tolerance;
         o.regression = check.regression;
         match result {
+            Err(super::error::CheckError::Unsupported(why)) => {
+                o.verdict = Verdict::Skipped;
+                o.message = format!(
+                    "{} cannot express this check's scene: {why}",
+                    renderer.name()
+                );
+                measured.push(None);
+            }
             Err(e) => {
                 o.verdict = Verdict::Error;
                 o.message = format!("{e} ({})", check.origin);

@@ -265,3 +265,94 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
     assert_eq!(left, 0, "a passing check keeps no renders");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A renderer table with `exporter = "json"` gets the scene as furnace's interchange JSON, and
+/// a driver that refuses what its renderer cannot express (exit 3, a line `unsupported: …` on
+/// stderr, as reference/cycles and reference/luxcore do) makes the check SKIPPED with that
+/// reason, not an ERROR; any other failure stays an ERROR.
+#[test]
+fn a_renderer_that_cannot_express_a_scene_skips_the_check_by_name() {
+    let table = |script: &str| {
+        let text = format!(
+            "[renderer.refuser]\nexporter = \"json\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", {script:?}, \"{{scene}}\"]\n"
+        );
+        let p = std::env::temp_dir().join(format!(
+            "furnace-refuser-{}-{}.toml",
+            std::process::id(),
+            script.len()
+        ));
+        std::fs::write(&p, text).unwrap();
+        load_renderers(&p).unwrap()
+    };
+    let run = |script: &str| {
+        let ext = External::from_spec("refuser", &table(script), &root("")).unwrap();
+        let specs: Vec<_> = manifest::load(&root("tests/manifests/furnace.toml"))
+            .unwrap()
+            .into_iter()
+            .filter(|s| s.name == "furnace/sphere[albedo=0.5]")
+            .collect();
+        let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+        (
+            report.outcomes[0].verdict,
+            report.outcomes[0].message.clone(),
+        )
+    };
+    // the driver reads the exported scene: JSON of the interchange format, with the sphere
+    let refuse = "grep -q '\"format\":\"furnace-scene-json\"' \"$0\" && grep -q '\"type\":\"sphere\"' \"$0\" && echo 'unsupported: analytic spheres' >&2; exit 3";
+    let (v, m) = run(refuse);
+    assert_eq!(v, Verdict::Skipped, "{m}");
+    assert!(
+        m.contains("refuser cannot express") && m.contains("analytic spheres"),
+        "{m}"
+    );
+    // exit 3 without the line, or any other failure: an ERROR
+    let (v, m) = run("echo 'segfault' >&2; exit 3");
+    assert_eq!(v, Verdict::Error, "{m}");
+}
+
+/// An external renderer's images are 32-bit floats, and its region tests allow float32
+/// rounding (1e-5 relative, as for float32 models; Cycles and LuxCore read 1e-7 to 1e-6 off
+/// exact closed forms). The allowance does not hide a real error: through the stand-in, the
+/// point-light Lambert check passes the right light and fails one 1 % too bright.
+#[test]
+fn a_black_box_gets_the_float32_rounding_allowance_and_no_more() {
+    let r = load_renderers(&renderers("scenes/furnace-sphere.toml", "\"true\"")).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    assert_eq!(furnace::harness::Renderer::image_rounding(&ext), 1e-5);
+    assert_eq!(
+        furnace::harness::Renderer::image_rounding(&furnace::harness::BuiltIn),
+        1e-12
+    );
+    let dir = std::env::temp_dir().join(format!("furnace-f32-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let text = std::fs::read_to_string(root("tests/manifests/scenes/lambert-point.toml"))
+        .unwrap()
+        .replace("${sx}", "1.0")
+        .replace("${cy}", "1.7320508075688772");
+    let run = |intensity: &str| {
+        let scene = dir.join(format!("point-{intensity}.toml"));
+        std::fs::write(
+            &scene,
+            text.replace("intensity = 3.0", &format!("intensity = {intensity}")),
+        )
+        .unwrap();
+        let r = load_renderers(&renderers(scene.to_str().unwrap(), "\"true\"")).unwrap();
+        let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+        let specs: Vec<_> = manifest::load(&root("tests/manifests/lambert.toml"))
+            .unwrap()
+            .into_iter()
+            .filter(|s| s.name.starts_with("lambert/point-30deg"))
+            .collect();
+        let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+        (
+            report.outcomes[0].verdict,
+            report.outcomes[0].message.clone(),
+        )
+    };
+    let (v, m) = run("3.0");
+    assert_eq!(v, Verdict::Pass, "{m}");
+    // negative control: a light 1 % too bright
+    let (v, m) = run("3.03");
+    assert_eq!(v, Verdict::Fail, "{m}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -69,7 +69,17 @@ impl Kind for EstimatorAgreement {
             );
             let region = region_of(check, &s)?;
             let film = ctx.renderer.render(scene, &s)?;
-            stats.push((*name, region_stats(&film, region, s.spp, ctx.alpha, None)));
+            stats.push((
+                *name,
+                region_stats(
+                    &film,
+                    region,
+                    s.spp,
+                    ctx.alpha,
+                    None,
+                    ctx.renderer.image_rounding(),
+                ),
+            ));
             films.push((film, region, s.spp));
         }
         // Each pair is compared through its per-pixel differences dᵢ (zero mean under H0, so image
@@ -89,15 +99,16 @@ impl Kind for EstimatorAgreement {
             let d: Vec<f64> = pb.iter().zip(&pa).map(|(b, a)| b - a).collect();
             let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
             let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
+            let allowance = ctx.renderer.image_rounding() * scale;
             let (stable, why, se_between, infinite) =
-                residual_stability(&d, &v, scale, diagnosis_alpha(ctx, 3));
+                residual_stability(&d, &v, allowance, diagnosis_alpha(ctx, 3));
             let (na, ra) = &stats[a];
             let (nb, rb) = &stats[b];
             if !stable {
                 // Pixels are independent estimates, so structure in the differences is a
                 // difference that varies across the region: Σd²/v against its null moments
                 // asks whether it is real (region::structure_p).
-                let (chi2, n) = residual_chi2(&d, &v, scale);
+                let (chi2, n) = residual_chi2(&d, &v, allowance);
                 // each pixel's variance: a sum of two estimates on spp − 1 dof each (at least)
                 let dof = films[a].2 as f64 - 1.0;
                 match structure_p(chi2, n, dof) {

@@ -51,7 +51,12 @@ impl Kind for Furnace {
         let what = format!("{what}; path tracer, {} spp", s.spp);
         if scene.is_grey() {
             let r = render_region(ctx, scene, &s, region, None, diagnosis_alpha(ctx, 1))?;
-            return Ok(region_measurement(&r, expected, check.rel_tolerance, what));
+            return Ok(region_measurement(
+                &r,
+                expected,
+                ctx.rel_tolerance(check.rel_tolerance),
+                what,
+            ));
         }
         let film = ctx.renderer.render(scene, &s)?;
         let white = s.observer.white();
@@ -59,14 +64,22 @@ impl Kind for Furnace {
             .iter()
             .enumerate()
             .map(|(c, name)| {
-                let r = region_stats_of(&film, region, s.spp, diagnosis_alpha(ctx, 3), None, c);
+                let r = region_stats_of(
+                    &film,
+                    region,
+                    s.spp,
+                    diagnosis_alpha(ctx, 3),
+                    None,
+                    c,
+                    ctx.renderer.image_rounding(),
+                );
                 let e = expected * white[c] / white[1];
                 (
                     name.to_string(),
                     region_measurement(
                         &r,
                         e,
-                        check.rel_tolerance,
+                        ctx.rel_tolerance(check.rel_tolerance),
                         format!("{what}; channel {name}"),
                     ),
                 )

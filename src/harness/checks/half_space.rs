@@ -186,7 +186,7 @@ impl Kind for HalfSpace {
         Ok(region_measurement(
             &r,
             expected,
-            check.rel_tolerance,
+            ctx.rel_tolerance(check.rel_tolerance),
             format!(
                 "half-space of albedo {albedo}, optical thickness >= 1e3: expected E(1 − √(1 − ϖ) H(μ)) per pixel (H(1) = {:.6}); path tracer, {} spp",
                 h.eval(1.0),

@@ -36,7 +36,14 @@ pub fn run_against(
     let test = RgbImage::from_film(&film);
     // Only the per-test p-values are used (the family rate passed is irrelevant); the run's correction applies
     // to the combined p-value below.
-    let c = compare(&test, reference, &p.regions, 0.5, 0.01, check.rel_tolerance)?;
+    let c = compare(
+        &test,
+        reference,
+        &p.regions,
+        0.5,
+        0.01,
+        ctx.rel_tolerance(check.rel_tolerance),
+    )?;
     let what = format!(
         "observer {}, reference {}",
         s.observer.name(),

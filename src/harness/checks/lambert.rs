@@ -42,7 +42,7 @@ impl Kind for Lambert {
         Ok(region_measurement(
             &r,
             expected,
-            check.rel_tolerance,
+            ctx.rel_tolerance(check.rel_tolerance),
             format!(
                 "Lambert L = R·H/π, direct light only, H in closed form; {} spp",
                 s.spp

@@ -85,7 +85,7 @@ impl Kind for RadianceInvariance {
                 region_measurement(
                     &r,
                     expected,
-                    check.rel_tolerance,
+                    ctx.rel_tolerance(check.rel_tolerance),
                     format!("camera at distance {d:e}"),
                 ),
             ));

@@ -176,7 +176,7 @@ impl Kind for ReciprocityImage {
                     test,
                     reference,
                     [sum.mean_variance_dof(), region_dof(&path, c, *rect)],
-                    check.rel_tolerance,
+                    ctx.rel_tolerance(check.rel_tolerance),
                 ));
             }
         }

@@ -173,7 +173,7 @@ impl Kind for ScaleInvariance {
                     region_measurement(
                         &r,
                         expected,
-                        check.rel_tolerance,
+                        ctx.rel_tolerance(check.rel_tolerance),
                         format!("{what} at {label}"),
                     ),
                 ));

@@ -136,7 +136,7 @@ impl Kind for Transmittance {
             region_measurement(
                 &r,
                 expected,
-                check.rel_tolerance,
+                ctx.rel_tolerance(check.rel_tolerance),
                 format!("emission through absorbing media, expected Σ ȳ Le exp(−Σ σa d) per pixel; path tracer, emission only, {} spp", s.spp),
             ),
         )]))
