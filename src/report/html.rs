@@ -169,6 +169,7 @@ figure{display:inline-block;margin:0.5em;vertical-align:top}\
 .img{position:relative;width:256px}.img svg{position:absolute;left:0;top:0;width:256px;height:100%}\
 figure img{width:256px;display:block;image-rendering:pixelated;border:1px solid #999}\
 figcaption{font-size:0.8em;max-width:256px}.msg{font-size:0.8em;text-align:left;max-width:40em}\
+details summary{cursor:pointer}\
 tr:target{outline:3px solid #06c}";
 
 /// The whole report page: a verdict banner, each check run's table, each comparison with its
@@ -235,7 +236,12 @@ pub fn page_with_notes(
                 h1 { (title) }
                 (banner(runs, comparisons))
                 @if let Some(n) = notes { (notes_html(n)) }
-                @if runs.len() > 1 { (side_by_side(runs)) }
+                @if runs.len() > 1 {
+                    (side_by_side(runs))
+                } @else if runs.len() == 1 {
+                    h2 { "Deviations" }
+                    (deviation_figure(runs))
+                }
                 @for run in runs { (run_table(run)) }
                 @for (i, c) in comparisons.iter().enumerate() { (comparison_html(i, c)) }
             }
@@ -349,9 +355,14 @@ fn run_table(run: &Value) -> Markup {
                     td { (o["detection_power"].as_f64().map(power_text).unwrap_or("–".into())) }
                     td { (format!("{:.2}", o["seconds"].as_f64().unwrap_or(0.0))) }
                     td.msg {
-                        (o["message"].as_str().unwrap_or(""))
+                        @let message = o["message"].as_str().unwrap_or("");
+                        // the first clause in the row, the whole account on demand (no script)
+                        details {
+                            summary { (message.split(';').next().unwrap_or("")) }
+                            (message)
+                        }
                         @if let Some(b) = o["bundle"].as_str() {
-                            " " a href=(b) { "reproducer bundle" }
+                            a href=(b) { "reproducer bundle" }
                         }
                     }
                 }
@@ -363,6 +374,10 @@ fn run_table(run: &Value) -> Markup {
 /// (estimate − expected)/se of an outcome, where it has a real standard error (not one at the
 /// rounding level).
 fn sigmas(o: &Value) -> Option<f64> {
+    // a regression baseline's band is not a closed form to deviate from
+    if o["regression"].as_bool() == Some(true) {
+        return None;
+    }
     let (e, x, se) = (
         o["estimate"].as_f64()?,
         o["expected"].as_f64()?,
@@ -371,10 +386,8 @@ fn sigmas(o: &Value) -> Option<f64> {
     (se > 1e-9 * x.abs().max(e.abs()) && se > 0.0).then(|| (e - x) / se)
 }
 
-/// Renderers side by side: per check, each renderer's estimate ± standard error, its deviation
-/// from the expected value in % and in standard errors, verdict, time and samples per second;
-/// above the table, the deviations in standard errors as a dot plot.
-fn side_by_side(runs: &[Value]) -> Markup {
+/// Every check name over the runs, first seen first, with its kind.
+fn check_names(runs: &[Value]) -> Vec<(String, String)> {
     let mut names: Vec<(String, String)> = Vec::new();
     for r in runs {
         for o in r["outcomes"].as_array().into_iter().flatten() {
@@ -384,14 +397,23 @@ fn side_by_side(runs: &[Value]) -> Markup {
             }
         }
     }
-    let find = |r: &Value, name: &str| -> Option<Value> {
-        r["outcomes"]
-            .as_array()?
-            .iter()
-            .find(|o| o["name"].as_str() == Some(name))
-            .cloned()
-    };
-    // the plot shows the checks some renderer measured with a standard error
+    names
+}
+
+/// A run's outcome of check `name`.
+fn find(r: &Value, name: &str) -> Option<Value> {
+    r["outcomes"]
+        .as_array()?
+        .iter()
+        .find(|o| o["name"].as_str() == Some(name))
+        .cloned()
+}
+
+/// The deviations of every check with a standard error from its expected value, in standard
+/// errors, as a dot plot (one colour per run), with the two-sided bound at the smallest
+/// per-test α any run used.
+fn deviation_figure(runs: &[Value]) -> Markup {
+    let names = check_names(runs);
     let plotted: Vec<&(String, String)> = names
         .iter()
         .filter(|(n, _)| {
@@ -409,7 +431,6 @@ fn side_by_side(runs: &[Value]) -> Markup {
                 .collect(),
         })
         .collect();
-    // the two-sided bound at the smallest per-test α any run used
     let alpha = runs
         .iter()
         .flat_map(|r| r["outcomes"].as_array().into_iter().flatten())
@@ -428,7 +449,6 @@ fn side_by_side(runs: &[Value]) -> Markup {
         bound,
     );
     html! {
-        h2 { "Renderers side by side" }
         @match &plot {
             Ok(svg) => {
                 figure.plot {
@@ -442,6 +462,17 @@ fn side_by_side(runs: &[Value]) -> Markup {
             }
             Err(e) => { p.fail { (e.to_string()) } }
         }
+    }
+}
+
+/// Renderers side by side: per check, each renderer's estimate ± standard error, its deviation
+/// from the expected value in % and in standard errors, verdict, time and samples per second;
+/// above the table, the deviations in standard errors as a dot plot.
+fn side_by_side(runs: &[Value]) -> Markup {
+    let names = check_names(runs);
+    html! {
+        h2 { "Renderers side by side" }
+        (deviation_figure(runs))
         table {
             tr {
                 th.l { "check" } th.l { "kind" } th { "expected" }
@@ -762,6 +793,8 @@ mod tests {
         assert!(html.contains("stroke=\"#e00\""));
         // power with significant digits
         assert!(html.contains("<td>0.2 %</td>"), "{html}");
+        // a single run gets its deviations plotted too (check a is exact: 0σ; b: −1000σ)
+        assert!(html.contains("<h2>Deviations</h2>") && html.contains("<svg"));
         let md = markdown(&[run], &[s]);
         assert!(md.starts_with("## furnace: failures"), "{md}");
         assert!(
