@@ -96,6 +96,9 @@ pub const PLACEHOLDERS: [&str; 10] = [
     "furnace",
 ];
 
+/// Temporary folders made so far by this process (their names' last part).
+static TEMPORARY: AtomicU64 = AtomicU64::new(0);
+
 /// Bytes of a command's stdout and stderr kept (the rest is read and dropped).
 const OUTPUT_KEPT: usize = 64 * 1024;
 
@@ -579,9 +582,11 @@ impl External {
             Some(_) => None,
             None => Some(crate::io::cleanup::Pending::new(std::env::temp_dir().join(
                 format!(
-                    "furnace-{}-{}-{n}",
+                    "furnace-{}-{}-{}",
                     self.label.replace([':', '/'], "_"),
                     std::process::id(),
+                    // unique in the process: two renderers of one name may render at once
+                    TEMPORARY.fetch_add(1, Ordering::Relaxed)
                 ),
             ))),
         };

@@ -16,10 +16,12 @@ fn renderers(scene: &str, probe: &str) -> std::path::PathBuf {
         "[renderer.stand-in]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 4\nprobe = [{probe}]\ncommand = [{:?}, \"render\", {scene:?}, \"--out\", \"{{out}}\", \"--spp\", \"{{spp}}\", \"--seed\", \"{{seed}}\", \"--width\", \"{{width}}\", \"--height\", \"{{height}}\", \"--threads\", \"{{threads}}\", \"--quiet\"]\n",
         env!("CARGO_BIN_EXE_furnace")
     );
+    // one file per call: tests run in parallel and must not share a table
+    static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
     let p = std::env::temp_dir().join(format!(
         "furnace-adapter-{}-{}.toml",
         std::process::id(),
-        scene.len() + probe.len()
+        CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
     ));
     std::fs::write(&p, text).unwrap();
     p
