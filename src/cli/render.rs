@@ -54,10 +54,10 @@ pub struct RenderArgs {
     #[arg(long, default_value = "independent", value_parser = ["independent", "stratified", "sobol"])]
     sampler: String,
     /// Always take the spectral path, even when every spectrum is constant (grey mode off), to measure what grey mode saves.
-    #[arg(long)]
+    #[arg(long, help_heading = "Benchmarking")]
     no_grey_mode: bool,
     /// Run the path tracer's volumetric variant even when the scene has no participating media (the image is the same), to measure what skipping the media code saves.
-    #[arg(long)]
+    #[arg(long, help_heading = "Benchmarking")]
     always_media_code: bool,
     /// Wavelengths per sample entering the film: 4 (hero wavelength sampling) or 1 (the single-wavelength estimator, for comparison).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
