@@ -226,7 +226,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     let mut o = Outcome::new(&s.name, s.kind_name());
                     o.verdict = Verdict::Skipped;
                     o.message = format!("renderer {label} is not available: {why}");
-                    if !super::quiet() {
+                    if a.format == "json" || !super::quiet() {
                         emit(&ProgressBar::hidden(), &a.format, label, &o);
                     }
                     r.outcomes.push(o);
@@ -257,13 +257,17 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                         Progress::Started(name) => {
                             running.now(name);
                             if let (Some(e), Some(root)) = (&external, &bundles) {
-                                e.keep_runs_in(Some(root.join(html::row_id(label, name))));
+                                // the label with its variant, as write_bundles names it; a
+                                // folder left by an earlier run is cleared first
+                                let dir = root.join(html::row_id(&e.label, name));
+                                let _ = std::fs::remove_dir_all(&dir);
+                                e.keep_runs_in(Some(dir));
                             }
                             bar.set_message(format!("{label}: {name}"));
                         }
                         Progress::Finished(o) => {
                             bar.inc(1);
-                            if streaming && !super::quiet() {
+                            if streaming && (a.format == "json" || !super::quiet()) {
                                 emit(&bar, &a.format, label, o);
                             }
                         }
@@ -274,9 +278,17 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                 let mut r = r;
                 if let (Some(e), Some(root)) = (&external, &bundles) {
                     e.keep_runs_in(None);
-                    write_bundles(root, e, &a, &specs, &mut r.outcomes)?;
+                    // a bundle that cannot be written is a warning: the run's results are
+                    // still written
+                    if let Err(err) = write_bundles(root, e, &a, &specs, &mut r.outcomes) {
+                        eprintln!(
+                            "warning: reproducer bundles in {}: {:#}",
+                            root.display(),
+                            err.error
+                        );
+                    }
                 }
-                if !streaming && !super::quiet() {
+                if !streaming && (a.format == "json" || !super::quiet()) {
                     for o in &r.outcomes {
                         emit(&bar, &a.format, label, o);
                     }

@@ -350,11 +350,11 @@ impl External {
                 None => shell_quote(a),
             })
             .collect();
-        let env = if env.is_empty() {
-            String::new()
-        } else {
-            format!("env {} ", env.join(" "))
-        };
+        // furnace runs the renderer with a cleared environment: so does the script
+        let env = format!(
+            "env -i PATH=\"$PATH\" HOME=\"$HOME\" LANG=\"$LANG\" TMPDIR=\"$TMPDIR\" {}",
+            env.iter().map(|e| format!("{e} ")).collect::<String>()
+        );
         format!("{env}{}\n", args.join(" "))
     }
 
@@ -598,7 +598,8 @@ impl External {
         let mut script = kept.as_ref().map(|_| {
             format!(
                 "#!/bin/sh\n# {} as furnace ran it: {} independent runs of {} spp, {}x{} px; each writes batch-B.exr here.\nhere=$(cd \"$(dirname \"$0\")\" && pwd)\ncd {} || exit 1\n",
-                self.label,
+                // a comment line: no control character may end it early
+                self.label.replace(char::is_control, "?"),
                 k,
                 spp,
                 s.width,

@@ -252,7 +252,7 @@ pub fn region_stats_of(
     }
     let allowance = rounding * scale;
     let (stable, stability, se_between, infinite) =
-        residual_stability(&resid, &vars, allowance, alpha);
+        residual_stability(&resid, &vars, allowance, rounding * mean.abs(), alpha);
     let se = se_within.max(se_between);
     // each pixel's variance rests on (its sample count − 1) degrees of freedom
     let pixel_dof = film
@@ -297,12 +297,14 @@ pub fn region_stats_of(
 /// by more than 100× (emitters in view), so that bright pixels do not pass for a heavy tail;
 /// the batch-means standard error is then not used (0), and pixels without Monte Carlo noise
 /// beyond the absolute rounding `allowance` ([`has_noise`]) are left out. Residuals without
-/// any, or whose mean has a standard error within the allowance, are reported as
+/// any, or whose mean has a standard error within `mean_allowance` (the region test's own
+/// rounding allowance: the renderer's relative rounding times the mean), are reported as
 /// deterministic.
 pub fn residual_stability(
     resid: &[f64],
     vars: &[f64],
     allowance: f64,
+    mean_allowance: f64,
     alpha: f64,
 ) -> (bool, String, f64, bool) {
     if !vars.iter().any(|v| has_noise(*v, allowance)) {
@@ -319,11 +321,11 @@ pub fn residual_stability(
     // e.g. the exact next-event estimator inside a sphere, whose few pixels with rounding
     // errors of 1e-11 hold all the variance (a Hill index of 0.6 on pure rounding).
     let se_mean = vars.iter().sum::<f64>().sqrt() / n;
-    if se_mean <= allowance {
+    if se_mean <= mean_allowance {
         return (
             true,
             format!(
-                "no Monte Carlo noise above rounding: the mean's standard error {se_mean:.2e} is within the rounding allowance {allowance:.2e}"
+                "no Monte Carlo noise above rounding: the mean's standard error {se_mean:.2e} is within the rounding allowance {mean_allowance:.2e}"
             ),
             0.0,
             false,
@@ -469,14 +471,14 @@ mod tests {
     fn pixels_whose_error_is_rounding_do_not_enter_the_diagnosis() {
         let rounding = [(-6.18e-144, 7.9e-317), (-6.18e-144, 0.0), (1e-20, 1e-60)];
         let (resid, vars) = absorber_like(1018, &rounding);
-        let (stable, why, _, _) = residual_stability(&resid, &vars, 2e-12, 1e-4);
+        let (stable, why, _, _) = residual_stability(&resid, &vars, 2e-12, 2e-12, 1e-4);
         assert!(stable, "{why}");
         let (x, n) = residual_chi2(&resid, &vars, 2e-12);
         assert_eq!(n, 256);
         assert!(x < 400.0, "Σr²/v {x} over {n} px");
         // Negative control: the same residuals with the old rule (any variance above 0 is
         // noise) hold a standardised residual of 7e14 and read as an infinite-variance tail.
-        let (_, _, _, infinite) = residual_stability(&resid, &vars, 0.0, 1e-4);
+        let (_, _, _, infinite) = residual_stability(&resid, &vars, 0.0, 0.0, 1e-4);
         assert!(infinite);
     }
 
@@ -488,14 +490,14 @@ mod tests {
         vars[17] = 2.7e-24;
         vars[200] = 1e-27;
         let resid: Vec<f64> = vars.iter().map(|v| 0.7 * v.sqrt()).collect();
-        let (stable, why, _, infinite) = residual_stability(&resid, &vars, 1.5e-12, 1e-4);
+        let (stable, why, _, infinite) = residual_stability(&resid, &vars, 1.5e-12, 1.5e-12, 1e-4);
         assert!(stable && !infinite, "{why}");
         assert!(why.contains("above rounding"), "{why}");
         // Negative control: the same pattern 1000 times larger in standard error is above the
         // allowance, so the diagnosis runs on it.
         let big: Vec<f64> = vars.iter().map(|v| v * 1e6).collect();
         let resid: Vec<f64> = big.iter().map(|v| 0.7 * v.sqrt()).collect();
-        let (_, why, _, _) = residual_stability(&resid, &big, 1.5e-12, 1e-4);
+        let (_, why, _, _) = residual_stability(&resid, &big, 1.5e-12, 1.5e-12, 1e-4);
         assert!(!why.contains("above rounding"), "{why}");
     }
 

@@ -51,8 +51,8 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
             .to_string()
     } else {
         format!(
-            "Each of {} holds the scene exactly as furnace exported it (`scene.xml` and the \
-             files it names), the images the renderer wrote (`batch-B.exr`, one per independent \
+            "Each of {} holds the scene exactly as furnace exported it (`scene.xml` or \
+             `scene.json` and the files it names), the images the renderer wrote (`batch-B.exr`, one per independent \
              run) and `command.sh`, which re-runs the renderer alone as furnace ran it: \
              `sh {}/command.sh` (it changes to the folder furnace ran from, for the renderer \
              table's relative paths).",

@@ -181,7 +181,14 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
         .unwrap()
         .replace("reflectance = 0.5", "reflectance = 0.45");
     std::fs::write(&wrong, text).unwrap();
+    // with a default variant, as the built-in tables have: bundles are named by the label
+    // with its variant
     let table = renderers(wrong.to_str().unwrap(), "\"true\"");
+    let text = std::fs::read_to_string(&table).unwrap().replace(
+        "[renderer.stand-in]\n",
+        "[renderer.stand-in]\nvariant = \"v1\"\n",
+    );
+    std::fs::write(&table, text).unwrap();
     let report = dir.join("r.html");
     let run = |filter: &str| {
         Command::new(env!("CARGO_BIN_EXE_furnace"))
@@ -206,12 +213,12 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
     };
     let out = run("furnace/sphere[albedo=0.5]");
     assert_eq!(out.status.code(), Some(1), "{out:?}");
-    let bundle = dir.join("r-bundles/stand-in--furnace_sphere_albedo_0_5_");
+    let bundle = dir.join("r-bundles/stand-in_v1--furnace_sphere_albedo_0_5_");
     let readme = std::fs::read_to_string(bundle.join("README.md")).unwrap();
     for part in [
-        "# furnace/sphere[albedo=0.5]: FAIL against stand-in",
+        "# furnace/sphere[albedo=0.5]: FAIL against stand-in:v1",
         "| expected | 2.000",
-        "furnace check tests/manifests/furnace.toml --filter 'furnace/sphere[albedo=0.5]' --renderer stand-in --seed 1 --renderers",
+        "furnace check tests/manifests/furnace.toml --filter 'furnace/sphere[albedo=0.5]' --renderer stand-in:v1 --seed 1 --renderers",
         "sh render-0/command.sh",
     ] {
         assert!(readme.contains(part), "{part:?} missing from\n{readme}");
@@ -222,10 +229,13 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
     assert_eq!(outcome["verdict"], "FAIL");
     let render = bundle.join("render-0");
     assert!(render.join("scene.xml").is_file());
+    // nothing is kept beside the bundle: every kept render belongs to the failing check
+    let folders: Vec<_> = std::fs::read_dir(dir.join("r-bundles")).unwrap().collect();
+    assert_eq!(folders.len(), 1, "{folders:?}");
     let html = std::fs::read_to_string(&report).unwrap();
     assert!(
         html.contains(
-            "href=\"r-bundles/stand-in--furnace_sphere_albedo_0_5_/README.md\">reproducer bundle"
+            "href=\"r-bundles/stand-in_v1--furnace_sphere_albedo_0_5_/README.md\">reproducer bundle"
         ),
         "the report links the bundle"
     );

@@ -57,19 +57,27 @@ fn screenshot(bin: &str, name: &str, page: &str) -> Shot {
     std::fs::create_dir_all(&dir).unwrap();
     let (file, shot) = (dir.join("report.html"), dir.join("shot.png"));
     std::fs::write(&file, page).unwrap();
-    let out = Command::new(bin)
-        .args([
-            "--headless",
-            "--no-sandbox",
-            "--disable-gpu",
-            "--hide-scrollbars",
-            &format!("--window-size={},{}", WINDOW.0, WINDOW.1),
-            &format!("--screenshot={}", shot.display()),
-            &format!("file://{}", file.display()),
-        ])
-        .output()
-        .unwrap_or_else(|e| panic!("cannot run {bin}: {e}"));
-    assert!(out.status.success(), "{name}: {out:?}");
+    let mut cmd = Command::new(bin);
+    cmd.args([
+        "--headless",
+        "--no-sandbox",
+        "--disable-gpu",
+        "--disable-dev-shm-usage",
+        "--hide-scrollbars",
+        "--force-device-scale-factor=1",
+        &format!("--user-data-dir={}", dir.join("profile").display()),
+        &format!("--window-size={},{}", WINDOW.0, WINDOW.1),
+        &format!("--screenshot={}", shot.display()),
+        &format!("file://{}", file.display()),
+    ]);
+    // bounded: a browser that hangs fails the test instead of the whole suite
+    let out = furnace::harness::adapter::run_bounded(cmd, std::time::Duration::from_secs(120))
+        .unwrap_or_else(|e| panic!("{name}: {bin}: {e}"));
+    assert!(
+        out.success,
+        "{name}: {bin} exited with {}: {}",
+        out.status, out.stderr
+    );
     let decoder = png::Decoder::new(std::io::BufReader::new(std::fs::File::open(&shot).unwrap()));
     let mut reader = decoder.read_info().unwrap();
     let mut buf = vec![0; reader.output_buffer_size().unwrap()];

@@ -100,8 +100,10 @@ impl Kind for EstimatorAgreement {
             let v: Vec<f64> = vb.iter().zip(&va).map(|(b, a)| b + a).collect();
             let scale = pa.iter().chain(&pb).fold(0.0f64, |m, x| m.max(x.abs()));
             let allowance = ctx.renderer.image_rounding() * scale;
+            let mean_of = |p: &[f64]| p.iter().sum::<f64>().abs() / p.len().max(1) as f64;
+            let mean_allowance = ctx.renderer.image_rounding() * mean_of(&pa).max(mean_of(&pb));
             let (stable, why, se_between, infinite) =
-                residual_stability(&d, &v, allowance, diagnosis_alpha(ctx, 3));
+                residual_stability(&d, &v, allowance, mean_allowance, diagnosis_alpha(ctx, 3));
             let (na, ra) = &stats[a];
             let (nb, rb) = &stats[b];
             if !stable {
