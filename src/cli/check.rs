@@ -187,6 +187,8 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         None
     };
     let bundles = bundle_root(&a);
+    // each check's line (or JSON object); JSON lines are the output, so --quiet keeps them
+    let print_outcomes = a.format == "json" || !super::quiet();
     let mut reports = Vec::new();
     let mut traffic = harness::model::client::traffic();
     for label in &a.renderers {
@@ -226,7 +228,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                     let mut o = Outcome::new(&s.name, s.kind_name());
                     o.verdict = Verdict::Skipped;
                     o.message = format!("renderer {label} is not available: {why}");
-                    if a.format == "json" || !super::quiet() {
+                    if print_outcomes {
                         emit(&ProgressBar::hidden(), &a.format, label, &o);
                     }
                     r.outcomes.push(o);
@@ -267,7 +269,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                         }
                         Progress::Finished(o) => {
                             bar.inc(1);
-                            if streaming && (a.format == "json" || !super::quiet()) {
+                            if streaming && print_outcomes {
                                 emit(&bar, &a.format, label, o);
                             }
                         }
@@ -288,7 +290,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                         );
                     }
                 }
-                if !streaming && (a.format == "json" || !super::quiet()) {
+                if !streaming && print_outcomes {
                     for o in &r.outcomes {
                         emit(&bar, &a.format, label, o);
                     }
@@ -416,10 +418,10 @@ fn write_bundles(
             origin,
             renders,
         };
-        super::write_file(&dir.join("README.md"), &bundle::readme(o, &info))?;
+        let readme = dir.join("README.md");
+        super::write_file(&readme, &bundle::readme(o, &info))?;
         let json = serde_json::to_string_pretty(o).context("outcome as JSON")?;
         super::write_file(&dir.join("outcome.json"), &json)?;
-        let readme = dir.join("README.md");
         // as the HTML report beside the bundles folder links it
         let shown = match &a.report {
             Some(r) if a.bundles.is_none() => readme

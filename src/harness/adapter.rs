@@ -578,23 +578,20 @@ impl External {
             .as_ref()
             .map(|root| root.join(format!("render-{n}")));
         // a kept folder outlives the process; a temporary one is removed on every way out
-        let temporary = match &kept {
-            Some(_) => None,
-            None => Some(crate::io::cleanup::Pending::new(std::env::temp_dir().join(
-                format!(
+        let (dir, _temporary) = match &kept {
+            Some(d) => (d.clone(), None),
+            None => {
+                let d = std::env::temp_dir().join(format!(
                     "furnace-{}-{}-{}",
                     self.label.replace([':', '/'], "_"),
                     std::process::id(),
                     // unique in the process: two renderers of one name may render at once
                     TEMPORARY.fetch_add(1, Ordering::Relaxed)
-                ),
-            ))),
+                ));
+                (d.clone(), Some(crate::io::cleanup::Pending::new(d)))
+            }
         };
-        let dir = match (&kept, &temporary) {
-            (Some(d), _) => d.as_path(),
-            (None, Some(t)) => t.path(),
-            (None, None) => unreachable!("one of the two is set"),
-        };
+        let dir = dir.as_path();
         let mut script = kept.as_ref().map(|_| {
             format!(
                 "#!/bin/sh\n# {} as furnace ran it: {} independent runs of {} spp, {}x{} px; each writes batch-B.exr here.\nhere=$(cd \"$(dirname \"$0\")\" && pwd)\ncd {} || exit 1\n",

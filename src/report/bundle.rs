@@ -6,7 +6,7 @@
 //! renderer wrote and `command.sh`, which re-runs the renderer alone.
 
 use crate::harness::measurement::fmt_sig;
-use crate::harness::outcome::{Outcome, Statistic};
+use crate::harness::outcome::Outcome;
 
 /// What a bundle says about the run beyond the outcome itself.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,21 +25,6 @@ pub struct BundleInfo {
 
 fn opt(x: Option<f64>) -> String {
     x.map_or("—".into(), fmt_sig)
-}
-
-fn statistic(s: &Statistic) -> String {
-    match *s {
-        Statistic::Z { z } => format!("z = {}", fmt_sig(z)),
-        Statistic::T { t, dof } => format!("t = {} on {} dof", fmt_sig(t), fmt_sig(dof)),
-        Statistic::ChiSquare { chi2, dof } => format!("χ² = {} on {dof} dof", fmt_sig(chi2)),
-        Statistic::Tolerance { max_error, .. } => {
-            format!("largest error {}", fmt_sig(max_error))
-        }
-        Statistic::PerValueTolerance { max_ratio, .. } => {
-            format!("largest error / allowance {}", fmt_sig(max_ratio))
-        }
-        Statistic::None => "no statistic".into(),
-    }
 }
 
 /// The bundle's README.md.
@@ -92,7 +77,10 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
         expected = opt(o.expected),
         estimate = opt(o.estimate),
         se = opt(o.std_error),
-        stat = statistic(&o.statistic),
+        stat = match crate::report::text::statistic_text(o) {
+            t if t.is_empty() => "no statistic".into(),
+            t => t,
+        },
         p = opt(o.p_value),
         alpha = opt(o.alpha),
         samples = o.samples,
@@ -106,7 +94,7 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::harness::outcome::Verdict;
+    use crate::harness::outcome::{Statistic, Verdict};
 
     #[test]
     fn readme_states_expected_measured_test_and_how_to_rerun() {
@@ -131,7 +119,7 @@ mod tests {
             "# furnace/sphere[albedo=0.5]: FAIL against stand-in",
             "| expected | 2.000 ",
             "| measured | 1.800 ± 0.01000",
-            "z = -20.00, p = 1.000e-88",
+            "z = -20, p = 1.000e-88",
             "furnace check m.toml --filter 'x'",
             "sh render-0/command.sh",
             "version 1.2.3",

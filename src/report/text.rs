@@ -128,7 +128,7 @@ fn estimate_text(o: &Outcome) -> String {
 }
 
 /// `z = 0.274`, `χ² = 141.3, dof 38` or the tolerance rule; empty for no statistic.
-fn statistic_text(o: &Outcome) -> String {
+pub(crate) fn statistic_text(o: &Outcome) -> String {
     match &o.statistic {
         Statistic::Z { z } => format!("z = {}", sig(*z, 3, true)),
         Statistic::T { t, dof } => format!("t = {}, ν {}", sig(*t, 3, true), sig(*dof, 3, false)),
