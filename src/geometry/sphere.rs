@@ -1,7 +1,17 @@
 //! Analytic sphere.
 
 use super::{gamma, Ray, SurfacePoint};
+use crate::math::frame::Frame;
 use crate::math::{warp, Vec3, PI};
+
+/// Relative margin beyond the radius from which a sphere is sampled by its visible cone: a
+/// point within (1 + CONE_MARGIN)·r of the centre, or within [`CONE_MARGIN_ULPS`] roundings
+/// of its coordinates (inside, on the surface, or just above it), samples the area instead.
+pub const CONE_MARGIN: f64 = 1e-7;
+
+/// The margin in units of the rounding of the centre's and the point's coordinates: a point
+/// computed on the surface far from the origin may round outside by about γ(5)·|p|.
+pub const CONE_MARGIN_ULPS: f64 = 1e3;
 
 /// A sphere: centre and radius in scene units; the normal points outward unless flipped.
 #[derive(Debug, Clone, PartialEq)]
@@ -64,6 +74,56 @@ impl Sphere {
         SurfacePoint { p, p_error, n }
     }
 
+    /// Whether `p` lies clearly outside: farther from the centre than the radius by more than
+    /// [`CONE_MARGIN`]·r and [`CONE_MARGIN_ULPS`] roundings of the coordinates involved.
+    pub fn clearly_outside(&self, p: Vec3) -> bool {
+        let scale = self.center.abs().max_element().max(p.abs().max_element());
+        let margin = (CONE_MARGIN * self.radius).max(CONE_MARGIN_ULPS * f64::EPSILON * scale);
+        (self.center - p).length() > self.radius + margin
+    }
+
+    /// 1 − cos θmax of the cone under which the sphere is seen from `p` (θmax its half-angle,
+    /// sin θmax = r/d), computed as sin²θmax/(1 + cos θmax) to keep small cones exact; None
+    /// unless `p` is [`Sphere::clearly_outside`], or when the cone underflows.
+    pub fn visible_cone(&self, p: Vec3) -> Option<f64> {
+        if !self.clearly_outside(p) {
+            return None;
+        }
+        let d2 = (self.center - p).length_squared();
+        let r2 = self.radius * self.radius;
+        let sin2_max = r2 / d2;
+        let cos_max = (1.0 - sin2_max).max(0.0).sqrt();
+        let one_minus_cos = sin2_max / (1.0 + cos_max);
+        (one_minus_cos > 0.0 && one_minus_cos.is_finite()).then_some(one_minus_cos)
+    }
+
+    /// A direction uniform in the cone the sphere subtends from `p` (Shirley & Wang 1996,
+    /// "Monte Carlo Techniques for Direct Lighting Calculations", uniform cone sampling) and
+    /// the nearest point of the sphere along it, placed by the law of sines in the triangle
+    /// (p, centre, point): sin(angle at the point) = sin θ / sin θmax. Returns the point and
+    /// the solid-angle pdf 1/(2π(1 − cos θmax)); None where [`Sphere::visible_cone`] is None.
+    pub fn sample_cone(&self, p: Vec3, u: [f64; 2]) -> Option<(SurfacePoint, f64)> {
+        let omc_max = self.visible_cone(p)?;
+        let to_center = self.center - p;
+        let d = to_center.length();
+        let sin_max = self.radius / d;
+        // cos θ = 1 − u₀(1 − cos θmax), kept as 1 − cos θ; sin²θ = (1 − cos θ)(1 + cos θ)
+        let omc = u[0] * omc_max;
+        let cos_t = 1.0 - omc;
+        let sin2_t = omc * (2.0 - omc);
+        let s2 = (sin2_t / (sin_max * sin_max)).min(1.0);
+        // angle α at the centre between the point and the direction back to p:
+        // α = asin(sin θ / sin θmax) − θ, so cos α = cos θ √(1 − s²) + sin²θ / sin θmax
+        let cos_a = (cos_t * (1.0 - s2).sqrt() + sin2_t / sin_max).min(1.0);
+        let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
+        let phi = 2.0 * PI * u[1];
+        let w = to_center / d;
+        let frame = Frame::from_normal(w);
+        let across = frame.to_world(Vec3::new(phi.cos(), phi.sin(), 0.0));
+        let x = self.center + (across * sin_a - w * cos_a) * self.radius;
+        Some((self.surface_point(x), 1.0 / (2.0 * PI * omc_max)))
+    }
+
     /// A point uniformly distributed over the area; pdf 1/area.
     pub fn sample(&self, u: [f64; 2]) -> SurfacePoint {
         self.surface_point(self.center + warp::uniform_sphere(u) * self.radius)
@@ -73,6 +133,55 @@ impl Sphere {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn cone_samples_lie_on_the_near_side_along_their_direction() {
+        for (r, d) in [(0.5, 2.0), (1e-6, 1e3), (1.0, 1.0 + 1e-6), (3.0, 1e4)] {
+            let s = Sphere {
+                center: Vec3::new(0.3, d, -0.2),
+                radius: r,
+                flip_normals: false,
+            };
+            let p = Vec3::new(0.3, 0.0, -0.2);
+            for i in 0..64 {
+                let u = [(i as f64 + 0.5) / 64.0, (i as f64 * 0.618) % 1.0];
+                let (sp, pdf) = s.sample_cone(p, u).unwrap();
+                // on the sphere, to the rounding of its centre's coordinates
+                let tol = 1e-9 + 1e-14 * s.center.length() / r;
+                assert!(((sp.p - s.center).length() / r - 1.0).abs() < tol);
+                // the point is the sphere's first hit along its own direction
+                let dir = (sp.p - p).normalize();
+                let (t, _) = s.intersect(&Ray { o: p, d: dir }, f64::INFINITY).unwrap();
+                assert!(
+                    (t / (sp.p - p).length() - 1.0).abs() < 1e-6,
+                    "r {r} d {d} u {u:?}"
+                );
+                let omc = 1.0 - (1.0 - (r / d) * (r / d)).sqrt();
+                assert!((pdf * 2.0 * PI * omc - 1.0).abs() < 1e-6 || omc < 1e-12);
+            }
+        }
+        // from inside or on the surface: no cone
+        let s = Sphere {
+            center: Vec3::ZERO,
+            radius: 1.0,
+            flip_normals: true,
+        };
+        assert!(s
+            .sample_cone(Vec3::new(0.0, 0.0, 1.0), [0.5, 0.5])
+            .is_none());
+        assert!(s.sample_cone(Vec3::ZERO, [0.5, 0.5]).is_none());
+        // a small sphere far from the origin: its surface points, rounded, are not outside
+        let s = Sphere {
+            center: Vec3::splat(1e6),
+            radius: 1e-4,
+            flip_normals: true,
+        };
+        for i in 0..1000 {
+            let d = warp::uniform_sphere([(i as f64 + 0.5) / 1000.0, (i as f64 * 0.618) % 1.0]);
+            let (_, sp) = s.intersect(&Ray { o: s.center, d }, f64::INFINITY).unwrap();
+            assert!(!s.clearly_outside(sp.p), "{:?}", sp.p - s.center);
+        }
+    }
 
     #[test]
     fn hits_from_inside_and_outside_at_any_scale() {

@@ -94,7 +94,9 @@ impl Light {
         }
     }
 
-    /// Samples a direction towards the light from `p`; `u_select` picks a mesh triangle.
+    /// Samples a direction towards the light from `p`; `u_select` picks a mesh triangle. Area
+    /// lights sample their area, except a sphere seen from outside, which samples the cone it
+    /// subtends ([`crate::geometry::sphere::Sphere::sample_cone`]).
     pub fn sample(
         &self,
         p: Vec3,
@@ -121,7 +123,14 @@ impl Light {
                 shape, two_sided, ..
             } => {
                 let s = &shapes[*shape as usize];
-                let sp = s.sample(u_select, u);
+                let cone = match s {
+                    Shape::Sphere(sphere) => sphere.sample_cone(p, u),
+                    _ => None,
+                };
+                let (sp, cone_pdf) = match cone {
+                    Some((sp, pdf)) => (sp, Some(pdf)),
+                    None => (s.sample(u_select, u), None),
+                };
                 let v = sp.p - p;
                 let d2 = v.length_squared();
                 if d2 == 0.0 {
@@ -132,8 +141,9 @@ impl Light {
                 if cos_l == 0.0 {
                     return None;
                 }
-                // area pdf 1/A converted to solid angle: d²/(|cos θl| A)
-                let pdf = d2 / (cos_l * s.area());
+                // a sphere seen from outside: its cone's pdf; else the area pdf 1/A converted
+                // to solid angle, d²/(|cos θl| A)
+                let pdf = cone_pdf.unwrap_or_else(|| d2 / (cos_l * s.area()));
                 let radiance = area_radiance(*two_sided, sp.n, -wi, || *le);
                 Some(LightSample {
                     wi,
@@ -282,6 +292,11 @@ impl Light {
     pub fn pdf_area_hit(&self, p: Vec3, hit: &SurfacePoint, shapes: &[Shape]) -> f64 {
         match self {
             Light::Area { shape, .. } => {
+                if let Shape::Sphere(sphere) = &shapes[*shape as usize] {
+                    if let Some(omc_max) = sphere.visible_cone(p) {
+                        return 1.0 / (2.0 * PI * omc_max);
+                    }
+                }
                 let v = hit.p - p;
                 let d2 = v.length_squared();
                 let cos_l = hit.n.dot(v).abs() / d2.sqrt();

@@ -85,7 +85,7 @@ fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
         stderr.contains("renderer stand-in is not available"),
         "{stderr}"
     );
-    assert!(stdout.contains("0 passed, 0 failed, 5 skipped"), "{stdout}");
+    assert!(stdout.contains("0 passed, 0 failed, 7 skipped"), "{stdout}");
     // An unknown renderer is a usage error (exit 2) that lists the known ones.
     let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
         .current_dir(root(""))

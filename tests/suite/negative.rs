@@ -146,6 +146,11 @@ enum DirectBug {
     MissingCosine,
     AreaPdfAsSolidAngle,
     FixedEpsilon,
+    /// Area lights emit from both faces, whatever the scene says.
+    TwoSidedEmission,
+    /// A sphere light's sample keeps the pdf of uniform area sampling (1/area), not the
+    /// solid-angle density of the direction it drew.
+    SphereAreaPdf,
 }
 
 /// A small direct-lighting tracer (emission + one light sample) with one injected bug; for
@@ -238,7 +243,8 @@ impl Direct {
             ..
         }) = scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize])
         {
-            l += area_radiance(*two_sided, hit.point.n, -r.d, || radiance.sample(wl));
+            let two_sided = *two_sided || self.0 == DirectBug::TwoSidedEmission;
+            l += area_radiance(two_sided, hit.point.n, -r.d, || radiance.sample(wl));
         }
         let mut sp = hit.point;
         if self.0 == DirectBug::FixedEpsilon {
@@ -281,8 +287,30 @@ impl Direct {
                 pdf = 1.0 / shapes[*shape as usize].area();
             }
         }
+        if let (Light::Area { shape, .. }, DirectBug::SphereAreaPdf) = (&scene.lights[li], self.0) {
+            if let furnace::geometry::Shape::Sphere(_) = &shapes[*shape as usize] {
+                pdf = 1.0 / shapes[*shape as usize].area();
+            }
+        }
         l + f * ls.radiance * (cos * n_lights as f64 / pdf)
     }
+}
+
+/// The direct-lighting tracer passes `check` without a bug and fails it with `bug`.
+fn lambert_control(check: &str, bug: DirectBug) {
+    let manifest = "tests/manifests/lambert.toml";
+    assert_all(manifest, check, &Direct(DirectBug::None), Verdict::Pass);
+    assert_all(manifest, check, &Direct(bug), Verdict::Fail);
+}
+
+#[test]
+fn lambert_rejects_emission_from_an_emitters_back_face() {
+    lambert_control("lambert/emitter-back", DirectBug::TwoSidedEmission);
+}
+
+#[test]
+fn lambert_rejects_a_sphere_light_sampled_with_its_area_pdf() {
+    lambert_control("lambert/sphere-light", DirectBug::SphereAreaPdf);
 }
 
 #[test]

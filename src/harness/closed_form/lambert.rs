@@ -37,8 +37,14 @@ pub fn polygon_irradiance(p: Vec3, n: Vec3, vertices: &[Vec3], l: f64) -> f64 {
     0.5 * l * sum.abs()
 }
 
-/// Closed-form irradiance at surface point `sp` (normal towards the viewer) from every light.
-pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, CheckError> {
+/// Closed-form irradiance at surface point `sp` (normal towards the viewer) from every light
+/// but the one on shape `own` (a flat emitter does not light itself).
+pub fn irradiance(
+    scene: &Scene,
+    sp: &SurfacePoint,
+    n: Vec3,
+    own: Option<u32>,
+) -> Result<f64, CheckError> {
     let shapes = scene.aggregate.shapes();
     let has_env = scene
         .lights
@@ -67,6 +73,12 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Chec
                 radiance,
                 two_sided,
             } => {
+                if Some(*shape) == own {
+                    if !matches!(shapes[*shape as usize], Shape::Quad(_)) {
+                        return Err("the lambert closed form takes a viewed emitter only when it is a quad (a curved one lights itself)".into());
+                    }
+                    continue;
+                }
                 let le = constant(radiance)?;
                 let polys: Vec<(Vec<Vec3>, Vec3)> = match &shapes[*shape as usize] {
                     Shape::Quad(q) => vec![(
@@ -115,22 +127,36 @@ pub fn irradiance(scene: &Scene, sp: &SurfacePoint, n: Vec3) -> Result<f64, Chec
     Ok(h)
 }
 
-/// The closed form along one camera ray's hit: R·H/π (direct light only).
+/// The closed form along one camera ray's hit: R·H/π (direct light only), plus the viewed
+/// surface's own emission Le where it emits towards the camera (an area light emits along its
+/// normal, both ways when two-sided; docs/scenes.md).
 pub fn reflected(scene: &Scene, hit: Option<&Hit>, d: Vec3) -> Result<f64, CheckError> {
     let hit = hit.ok_or("a camera ray of the region hits nothing")?;
     let Bsdf::Diffuse(l) = &scene.bsdfs[hit.shape as usize] else {
         return Err("the lambert region must see a Lambertian (diffuse) surface".into());
     };
     let r = constant(&l.reflectance)?;
-    if scene.shape_light[hit.shape as usize].is_some() {
-        return Err("the lambert region must see a non-emitting surface".into());
-    }
-    let n = if hit.point.n.dot(d) < 0.0 {
+    let towards_camera = hit.point.n.dot(d) < 0.0;
+    let n = if towards_camera {
         hit.point.n
     } else {
         -hit.point.n
     };
-    Ok(r / PI * irradiance(scene, &hit.point, n)?)
+    let mut emitted = 0.0;
+    if let Some(light) = scene.shape_light[hit.shape as usize] {
+        let Light::Area {
+            radiance,
+            two_sided,
+            ..
+        } = &scene.lights[light as usize]
+        else {
+            return Err("a shape's light is not an area light".into());
+        };
+        if *two_sided || towards_camera {
+            emitted = constant(radiance)?;
+        }
+    }
+    Ok(emitted + r / PI * irradiance(scene, &hit.point, n, Some(hit.shape))?)
 }
 
 /// The expected region mean for a lambert scene and the expected value of each pixel.

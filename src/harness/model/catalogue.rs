@@ -7,7 +7,7 @@ use crate::geometry::{
 };
 use crate::harness::under_test::BsdfFlags;
 use crate::lights::Light;
-use crate::math::{warp, Vec3};
+use crate::math::{warp, Vec3, PI};
 use crate::media::{HenyeyGreenstein, PhaseFunction};
 use crate::scattering::microfacet::Ggx;
 use crate::scattering::{Bsdf, Conductor, ConductorFresnel, Dielectric, Ior, Lambertian, Ward};
@@ -212,6 +212,23 @@ impl LightSampler {
         match &self.light {
             Light::Area { shape, .. } => {
                 let s = &self.shapes[*shape as usize];
+                if let Shape::Sphere(sphere) = s {
+                    // Seen from clearly outside, the sampler is uniform over the directions
+                    // that hit the sphere: 1 over the solid angle it subtends, 2π(1 − cos θmax)
+                    // with sin θmax = r/d.
+                    let d = (sphere.center - self.p).length();
+                    if sphere.clearly_outside(self.p) {
+                        let hits = sphere
+                            .intersect(&Ray { o: self.p, d: w }, f64::INFINITY)
+                            .is_some();
+                        let cos_max = (1.0 - (sphere.radius / d).powi(2)).sqrt();
+                        return if hits {
+                            1.0 / (2.0 * PI * (1.0 - cos_max))
+                        } else {
+                            0.0
+                        };
+                    }
+                }
                 let mut pdf = 0.0;
                 for prim in 0..s.primitive_count() {
                     // Every crossing of the surface along w is a point the sampler can pick:
@@ -246,15 +263,22 @@ impl LightSampler {
 pub fn lights() -> Vec<(String, LightSampler)> {
     let radiance = Spectrum::Constant(1.0);
     let lights: Vec<(&str, Shape)> = vec![
-        // Seen from inside (the furnace-sphere case). From outside, the uniform-area pdf in solid
-        // angle, d²/(|cos θl| A), has an integrable 1/cos singularity at the silhouette that
-        // per-bin midpoint quadrature cannot integrate; cone sampling would remove it.
+        // Seen from inside (the furnace-sphere case): area sampling.
         (
             "sphere",
             Shape::Sphere(Sphere {
                 center: Vec3::new(0.3, 0.2, 0.4),
                 radius: 1.2,
                 flip_normals: true,
+            }),
+        ),
+        // Seen from outside: the cone it subtends (half-angle 31°).
+        (
+            "sphere outside",
+            Shape::Sphere(Sphere {
+                center: Vec3::new(0.6, -0.8, 1.2),
+                radius: 0.8,
+                flip_normals: false,
             }),
         ),
         (
