@@ -46,6 +46,26 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 
 
+def cpu_description():
+    """The CPU as the kernel reports it: model name, family/model/stepping and the vector
+    extensions that decide how wide Mitsuba's LLVM back end and furnace's native build go."""
+    info = {}
+    try:
+        with open("/proc/cpuinfo") as f:
+            for line in f:
+                if ":" in line:
+                    k, v = line.split(":", 1)
+                    info.setdefault(k.strip(), v.strip())
+    except OSError:
+        return platform.processor() or "unknown CPU"
+    flags = set(info.get("flags", "").split())
+    vector = [f for f in ("sse4_2", "avx", "avx2", "fma", "avx512f", "avx512dq", "avx512bw",
+                          "avx512vl", "avx512_fp16", "amx_tile") if f in flags]
+    return (f"{info.get('model name', 'unknown')} (family {info.get('cpu family', '?')} "
+            f"model {info.get('model', '?')} stepping {info.get('stepping', '?')}), "
+            f"{os.cpu_count()} logical CPUs, vector: {' '.join(vector) or 'none'}")
+
+
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--scene", default=os.path.join(REPO, "scenes", "cornell-box.toml"))
@@ -170,7 +190,7 @@ def main(argv=None):
             depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
             r = subprocess.run([binary, "render", args.scene, "--width", str(width), "--height", str(height),
                                 "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
-                                "--observer", "mitsuba3", "--quiet", "--out", out] + depth,
+                                "--observer", "mitsuba3", "--out", out] + depth,
                                check=True, capture_output=True, text=True)
             secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
             if speed_only:
@@ -194,8 +214,9 @@ def main(argv=None):
               "max_depth_bounces": args.max_depth, "threads": args.threads, "reps": args.reps,
               "reference": None if speed_only else os.path.relpath(args.reference, REPO),
               "reference_mean_variance": None if speed_only else ref_noise,
-              "mitsuba": mi.__version__, "platform": platform.platform(), "renderers": {}}
+              "mitsuba": mi.__version__, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
     base = None
+    print(f"CPU: {cpu_description()}")
     print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, {args.threads} threads, "
           f"median of {args.reps} alternating runs; "
           + ("speed only (no reference)" if speed_only else f"error against {result['reference']}"))
