@@ -438,6 +438,52 @@ pub fn region_measurement(
     }
 }
 
+/// What one XYZ channel of a region must read: the region mean and, where the image is not
+/// uniform, the closed form of every pixel (row-major within the region).
+pub struct ChannelExpectation<'a> {
+    /// Expected region mean.
+    pub mean: f64,
+    /// Expected pixel values, or None for a uniform region.
+    pub pixels: Option<&'a [f64]>,
+}
+
+/// Tests X, Y and Z of one film over `region`, each against its expectation, and combines the
+/// three (Šidák; the worst channel's numbers shown); the film's camera paths count once.
+pub fn xyz_measurement(
+    ctx: &Context,
+    film: &Film,
+    settings: &RenderSettings,
+    region: [usize; 4],
+    expected: [ChannelExpectation<'_>; 3],
+    rel_tolerance: f64,
+    what: &str,
+) -> Measurement {
+    let parts = expected
+        .iter()
+        .zip(["X", "Y", "Z"])
+        .enumerate()
+        .map(|(c, (e, name))| {
+            let r = region_stats_of(
+                film,
+                region,
+                settings.spp,
+                diagnosis_alpha(ctx, 3),
+                e.pixels,
+                c,
+                ctx.renderer.image_rounding(),
+            );
+            let message = format!("{what}; channel {name}");
+            (
+                name.to_string(),
+                region_measurement(&r, e.mean, rel_tolerance, message),
+            )
+        })
+        .collect();
+    let mut m = super::measurement::combine(parts);
+    m.samples = (settings.width * settings.height) as u64 * settings.spp;
+    m
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -3,8 +3,8 @@
 
 use super::checks::{
     albedo, chi2, convergence, energy, estimators, furnace, half_space, hg, image, lambert,
-    measured, phase, radiance, reciprocity, reciprocity_image, scale, smooth_limit, transmittance,
-    weights,
+    measured, phase, radiance, reciprocity, reciprocity_image, refraction, scale, smooth_limit,
+    transmittance, weights,
 };
 use super::kind::{DynKind, Registered};
 use std::marker::PhantomData;
@@ -15,6 +15,7 @@ pub static KINDS: &[&dyn DynKind] = &[
     &Registered::<transmittance::Transmittance>(PhantomData),
     &Registered::<furnace::Furnace>(PhantomData),
     &Registered::<lambert::Lambert>(PhantomData),
+    &Registered::<refraction::Refraction>(PhantomData),
     &Registered::<reciprocity::Reciprocity>(PhantomData),
     &Registered::<energy::Energy>(PhantomData),
     &Registered::<albedo::Albedo>(PhantomData),

@@ -1504,3 +1504,53 @@ fn the_tessellated_furnace_rejects_triangles_that_leak_at_their_edges() {
         &LeakyEdges::new(0.005),
     );
 }
+
+/// A renderer whose dielectric index is wrong in one way, shown by rendering the scene with
+/// its glass line replaced: `ior = "bk7"` by BK7's index at the d line (1.5168) for every
+/// wavelength (dispersion ignored), or `ior = 1.6` by 1/1.6 (the inside and outside swapped,
+/// as an exporter that mixes up int_ior and ext_ior would). With no replacement it is the
+/// clean twin.
+struct WrongIndex {
+    scene: Scene,
+}
+
+impl WrongIndex {
+    fn new(file: &str, from: &str, to: &str) -> Self {
+        let path = root("tests/manifests/scenes").join(file);
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(text.contains(from), "{file} has no {from}");
+        WrongIndex {
+            scene: Scene::parse(&text.replace(from, to), &path).unwrap(),
+        }
+    }
+}
+
+impl Renderer for WrongIndex {
+    fn name(&self) -> String {
+        "wrong index".into()
+    }
+    fn render(
+        &self,
+        _scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(&self.scene, s)
+    }
+}
+
+#[test]
+fn refraction_rejects_a_renderer_that_ignores_dispersion() {
+    let (m, check) = ("tests/manifests/refraction.toml", "refraction/bk7-prism");
+    let clean = WrongIndex::new("prism.toml", "ior = \"bk7\"", "ior = \"bk7\"");
+    assert_all(m, check, &clean, Verdict::Pass);
+    let one_index = WrongIndex::new("prism.toml", "ior = \"bk7\"", "ior = 1.5168");
+    assert_rejected(m, check, &one_index);
+}
+
+#[test]
+fn refraction_rejects_an_index_inverted_across_the_interface() {
+    let (m, check) = ("tests/manifests/refraction.toml", "refraction/glass-wedge");
+    assert_all(m, check, &BuiltIn, Verdict::Pass);
+    let inverted = WrongIndex::new("glass-wedge.toml", "ior = 1.6", "ior = 0.625");
+    assert_rejected(m, check, &inverted);
+}

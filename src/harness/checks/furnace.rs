@@ -5,9 +5,9 @@
 
 use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::keys::{common, Key, Keys};
-use crate::harness::measurement::combine;
 use crate::harness::region::{
-    diagnosis_alpha, region_measurement, region_of, region_stats_of, render_region, settings_for,
+    diagnosis_alpha, region_measurement, region_of, render_region, settings_for, xyz_measurement,
+    ChannelExpectation,
 };
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
@@ -60,34 +60,13 @@ impl Kind for Furnace {
         }
         let film = ctx.renderer.render(scene, &s)?;
         let white = s.observer.white();
-        let parts = ["X", "Y", "Z"]
-            .iter()
-            .enumerate()
-            .map(|(c, name)| {
-                let r = region_stats_of(
-                    &film,
-                    region,
-                    s.spp,
-                    diagnosis_alpha(ctx, 3),
-                    None,
-                    c,
-                    ctx.renderer.image_rounding(),
-                );
-                let e = expected * white[c] / white[1];
-                (
-                    name.to_string(),
-                    region_measurement(
-                        &r,
-                        e,
-                        ctx.rel_tolerance(check.rel_tolerance),
-                        format!("{what}; channel {name}"),
-                    ),
-                )
-            })
-            .collect();
-        // three channels of one image: count its camera paths once
-        let mut m = combine(parts);
-        m.samples = (s.width * s.height) as u64 * s.spp;
-        Ok(m)
+        let expected = [0, 1, 2].map(|c| ChannelExpectation {
+            mean: expected * white[c] / white[1],
+            pixels: None,
+        });
+        let tolerance = ctx.rel_tolerance(check.rel_tolerance);
+        Ok(xyz_measurement(
+            ctx, &film, &s, region, expected, tolerance, &what,
+        ))
     }
 }

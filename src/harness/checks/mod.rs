@@ -17,6 +17,7 @@ pub mod phase;
 pub mod radiance;
 pub mod reciprocity;
 pub mod reciprocity_image;
+pub mod refraction;
 pub mod scale;
 pub mod smooth_limit;
 pub mod transmittance;

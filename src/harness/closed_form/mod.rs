@@ -8,4 +8,5 @@ pub mod footprint;
 pub mod furnace;
 pub mod ggx_albedo;
 pub mod lambert;
+pub mod refraction;
 pub mod witness;
