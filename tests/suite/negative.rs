@@ -1437,12 +1437,10 @@ fn half_space_rejects_single_scattering() {
 /// `shrink`, so light leaks through slits along every edge and around every vertex, as through
 /// a triangle test that is not watertight. With `shrink` 0 it is the clean twin: the same
 /// wrapper rendering the mesh as it is.
-struct LeakyEdges {
-    scene: Scene,
-}
+struct LeakyEdges;
 
 impl LeakyEdges {
-    fn new(shrink: f64) -> Self {
+    fn new(shrink: f64) -> SceneSwap {
         let meshes = root("tests/manifests/scenes/meshes");
         let mesh = furnace::io::mesh::load_mesh(&meshes.join("icosphere-5120.ply")).unwrap();
         let mut positions = Vec::new();
@@ -1470,13 +1468,23 @@ impl LeakyEdges {
             .replace("${albedo}", "0.5");
         let scene = Scene::parse(&text, &dir.join("furnace-tessellated.toml")).unwrap();
         let _ = std::fs::remove_dir_all(&dir);
-        LeakyEdges { scene }
+        SceneSwap {
+            label: "leaky edges",
+            scene,
+        }
     }
 }
 
-impl Renderer for LeakyEdges {
+/// A renderer that renders its own scene instead of the one it is given: the built-in
+/// renderer on a deliberately altered copy (the control), or on an unaltered one (its twin).
+struct SceneSwap {
+    label: &'static str,
+    scene: Scene,
+}
+
+impl Renderer for SceneSwap {
     fn name(&self) -> String {
-        "leaky edges".into()
+        self.label.into()
     }
     fn render(
         &self,
@@ -1510,31 +1518,17 @@ fn the_tessellated_furnace_rejects_triangles_that_leak_at_their_edges() {
 /// wavelength (dispersion ignored), or `ior = 1.6` by 1/1.6 (the inside and outside swapped,
 /// as an exporter that mixes up int_ior and ext_ior would). With no replacement it is the
 /// clean twin.
-struct WrongIndex {
-    scene: Scene,
-}
+struct WrongIndex;
 
 impl WrongIndex {
-    fn new(file: &str, from: &str, to: &str) -> Self {
+    fn new(file: &str, from: &str, to: &str) -> SceneSwap {
         let path = root("tests/manifests/scenes").join(file);
         let text = std::fs::read_to_string(&path).unwrap();
         assert!(text.contains(from), "{file} has no {from}");
-        WrongIndex {
+        SceneSwap {
+            label: "wrong index",
             scene: Scene::parse(&text.replace(from, to), &path).unwrap(),
         }
-    }
-}
-
-impl Renderer for WrongIndex {
-    fn name(&self) -> String {
-        "wrong index".into()
-    }
-    fn render(
-        &self,
-        _scene: &Scene,
-        s: &RenderSettings,
-    ) -> Result<Film, furnace::harness::RendererError> {
-        BuiltIn.render(&self.scene, s)
     }
 }
 
