@@ -1437,41 +1437,37 @@ fn half_space_rejects_single_scattering() {
 /// `shrink`, so light leaks through slits along every edge and around every vertex, as through
 /// a triangle test that is not watertight. With `shrink` 0 it is the clean twin: the same
 /// wrapper rendering the mesh as it is.
-struct LeakyEdges;
-
-impl LeakyEdges {
-    fn new(shrink: f64) -> SceneSwap {
-        let meshes = root("tests/manifests/scenes/meshes");
-        let mesh = furnace::io::mesh::load_mesh(&meshes.join("icosphere-5120.ply")).unwrap();
-        let mut positions = Vec::new();
-        let mut triangles = Vec::new();
-        for t in &mesh.triangles {
-            let p = t.map(|i| Vec3::from(mesh.positions[i as usize]));
-            let c = (p[0] + p[1] + p[2]) / 3.0;
-            let n = positions.len() as u32;
-            positions.extend(p.map(|v| c + (v - c) * (1.0 - shrink)));
-            triangles.push([n, n + 1, n + 2]);
-        }
-        let dir = std::env::temp_dir().join(format!(
-            "furnace-leaky-{}-{}",
-            std::process::id(),
-            (shrink * 1e6) as u64
-        ));
-        std::fs::create_dir_all(dir.join("meshes")).unwrap();
-        std::fs::write(
-            dir.join("meshes/icosphere-5120.ply"),
-            furnace::io::mesh::ply_binary_f32(&positions, &triangles),
-        )
-        .unwrap();
-        let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-tessellated.toml"))
-            .unwrap()
-            .replace("${albedo}", "0.5");
-        let scene = Scene::parse(&text, &dir.join("furnace-tessellated.toml")).unwrap();
-        let _ = std::fs::remove_dir_all(&dir);
-        SceneSwap {
-            label: "leaky edges",
-            scene,
-        }
+fn leaky_edges(shrink: f64) -> SceneSwap {
+    let meshes = root("tests/manifests/scenes/meshes");
+    let mesh = furnace::io::mesh::load_mesh(&meshes.join("icosphere-5120.ply")).unwrap();
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for t in &mesh.triangles {
+        let p = t.map(|i| Vec3::from(mesh.positions[i as usize]));
+        let c = (p[0] + p[1] + p[2]) / 3.0;
+        let n = positions.len() as u32;
+        positions.extend(p.map(|v| c + (v - c) * (1.0 - shrink)));
+        triangles.push([n, n + 1, n + 2]);
+    }
+    let dir = std::env::temp_dir().join(format!(
+        "furnace-leaky-{}-{}",
+        std::process::id(),
+        (shrink * 1e6) as u64
+    ));
+    std::fs::create_dir_all(dir.join("meshes")).unwrap();
+    std::fs::write(
+        dir.join("meshes/icosphere-5120.ply"),
+        furnace::io::mesh::ply_binary_f32(&positions, &triangles),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-tessellated.toml"))
+        .unwrap()
+        .replace("${albedo}", "0.5");
+    let scene = Scene::parse(&text, &dir.join("furnace-tessellated.toml")).unwrap();
+    let _ = std::fs::remove_dir_all(&dir);
+    SceneSwap {
+        label: "leaky edges",
+        scene,
     }
 }
 
@@ -1503,14 +1499,10 @@ fn the_tessellated_furnace_rejects_triangles_that_leak_at_their_edges() {
     assert_all(
         "tests/manifests/furnace.toml",
         check,
-        &LeakyEdges::new(0.0),
+        &leaky_edges(0.0),
         Verdict::Pass,
     );
-    assert_rejected(
-        "tests/manifests/furnace.toml",
-        check,
-        &LeakyEdges::new(0.005),
-    );
+    assert_rejected("tests/manifests/furnace.toml", check, &leaky_edges(0.005));
 }
 
 /// A renderer whose dielectric index is wrong in one way, shown by rendering the scene with
@@ -1518,26 +1510,22 @@ fn the_tessellated_furnace_rejects_triangles_that_leak_at_their_edges() {
 /// wavelength (dispersion ignored), or `ior = 1.6` by 1/1.6 (the inside and outside swapped,
 /// as an exporter that mixes up int_ior and ext_ior would). With no replacement it is the
 /// clean twin.
-struct WrongIndex;
-
-impl WrongIndex {
-    fn new(file: &str, from: &str, to: &str) -> SceneSwap {
-        let path = root("tests/manifests/scenes").join(file);
-        let text = std::fs::read_to_string(&path).unwrap();
-        assert!(text.contains(from), "{file} has no {from}");
-        SceneSwap {
-            label: "wrong index",
-            scene: Scene::parse(&text.replace(from, to), &path).unwrap(),
-        }
+fn wrong_index(file: &str, from: &str, to: &str) -> SceneSwap {
+    let path = root("tests/manifests/scenes").join(file);
+    let text = std::fs::read_to_string(&path).unwrap();
+    assert!(text.contains(from), "{file} has no {from}");
+    SceneSwap {
+        label: "wrong index",
+        scene: Scene::parse(&text.replace(from, to), &path).unwrap(),
     }
 }
 
 #[test]
 fn refraction_rejects_a_renderer_that_ignores_dispersion() {
     let (m, check) = ("tests/manifests/refraction.toml", "refraction/bk7-prism");
-    let clean = WrongIndex::new("prism.toml", "ior = \"bk7\"", "ior = \"bk7\"");
+    let clean = wrong_index("prism.toml", "ior = \"bk7\"", "ior = \"bk7\"");
     assert_all(m, check, &clean, Verdict::Pass);
-    let one_index = WrongIndex::new("prism.toml", "ior = \"bk7\"", "ior = 1.5168");
+    let one_index = wrong_index("prism.toml", "ior = \"bk7\"", "ior = 1.5168");
     assert_rejected(m, check, &one_index);
 }
 
@@ -1545,6 +1533,6 @@ fn refraction_rejects_a_renderer_that_ignores_dispersion() {
 fn refraction_rejects_an_index_inverted_across_the_interface() {
     let (m, check) = ("tests/manifests/refraction.toml", "refraction/glass-wedge");
     assert_all(m, check, &BuiltIn, Verdict::Pass);
-    let inverted = WrongIndex::new("glass-wedge.toml", "ior = 1.6", "ior = 0.625");
+    let inverted = wrong_index("glass-wedge.toml", "ior = 1.6", "ior = 0.625");
     assert_rejected(m, check, &inverted);
 }
