@@ -318,8 +318,16 @@ fn medium(x: &mut String, name: &str, m: &Medium) {
             t.push(a + sc);
             al.push(if a + sc > 0.0 { sc / (a + sc) } else { 0.0 });
         }
-        let table =
-            |values| Spectrum::table(wavelengths.clone(), values, crate::spectrum::Outside::Clamp);
+        // A table whose values are all equal is written as one value: Mitsuba builds a
+        // sampling distribution over a tabulated albedo and refuses one without mass (all
+        // zeros: a purely absorbing medium), but takes a uniform 0.
+        let table = |values: Vec<f64>| {
+            if values.iter().all(|v| *v == values[0]) {
+                Spectrum::Constant(values[0])
+            } else {
+                Spectrum::table(wavelengths.clone(), values, crate::spectrum::Outside::Clamp)
+            }
+        };
         spectrum(x, 4, "sigma_t", &table(t));
         spectrum(x, 4, "albedo", &table(al));
     }

@@ -470,3 +470,21 @@ fn two_sided_emission_is_refused_by_name() {
         "{e}"
     );
 }
+
+#[test]
+fn a_purely_absorbing_chromatic_medium_exports_a_uniform_albedo() {
+    // Mitsuba 3.9.1 refuses a tabulated albedo that is zero everywhere ("ContinuousDistribution:
+    // no probability mass found") but takes the uniform 0 that means the same.
+    let path = root("tests/manifests/scenes/absorber.toml");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("${sigma}", "1.0");
+    let s = Scene::parse(&text, &path).unwrap();
+    let doc = parse(&mitsuba::export(&s).unwrap().xml);
+    let medium = doc.children.iter().find(|c| c.name == "medium").unwrap();
+    let albedo = &medium.child_named("spectrum", "albedo").unwrap().attrs["value"];
+    assert_eq!(albedo, "0");
+    // σt still varies with wavelength
+    let sigma_t = &medium.child_named("spectrum", "sigma_t").unwrap().attrs["value"];
+    assert!(sigma_t.starts_with("360:2,"), "{sigma_t}");
+}
