@@ -30,7 +30,9 @@ Settings that make the render comparable with furnace (all in the sidecar):
     from depth 3 (LuxCore's default) against 1.875, and 2.047 unlimited against 2; with roulette
     off 1.8747 +- 0.0002 and 1.9998 +- 0.0002 (N = 64). An unlimited depth is therefore rendered
     as --unlimited-depth bounces (default 64); the sidecar records it with the scene's largest
-    albedo a and the bound a^(K+1)/(1-a) on the relative size of the missing tail.
+    albedo a and the bound a^(K+1)/(1-a) on the relative size of the missing tail, and a scene
+    whose bound exceeds --max-truncation (default 1e-4) is refused (exit 3), not rendered low:
+    at K = 64 that is every scene with an albedo above about 0.86.
   * Clamping off: path.clamping.variance.maxvalue = 0. No denoiser and no noise estimation: no
     image pipeline is rendered, no NOISE channel exists (it is only allocated for adaptive
     sampling or a NOISE output), and sampler.random.adaptive.strength = 0.
@@ -104,6 +106,10 @@ def parse_args(argv=None):
     p.add_argument("--unlimited-depth", type=int, default=64,
                    help="bounces rendered for an unlimited depth: LuxCore's Russian roulette biases its MIS, so "
                         "it is off and paths are truncated here (default: %(default)s)")
+    p.add_argument("--max-truncation", type=float, default=1e-4,
+                   help="largest relative bound on the energy an unlimited depth loses to the truncation "
+                        "(a^(K+1)/(1-a) for the largest albedo a < 1); above it the scene is refused, not "
+                        "rendered biased (default: %(default)s)")
     p.add_argument("--luxcore-pathdepth", type=int, default=None,
                    help="verification only: set path.pathdepth.total directly, bypassing the depth mapping")
     p.add_argument("--luxcore-rr-depth", type=int, default=None,
@@ -377,6 +383,13 @@ def main(argv=None):
         a = max_albedo(s)
         truncation = {"bounces": args.unlimited_depth, "max_albedo": a,
                       "tail_bound_relative": (a ** (args.unlimited_depth + 1) / (1 - a)) if a < 1 else None}
+        bound = truncation["tail_bound_relative"]
+        if bound is not None and bound > args.max_truncation:
+            return sj.unsupported(
+                f"an unlimited depth: with roulette off (LuxCore 2.11.2's roulette biases its MIS) paths end "
+                f"at {args.unlimited_depth} bounces, and the bound a^(K+1)/(1-a) on the share of the radiance "
+                f"that misses is {bound:.2g} at albedo a = {a:g} (above --max-truncation "
+                f"{args.max_truncation:g}); give a finite --max-depth or a larger --unlimited-depth")
 
     # numpy and OpenEXR must be imported before pyluxcore: its wheel preloads TBB's malloc proxy, and
     # an extension loaded after it aborts with "free(): invalid pointer" (pyluxcore 2.11.2).
