@@ -39,6 +39,24 @@ pub fn reflectance_rgb(s: &Spectrum) -> [f64; 3] {
     std::array::from_fn(|k| rgb[k] / white[k])
 }
 
+/// [`reflectance_rgb`] of a quantity that must not be negative (a reflectance, an index, a
+/// coefficient): a spectrum outside the sRGB gamut can map to a negative channel, which no
+/// renderer can take; it is refused by name rather than clamped.
+fn nonnegative_rgb(what: impl Fn() -> String, s: &Spectrum) -> Result<[f64; 3], ExportError> {
+    let rgb = reflectance_rgb(s);
+    if rgb.iter().all(|c| *c >= 0.0 && c.is_finite()) {
+        return Ok(rgb);
+    }
+    Err(ExportError::Unsupported {
+        format: FORMAT,
+        what: what(),
+        why: format!(
+            "a spectrum whose per-channel RGB is ({:.4}, {:.4}, {:.4}): outside the sRGB gamut, and a negative value is not physical",
+            rgb[0], rgb[1], rgb[2]
+        ),
+    })
+}
+
 fn v3(p: Vec3) -> Value {
     json!([p.x, p.y, p.z])
 }
@@ -62,8 +80,10 @@ fn material(i: usize, b: &Bsdf) -> Result<Value, ExportError> {
     let alpha = |g: &Option<crate::scattering::microfacet::Ggx>| {
         g.as_ref().map_or((0.0, 0.0), |g| (g.alpha_x, g.alpha_y))
     };
+    let rgb =
+        |part: &str, s: &Spectrum| nonnegative_rgb(|| format!("shape[{i}] material {part}"), s);
     Ok(match b {
-        Bsdf::Diffuse(l) => json!({"type": "diffuse", "rgb": reflectance_rgb(&l.reflectance)}),
+        Bsdf::Diffuse(l) => json!({"type": "diffuse", "rgb": rgb("reflectance", &l.reflectance)?}),
         Bsdf::Conductor(c) => {
             let (ax, ay) = alpha(&c.microfacet);
             match &c.fresnel {
@@ -72,7 +92,7 @@ fn material(i: usize, b: &Bsdf) -> Result<Value, ExportError> {
                     "k_rgb": [0.0, 0.0, 0.0], "perfect": true, "alpha_x": ax, "alpha_y": ay})
                 }
                 ConductorFresnel::Complex { eta, k } => json!({"type": "conductor",
-                    "eta_rgb": reflectance_rgb(eta), "k_rgb": reflectance_rgb(k),
+                    "eta_rgb": rgb("eta", eta)?, "k_rgb": rgb("k", k)?,
                     "perfect": false, "alpha_x": ax, "alpha_y": ay}),
             }
         }
@@ -95,8 +115,8 @@ fn material(i: usize, b: &Bsdf) -> Result<Value, ExportError> {
             }
             json!({"type": "dielectric", "ior": n, "alpha": ax})
         }
-        Bsdf::Ward(w) => json!({"type": "ward", "diffuse_rgb": reflectance_rgb(&w.diffuse),
-            "specular_rgb": reflectance_rgb(&w.specular), "alpha_x": w.alpha_x, "alpha_y": w.alpha_y}),
+        Bsdf::Ward(w) => json!({"type": "ward", "diffuse_rgb": rgb("diffuse", &w.diffuse)?,
+            "specular_rgb": rgb("specular", &w.specular)?, "alpha_x": w.alpha_x, "alpha_y": w.alpha_y}),
         Bsdf::Null(_) => json!({"type": "null"}),
     })
 }
@@ -167,16 +187,19 @@ pub fn export(scene: &Scene) -> Result<Value, ExportError> {
     let media: Vec<Value> = scene
         .media
         .iter()
-        .map(|m| {
+        .zip(&scene.medium_names)
+        .map(|(m, name)| {
             let phase = match m.phase {
                 PhaseFunction::Isotropic => json!({"type": "isotropic"}),
                 PhaseFunction::HenyeyGreenstein(hg) => json!({"type": "hg", "g": hg.g}),
                 PhaseFunction::Rayleigh => json!({"type": "rayleigh"}),
             };
-            json!({"sigma_a_rgb": reflectance_rgb(&m.sigma_a),
-                "sigma_s_rgb": reflectance_rgb(&m.sigma_s), "phase": phase})
+            let rgb =
+                |part: &str, s: &Spectrum| nonnegative_rgb(|| format!("medium {name} {part}"), s);
+            Ok(json!({"sigma_a_rgb": rgb("sigma_a", &m.sigma_a)?,
+                "sigma_s_rgb": rgb("sigma_s", &m.sigma_s)?, "phase": phase}))
         })
-        .collect();
+        .collect::<Result<_, ExportError>>()?;
     Ok(json!({
         "format": "furnace-scene-json",
         "version": 1,
@@ -262,6 +285,23 @@ mod tests {
         let e = export(&s).unwrap_err().to_string();
         assert!(
             e.contains("shape[0] material") && e.contains("dispersive"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn a_spectrum_outside_the_srgb_gamut_is_refused_not_clamped() {
+        // a reflectance that is 0.9 only between 495 and 510 nm: spectral cyan-green, whose
+        // red is negative in sRGB
+        let s = scene(&format!(
+            "{CAMERA}[materials.m]\ntype = \"diffuse\"\n\
+             reflectance = {{ wavelengths = [494.0, 495.0, 510.0, 511.0], values = [0.0, 0.9, 0.9, 0.0] }}\n\
+             [[shape]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\n\
+             [[light]]\ntype = \"environment\"\nradiance = 1.0\n"
+        ));
+        let e = export(&s).unwrap_err().to_string();
+        assert!(
+            e.contains("shape[0] material reflectance") && e.contains("sRGB gamut"),
             "{e}"
         );
     }
