@@ -64,6 +64,9 @@ pub struct CheckArgs {
     /// Write no reproducer bundles.
     #[arg(long)]
     no_bundles: bool,
+    /// Do not re-run a failed check's isolation ladder (simpler variants with known closed forms, e.g. the furnace kind capped at 0–3 bounces, within 4× the check's time).
+    #[arg(long)]
+    no_isolation: bool,
     /// Run only shard K of N (1-based) of the selected checks, for a CI matrix: the family-wise correction still spans every check, and `furnace merge` joins the shards' --json files into one run's results.
     #[arg(long, value_name = "K/N")]
     shard: Option<String>,
@@ -179,6 +182,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         },
         threads: a.threads,
         time_limit: a.time_limit,
+        isolate: !a.no_isolation,
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     let externals = if a.renderers.iter().any(|r| r != "furnace") {
@@ -266,6 +270,14 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                                 e.keep_runs_in(Some(dir));
                             }
                             bar.set_message(format!("{label}: {name}"));
+                        }
+                        Progress::Isolating(name) => {
+                            running.now(name);
+                            // the ladder's renders join the failed check's bundle
+                            if let (Some(e), Some(root)) = (&external, &bundles) {
+                                e.keep_runs_in(Some(root.join(html::row_id(&e.label, name))));
+                            }
+                            bar.set_message(format!("{label}: isolating {name}"));
                         }
                         Progress::Finished(o) => {
                             bar.inc(1);

@@ -41,6 +41,8 @@ pub struct RunOptions {
     pub time_limit: f64,
     /// Run only this shard's checks (the correction still spans every check).
     pub shard: Option<ShardPlan>,
+    /// Run the isolation ladder of each failed check (`harness::isolation`).
+    pub isolate: bool,
 }
 
 /// A shard and the shard of every check of the suite (`shard::partition`).
@@ -68,6 +70,7 @@ impl Default for RunOptions {
             threads: 0,
             time_limit: DEFAULT_TIME_LIMIT,
             shard: None,
+            isolate: true,
         }
     }
 }

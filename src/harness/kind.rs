@@ -46,6 +46,11 @@ pub trait Kind: Send + Sync + 'static {
     }
     /// Runs the check.
     fn run(check: &Check, p: &Self::Params, ctx: &Context) -> Result<Measurement, CheckError>;
+    /// The isolation ladder of a failed check: simpler variants whose expected values the kind
+    /// already has, simplest first (`isolation.rs` runs them). None by default.
+    fn ladder(_check: &Check, _p: &Self::Params) -> Vec<Rung> {
+        Vec::new()
+    }
 }
 
 /// The default applicability rule of a [`Scope`]: image kinds judge any renderer, model
@@ -84,6 +89,8 @@ pub trait DynKind: Send + Sync {
     fn not_applicable(&self, check: &Check, subject: &Subject) -> Option<String>;
     /// [`Kind::run`].
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError>;
+    /// See [`Kind::ladder`].
+    fn ladder(&self, check: &Check) -> Vec<Rung>;
 }
 
 /// The registry's handle of kind `K`.
@@ -133,9 +140,21 @@ impl<K: Kind> DynKind for Registered<K> {
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError> {
         K::run(check, self.params(check), ctx)
     }
+    fn ladder(&self, check: &Check) -> Vec<Rung> {
+        K::ladder(check, self.params(check))
+    }
 }
 
 /// A scene-level check's render settings (None = the scene's own value).
+/// One variant of an isolation ladder: what it keeps of the failed check, and the check.
+#[derive(Debug, Clone)]
+pub struct Rung {
+    /// What the variant isolates, e.g. "direct light only (max_depth 1)".
+    pub what: String,
+    /// The variant, run as a check of the same kind.
+    pub check: Check,
+}
+
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RenderOverrides {
     /// Samples per pixel.

@@ -2,7 +2,7 @@
 //! standard error, the expected value, the statistic and the p-value, with the message that
 //! explains them; and the rule that folds several sub-tests of one check into one measurement.
 
-use super::outcome::Statistic;
+use super::outcome::{Statistic, Verdict};
 
 /// What a check kind measured, before the runner assigns a verdict.
 #[derive(Debug, Clone, PartialEq, Default)]
@@ -145,5 +145,30 @@ pub fn fmt_sig(x: f64) -> String {
         format!("{x:.decimals$}")
     } else {
         format!("{x:.3e}")
+    }
+}
+
+/// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
+/// ERROR if an estimate, standard error or p-value is not finite (the test could not be
+/// formed, as the runner reports it), UNSTABLE if the variance did not settle, FAIL if the
+/// deterministic part fails or p ≤ α.
+pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
+    if [ms.estimate, ms.std_error, ms.p_value]
+        .iter()
+        .flatten()
+        .any(|v| !v.is_finite())
+    {
+        return Verdict::Error;
+    }
+    let det = ms.deterministic_pass.unwrap_or(true);
+    let stoch = ms.p_value.is_none_or(|p| p > alpha);
+    // UNSTABLE unless a re-test (measurement::Measurement::retested) rejected.
+    if ms.unstable.is_some() && (stoch || !ms.retested) {
+        return Verdict::Unstable;
+    }
+    if det && stoch {
+        Verdict::Pass
+    } else {
+        Verdict::Fail
     }
 }

@@ -5,7 +5,7 @@
 //! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter` → `checks/` (one file per kind) →
-//! `registry` → `manifest` → `runner`.
+//! `registry` → `manifest` → `isolation` → `runner`.
 
 pub mod adapter;
 pub mod checks;
@@ -13,6 +13,7 @@ pub mod closed_form;
 pub mod compare;
 pub mod context;
 pub mod error;
+pub mod isolation;
 pub mod keys;
 pub mod kind;
 pub mod manifest;

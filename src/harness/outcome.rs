@@ -124,6 +124,10 @@ pub struct Outcome {
     /// README.md, relative to the HTML report's folder (or as `--bundles` gave it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bundle: Option<String>,
+    /// What the isolation ladder of a failed check found (`harness::isolation`): the first
+    /// simpler variant that fails, with its numbers, and those that passed.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub isolation: Option<String>,
 }
 
 impl Outcome {
@@ -146,6 +150,7 @@ impl Outcome {
             message: String::new(),
             regression: false,
             bundle: None,
+            isolation: None,
         }
     }
 

@@ -2,7 +2,9 @@
 //! stochastic ones, and turns measurements into verdicts with their numbers.
 
 use super::context::{check_seed, Context, Correction, RunOptions};
+use super::isolation;
 use super::kind::Check;
+pub use super::measurement::judge;
 use super::measurement::Measurement;
 use super::model::local::LocalModels;
 use super::outcome::{Outcome, RunReport, ShardInfo, Statistic, Verdict};
@@ -10,31 +12,6 @@ use super::renderer::Renderer;
 use super::under_test::{Filtered, ModelSource, Subject};
 use crate::stats::{multiple, power};
 use std::time::Instant;
-
-/// The verdict of one measurement at per-test level `alpha` (Šidák path of the runner):
-/// ERROR if an estimate, standard error or p-value is not finite (the test could not be
-/// formed, as the runner reports it), UNSTABLE if the variance did not settle, FAIL if the
-/// deterministic part fails or p ≤ α.
-pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
-    if [ms.estimate, ms.std_error, ms.p_value]
-        .iter()
-        .flatten()
-        .any(|v| !v.is_finite())
-    {
-        return Verdict::Error;
-    }
-    let det = ms.deterministic_pass.unwrap_or(true);
-    let stoch = ms.p_value.is_none_or(|p| p > alpha);
-    // UNSTABLE unless a re-test (measurement::Measurement::retested) rejected.
-    if ms.unstable.is_some() && (stoch || !ms.retested) {
-        return Verdict::Unstable;
-    }
-    if det && stoch {
-        Verdict::Pass
-    } else {
-        Verdict::Fail
-    }
-}
 
 /// What the runner reports while it runs.
 #[derive(Debug, Clone, Copy)]
@@ -45,6 +22,8 @@ pub enum Progress<'a> {
     /// verdicts of stochastic checks are settled only when all have run, and this is the
     /// outcome before them).
     Finished(&'a Outcome),
+    /// The isolation ladder of this failed check starts (after every check has run).
+    Isolating(&'a str),
 }
 
 /// Sets `o`'s threshold, detection power and verdict from its measurement, given whether
@@ -227,6 +206,9 @@ pub fn run_with(
             settle(&mut outcomes[i], ms, test);
         }
     }
+    if opts.isolate {
+        isolate_failures(checks, &mut outcomes, opts, &subject, alpha, progress);
+    }
     RunReport {
         furnace_version: env!("CARGO_PKG_VERSION").to_string(),
         renderer: renderer.name(),
@@ -246,5 +228,40 @@ pub fn run_with(
                 .chain(p.also.iter().cloned())
                 .collect(),
         }),
+    }
+}
+
+/// Runs the isolation ladder of every failed or unstable check, each within
+/// [`isolation::BUDGET_FACTOR`] times the check's own time.
+fn isolate_failures(
+    checks: &[Check],
+    outcomes: &mut [Outcome],
+    opts: &RunOptions,
+    subject: &Subject,
+    alpha: f64,
+    progress: &mut dyn FnMut(Progress),
+) {
+    for o in outcomes.iter_mut() {
+        if !matches!(o.verdict, Verdict::Fail | Verdict::Unstable) {
+            continue;
+        }
+        let Some(check) = checks.iter().find(|c| c.name == o.name) else {
+            continue;
+        };
+        let ctx = Context {
+            renderer: subject.renderer,
+            models: subject.models,
+            seed: check_seed(check.seed, &check.name, opts.seed),
+            threads: opts.threads,
+            alpha,
+            deadline: None,
+        };
+        progress(Progress::Isolating(&check.name));
+        let budget = isolation::BUDGET_FACTOR * o.seconds.max(0.1);
+        let deviation = match (o.estimate, o.expected) {
+            (Some(e), Some(x)) if x != 0.0 => Some(e / x - 1.0),
+            _ => None,
+        };
+        o.isolation = isolation::isolate(check, &ctx, opts.seed, budget, deviation);
     }
 }

@@ -40,7 +40,8 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
              `scene.json` and the files it names), the images the renderer wrote (`batch-B.exr`, one per independent \
              run) and `command.sh`, which re-runs the renderer alone as furnace ran it: \
              `sh {}/command.sh` (it changes to the folder furnace ran from, for the renderer \
-             table's relative paths).",
+             table's relative paths). Folders after the check's own renders hold those of its \
+             isolation ladder's variants, in the ladder's order.",
             info.renders
                 .iter()
                 .map(|r| format!("`{r}/`"))
@@ -58,7 +59,7 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
          | measured | {estimate} ± {se} (standard error) |\n\
          | test | {stat}, p = {p} against the per-test level α = {alpha} (family-wise corrected) |\n\
          | samples, time | {samples}, {seconds:.2} s |\n\n\
-         ## What was measured\n\n{message}\n\n\
+         ## What was measured\n\n{message}\n\n{isolation}\
          ## Re-run the check\n\n```\n{rerun}\n```\n\n\
          ## The renderer alone\n\n{renders}\n\n\
          ## Summary\n\n\
@@ -86,6 +87,12 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
         samples = o.samples,
         seconds = o.seconds,
         message = o.message,
+        isolation = match &o.isolation {
+            Some(i) => format!(
+                "## Isolation\n\nfurnace re-ran simpler variants of the check (its isolation ladder, docs/checks.md): {i}.\n\n"
+            ),
+            None => String::new(),
+        },
         rerun = info.rerun,
         furnace = env!("CARGO_PKG_VERSION"),
     )

@@ -361,6 +361,9 @@ fn run_table(run: &Value) -> Markup {
                             summary { (message.split(';').next().unwrap_or("")) }
                             (message)
                         }
+                        @if let Some(i) = o["isolation"].as_str() {
+                            p { b { "Isolated: " } (i) }
+                        }
                         @if let Some(b) = o["bundle"].as_str() {
                             a href=(b) { "reproducer bundle" }
                         }
@@ -679,7 +682,11 @@ pub fn markdown(runs: &[Value], comparisons: &[ComparisonSection]) -> String {
                 num(&o["std_error"]),
                 num(&o["expected"]),
                 num(&o["p_value"]),
-                o["message"].as_str().unwrap_or("").replace('|', "\\|"),
+                match o["isolation"].as_str() {
+                    Some(i) => format!("{}; isolated: {i}", o["message"].as_str().unwrap_or("")),
+                    None => o["message"].as_str().unwrap_or("").to_string(),
+                }
+                .replace('|', "\\|"),
             );
         }
         m.push('\n');

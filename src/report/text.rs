@@ -260,10 +260,24 @@ pub fn summary(r: &RunReport) -> String {
     // count below is of validation checks; a failing baseline still fails the run.
     let t = Tally::of_outcomes(r.outcomes.iter().filter(|o| !o.regression));
     let b = Tally::of_outcomes(r.outcomes.iter().filter(|o| o.regression));
-    let mut lines = vec![
-        family_line(r),
-        format!("total time {}, seed {}", seconds(r.seconds), r.seed),
-    ];
+    let mut lines: Vec<String> = r
+        .outcomes
+        .iter()
+        .filter_map(|o| {
+            let found = o.isolation.as_deref()?;
+            Some(format!(
+                "isolated {}: {}",
+                display_name(&o.name),
+                one_line(found)
+            ))
+        })
+        .collect();
+    lines.push(family_line(r));
+    lines.push(format!(
+        "total time {}, seed {}",
+        seconds(r.seconds),
+        r.seed
+    ));
     if t.unstable + t.errors > 0 {
         lines.push(format!(
             "(of the failures: {} unstable, {} {})",

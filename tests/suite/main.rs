@@ -10,6 +10,7 @@ mod export;
 mod false_alarms;
 mod film_shards;
 mod hostile;
+mod isolation;
 mod layering;
 mod manifest_errors;
 mod manifests;

@@ -5,6 +5,7 @@
 
 use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::keys::{common, Key, Keys};
+use crate::harness::kind::Rung;
 use crate::harness::region::{
     diagnosis_alpha, region_measurement, region_of, render_region, settings_for, xyz_measurement,
     ChannelExpectation,
@@ -68,5 +69,30 @@ impl Kind for Furnace {
         Ok(xyz_measurement(
             ctx, &film, &s, region, expected, tolerance, &what,
         ))
+    }
+
+    /// The same enclosure capped at 0, 1, 2 and 3 bounces (E(1 − R^(D+1))/(1 − R)), below the
+    /// check's own depth: emission alone, then direct light, then each further bounce. Scenes
+    /// whose closed form needs unlimited depth (media, specular objects) have no ladder.
+    fn ladder(check: &Check, _: &()) -> Vec<Rung> {
+        let Ok(scene) = check.scene() else {
+            return Vec::new();
+        };
+        let own = check.render.max_depth.or(scene.render.max_depth);
+        (0..=3u32)
+            .filter(|d| own.is_none_or(|own| *d < own))
+            .filter(|d| expectation(scene, Some(*d)).is_ok())
+            .map(|d| {
+                let what = match d {
+                    0 => "emission only (max_depth 0: what the camera sees directly)".to_string(),
+                    1 => "direct light (max_depth 1: next-event estimation and emitter hits after one bounce)".to_string(),
+                    d => format!("{d} bounces (max_depth {d})"),
+                };
+                let mut variant = check.clone();
+                variant.name = format!("{} [max_depth {d}]", check.name);
+                variant.render.max_depth = Some(d);
+                Rung { what, check: variant }
+            })
+            .collect()
     }
 }
