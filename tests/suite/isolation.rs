@@ -75,3 +75,49 @@ fn nothing_is_isolated_without_a_failure_or_when_turned_off() {
     assert_eq!(o.verdict, Verdict::Fail);
     assert_eq!(o.isolation, None);
 }
+
+/// Media absorb 5 % of what they scatter: a lossless medium furnace loses light, and the
+/// loss vanishes with the medium.
+struct LossyMedia;
+
+impl Renderer for LossyMedia {
+    fn name(&self) -> String {
+        "lossy media".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        let mut scene = scene.clone();
+        for m in &mut scene.media {
+            m.sigma_a = Spectrum::Constant(0.05 * m.sigma_s.eval(550.0));
+        }
+        BuiltIn.render(&scene, s)
+    }
+}
+
+#[test]
+fn a_media_furnace_is_isolated_to_its_medium() {
+    let checks: Vec<_> = manifest::load(&root("tests/manifests/media.toml"))
+        .unwrap()
+        .into_iter()
+        .filter(|c| c.name == "media/furnace-enclosure[sigma=1]")
+        .collect();
+    assert_eq!(checks.len(), 1);
+    let mut report = harness::run(
+        &checks,
+        &RunOptions::default(),
+        &LossyMedia,
+        vec![],
+        &mut |_| {},
+    );
+    let o = report.outcomes.remove(0);
+    assert_eq!(o.verdict, Verdict::Fail, "{}", o.message);
+    let found = o.isolation.expect("a failed media furnace is isolated");
+    assert!(
+        found.starts_with("first fails at grey media")
+            && found.contains("passes: the media made vacuum"),
+        "{found}"
+    );
+}

@@ -79,6 +79,10 @@ impl Kind for Furnace {
             return Vec::new();
         };
         let own = check.render.max_depth.or(scene.render.max_depth);
+        let media = media_rungs(check, scene);
+        if !media.is_empty() {
+            return media;
+        }
         (0..=3u32)
             .filter(|d| own.is_none_or(|own| *d < own))
             .filter(|d| expectation(scene, Some(*d)).is_ok())
@@ -95,4 +99,39 @@ impl Kind for Furnace {
             })
             .collect()
     }
+}
+
+/// The ladder of a furnace filled with media (whose closed form needs unlimited depth): the
+/// media made vacuum (σa = σs = 0, boundaries kept), then, for media whose coefficients vary
+/// with wavelength, grey media (each coefficient at its 550 nm value).
+fn media_rungs(check: &Check, scene: &crate::scene::Scene) -> Vec<Rung> {
+    use crate::spectrum::Spectrum;
+    if !scene.has_media() {
+        return Vec::new();
+    }
+    let variant = |suffix: &str, edit: &dyn Fn(&mut crate::media::Medium)| {
+        let mut v = check.clone();
+        v.name = format!("{} [{suffix}]", check.name);
+        if let Some(s) = v.scene.as_mut() {
+            s.media.iter_mut().for_each(edit);
+        }
+        v
+    };
+    let mut rungs = vec![Rung {
+        what: "the media made vacuum (σa = σs = 0, boundaries kept)".into(),
+        check: variant("media vacuum", &|m| {
+            m.sigma_a = Spectrum::Constant(0.0);
+            m.sigma_s = Spectrum::Constant(0.0);
+        }),
+    }];
+    if scene.media.iter().any(|m| !m.is_constant()) {
+        rungs.push(Rung {
+            what: "grey media (each coefficient at its 550 nm value)".into(),
+            check: variant("grey media", &|m| {
+                m.sigma_a = Spectrum::Constant(m.sigma_a.eval(550.0));
+                m.sigma_s = Spectrum::Constant(m.sigma_s.eval(550.0));
+            }),
+        });
+    }
+    rungs
 }
