@@ -39,6 +39,9 @@ pub struct Measurement {
     /// True when some expected value is furnace's own earlier output (a regression band or
     /// baseline), not an independent source.
     pub regression: bool,
+    /// The relative tolerance the test allowed, when it differs from the check's stated one
+    /// (an image test on a renderer with float32 images adds its rounding allowance).
+    pub rel_tolerance: Option<f64>,
 }
 
 /// Combines several region tests (one per variant) into one measurement: p is the Šidák

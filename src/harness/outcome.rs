@@ -104,7 +104,9 @@ pub struct Outcome {
     pub p_value: Option<f64>,
     /// The per-check significance level after the family-wise correction.
     pub alpha: Option<f64>,
-    /// Relative model tolerance added to the acceptance rule (stated per check).
+    /// Relative tolerance added to the acceptance rule: the check's stated model tolerance plus,
+    /// for an image check, the renderer's rounding allowance above f64's
+    /// ([`super::context::Context::rel_tolerance`]).
     #[serde(deserialize_with = "nan_if_null")]
     pub rel_tolerance: f64,
     /// Smallest relative bias detected with 95 % probability at this budget and alpha.

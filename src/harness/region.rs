@@ -430,6 +430,7 @@ pub fn region_measurement(
         variants: tests,
         one_sided: false,
         regression: false,
+        rel_tolerance: Some(rel_tolerance),
         samples: r.samples,
         message: format!(
             "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{retest_text}",

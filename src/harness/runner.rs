@@ -160,6 +160,8 @@ pub fn run_with(
                 o.p_value = ms.p_value;
                 o.samples = ms.samples;
                 o.message = ms.message.clone();
+                // what the test allowed: the stated tolerance and a black box's rounding
+                o.rel_tolerance = ms.rel_tolerance.unwrap_or(check.rel_tolerance);
                 o.regression |= ms.regression;
                 let finite = [ms.estimate, ms.std_error, ms.p_value]
                     .iter()

@@ -48,7 +48,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `statistic` | object | — | The statistic the verdict rests on, tagged by `type` (below). |
 | `p_value` | number or null | probability | Two-sided p-value of the test (stochastic checks). |
 | `alpha` | number or null | probability | Per-check significance level after the family-wise correction; the check fails when `p_value` < `alpha`. |
-| `rel_tolerance` | number or null | fraction of `expected` | Relative model tolerance added to the acceptance rule; 0 when none. |
+| `rel_tolerance` | number or null | fraction of `expected` | Relative tolerance added to the acceptance rule: the stated model tolerance plus, for an image check on a renderer with float32 images, its rounding allowance above f64's; 0 when none. |
 | `detection_power` | number or null | fraction of `expected` | Smallest relative bias this check detects with 95 % probability at its sample budget and `alpha`. |
 | `samples` | integer | count | Samples used (paths, BSDF samples or quadrature points). |
 | `seconds` | number or null | s | Wall time of the check. |

@@ -79,7 +79,7 @@ pub fn line(o: &Outcome) -> String {
 /// `max error 3.1e-15 ≤ 1e-12 + 1e-9·|expected|`; empty when the outcome has none.
 ///
 /// The estimate carries as many significant digits (4 to 6) as its standard error
-/// (shown to 2) supports. A positive `rel_tolerance` appends `(+ model tolerance 0.1 %)`.
+/// (shown to 2) supports. A positive `rel_tolerance` appends `(+ tolerance 0.1 %)`.
 pub fn numbers(o: &Outcome) -> String {
     let head = estimate_text(o);
 
@@ -107,7 +107,7 @@ pub fn numbers(o: &Outcome) -> String {
         if !s.is_empty() {
             s.push(' ');
         }
-        let _ = write!(s, "(+ model tolerance {})", percent(o.rel_tolerance));
+        let _ = write!(s, "(+ tolerance {})", percent(o.rel_tolerance));
     }
     s
 }
@@ -376,7 +376,7 @@ pub fn table_markdown(r: &RunReport) -> String {
             if !expected.is_empty() {
                 expected.push(' ');
             }
-            let _ = write!(expected, "(+ model tolerance {})", percent(o.rel_tolerance));
+            let _ = write!(expected, "(+ tolerance {})", percent(o.rel_tolerance));
         }
         let statistic = statistic_text(o);
         let cells = [

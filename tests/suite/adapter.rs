@@ -356,6 +356,9 @@ fn a_black_box_gets_the_float32_rounding_allowance_and_no_more() {
             .filter(|s| s.name.starts_with("lambert/point-30deg"))
             .collect();
         let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+        // the outcome states the tolerance the test allowed: the allowance above f64's
+        let tol = report.outcomes[0].rel_tolerance;
+        assert!((tol - (1e-5 - 1e-12)).abs() < 1e-15, "{tol}");
         (
             report.outcomes[0].verdict,
             report.outcomes[0].message.clone(),

@@ -150,6 +150,7 @@ pub fn measure(
         variants: 1,
         one_sided: true,
         regression: false,
+        rel_tolerance: None,
         samples: samples + scanned,
         message: format!(
             "largest albedo by quadrature {} ({}){exact_text}; most likely violator among the noisy estimates (largest (a − 1)/se) at {where_}: {} ± {} (fresh {samples} samples, one-sided z {:.2} against 1 + {rounding:e}); {non_finite} non-finite weights{}",

@@ -160,6 +160,7 @@ impl Kind for EstimatorAgreement {
             variants: ps.len(),
             one_sided: false,
             regression: false,
+            rel_tolerance: None,
             deterministic_pass: None,
             retested: !unstable.is_empty() && retested,
             unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),

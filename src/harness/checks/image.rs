@@ -53,7 +53,9 @@ pub fn run_against(
             "without variance channels, treated as exact"
         }
     );
-    regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)
+    let mut m = regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)?;
+    m.rel_tolerance = Some(ctx.rel_tolerance(check.rel_tolerance));
+    Ok(m)
 }
 
 /// Parameters of an image comparison.

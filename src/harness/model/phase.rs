@@ -246,6 +246,7 @@ pub fn measure_phase_at(
         variants: 3,
         one_sided: false,
         regression: false,
+        rel_tolerance: None,
         samples,
         message: format!(
             "g = {g}: ∫p dω = {} and mean cosine {} by quadrature (|error| {:.1e} vs abs_tol {abs_tol:.0e}{}); sampled mean cosine {} ± {} (larger of sample {} and null √(Var_p μ/N) {}); χ²(μ) p {}{mu_source}, χ²(φ) p {} ({on_axis} draws on the axis left out)",
