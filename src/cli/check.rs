@@ -434,13 +434,10 @@ fn write_bundles(
         super::write_file(&readme, &bundle::readme(o, &info))?;
         let json = serde_json::to_string_pretty(o).context("outcome as JSON")?;
         super::write_file(&dir.join("outcome.json"), &json)?;
-        // as the HTML report beside the bundles folder links it
+        // as the HTML report links it: relative to the report's folder, wherever the bundles are
         let shown = match &a.report {
-            Some(r) if a.bundles.is_none() => readme
-                .strip_prefix(r.parent().unwrap_or(Path::new("")))
-                .unwrap_or(&readme)
-                .to_path_buf(),
-            _ => readme,
+            Some(r) => relative_to(&readme, r.parent().unwrap_or(Path::new(""))),
+            None => readme,
         };
         o.bundle = Some(shown.display().to_string());
     }
@@ -527,5 +524,47 @@ impl Watchdog {
 
     fn stop(&self) {
         self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+/// `path` as seen from the folder `base` (both made absolute against the working directory
+/// first, without touching the file system): `../b/README.md` from `out/a` for `out/b/README.md`.
+fn relative_to(path: &Path, base: &Path) -> PathBuf {
+    let (Ok(p), Ok(b)) = (std::path::absolute(path), std::path::absolute(base)) else {
+        return path.to_path_buf();
+    };
+    let (pc, bc): (Vec<_>, Vec<_>) = (p.components().collect(), b.components().collect());
+    let common = pc.iter().zip(&bc).take_while(|(x, y)| x == y).count();
+    let mut out = PathBuf::new();
+    for _ in common..bc.len() {
+        out.push("..");
+    }
+    for c in &pc[common..] {
+        out.push(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::relative_to;
+    use std::path::Path;
+
+    #[test]
+    fn bundle_links_are_relative_to_the_report_folder() {
+        let r = |p: &str, b: &str| relative_to(Path::new(p), Path::new(b));
+        assert_eq!(
+            r("out/r-bundles/x/README.md", "out"),
+            Path::new("r-bundles/x/README.md")
+        );
+        assert_eq!(
+            r("elsewhere/x/README.md", "out/html"),
+            Path::new("../../elsewhere/x/README.md")
+        );
+        assert_eq!(
+            r("/tmp/b/x/README.md", "/tmp/r"),
+            Path::new("../b/x/README.md")
+        );
+        assert_eq!(r("a/README.md", ""), Path::new("a/README.md"));
     }
 }

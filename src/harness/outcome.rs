@@ -123,7 +123,7 @@ pub struct Outcome {
     #[serde(default)]
     pub regression: bool,
     /// The reproducer bundle of a check that did not pass against an external renderer: its
-    /// README.md, relative to the HTML report's folder (or as `--bundles` gave it).
+    /// README.md, relative to the HTML report's folder (as given when there is no report).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub bundle: Option<String>,
     /// What the isolation ladder of a failed check found (`harness::isolation`): the first
