@@ -121,3 +121,25 @@ fn a_media_furnace_is_isolated_to_its_medium() {
         "{found}"
     );
 }
+
+#[test]
+fn a_ladder_stops_at_its_budget() {
+    let check = manifest::load(&root("tests/manifests/furnace.toml"))
+        .unwrap()
+        .into_iter()
+        .find(|c| c.name == "furnace/sphere[albedo=0.5]")
+        .unwrap();
+    let ctx = furnace::harness::Context {
+        renderer: &BuiltIn,
+        models: None,
+        seed: 1,
+        threads: 0,
+        alpha: 1e-3,
+        deadline: None,
+    };
+    let found = furnace::harness::isolation::isolate(&check, &ctx, 1, 0.0, None).unwrap();
+    assert!(
+        found.starts_with("stopped at its budget") && found.contains("no simpler variant ran"),
+        "{found}"
+    );
+}
