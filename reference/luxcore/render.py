@@ -114,6 +114,8 @@ def parse_args(argv=None):
                    help="verification only: set path.pathdepth.total directly, bypassing the depth mapping")
     p.add_argument("--luxcore-rr-depth", type=int, default=None,
                    help="verification only: set path.russianroulette.depth directly")
+    p.add_argument("--luxcore-epsilon-min", type=float, default=None,
+                   help="verification only: set LuxCore's minimum ray epsilon (scene.epsilon.min) directly")
     return p.parse_args(argv)
 
 
@@ -410,6 +412,8 @@ def main(argv=None):
     scene.Parse(b.properties("scene."))
     rr_depth = RR_OFF if args.luxcore_rr_depth is None else args.luxcore_rr_depth
     cfg_list = config_props(width, height, spp, args.seed, pathdepth, args.threads, rr_depth)
+    if args.luxcore_epsilon_min is not None:
+        cfg_list.append(("scene.epsilon.min", repr(args.luxcore_epsilon_min)))
     cfg = pyluxcore.Properties()
     for k, v in cfg_list:
         cfg.SetFromString(f"{k} = {v}\n")
