@@ -32,7 +32,8 @@ Settings that make the render comparable with furnace (all in the sidecar):
     as --unlimited-depth bounces (default 64); the sidecar records it with the scene's largest
     albedo a and the bound a^(K+1)/(1-a) on the relative size of the missing tail, and a scene
     whose bound exceeds --max-truncation (default 1e-4) is refused (exit 3), not rendered low:
-    at K = 64 that is every scene with an albedo above about 0.86.
+    at K = 64 that is every scene with an albedo above about 0.86 and below 1 (an albedo of 1,
+    a mirror, glass or white surface, has no bound: rendered, the sidecar saying so).
   * Clamping off: path.clamping.variance.maxvalue = 0. No denoiser and no noise estimation: no
     image pipeline is rendered, no NOISE channel exists (it is only allocated for adaptive
     sampling or a NOISE output), and sampler.random.adaptive.strength = 0.

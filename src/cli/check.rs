@@ -530,6 +530,11 @@ impl Watchdog {
 /// `path` as seen from the folder `base` (both made absolute against the working directory
 /// first, without touching the file system): `../b/README.md` from `out/a` for `out/b/README.md`.
 fn relative_to(path: &Path, base: &Path) -> PathBuf {
+    let base = if base.as_os_str().is_empty() {
+        Path::new(".")
+    } else {
+        base
+    };
     let (Ok(p), Ok(b)) = (std::path::absolute(path), std::path::absolute(base)) else {
         return path.to_path_buf();
     };
@@ -566,5 +571,8 @@ mod tests {
             Path::new("../b/x/README.md")
         );
         assert_eq!(r("a/README.md", ""), Path::new("a/README.md"));
+        // a report in the working directory, bundles given as an absolute path
+        let abs = std::path::absolute("b/x/README.md").unwrap();
+        assert_eq!(r(abs.to_str().unwrap(), ""), Path::new("b/x/README.md"));
     }
 }

@@ -99,29 +99,29 @@ impl Sphere {
 
     /// A direction uniform in the cone the sphere subtends from `p` (Shirley & Wang 1996,
     /// "Monte Carlo Techniques for Direct Lighting Calculations", uniform cone sampling) and
-    /// the nearest point of the sphere along it, placed by the law of sines in the triangle
-    /// (p, centre, point): sin(angle at the point) = sin θ / sin θmax. Returns the point and
-    /// the solid-angle pdf 1/(2π(1 − cos θmax)); None where [`Sphere::visible_cone`] is None.
+    /// the nearest point of the sphere along it, at the distance t = (d² − r²)/(d cos θ +
+    /// √(r² − d² sin²θ)) (the smaller root of the ray–sphere quadratic in the cancellation-free
+    /// form, Press et al., *Numerical Recipes* §5.6). Returns the point and the solid-angle pdf
+    /// 1/(2π(1 − cos θmax)); None where [`Sphere::visible_cone`] is None.
     pub fn sample_cone(&self, p: Vec3, u: [f64; 2]) -> Option<(SurfacePoint, f64)> {
         let omc_max = self.visible_cone(p)?;
         let to_center = self.center - p;
         let d = to_center.length();
-        let sin_max = self.radius / d;
+        let r = self.radius;
+        let sin2_max = (r / d) * (r / d);
         // cos θ = 1 − u₀(1 − cos θmax), kept as 1 − cos θ; sin²θ = (1 − cos θ)(1 + cos θ)
         let omc = u[0] * omc_max;
         let cos_t = 1.0 - omc;
         let sin2_t = omc * (2.0 - omc);
-        let s2 = (sin2_t / (sin_max * sin_max)).min(1.0);
-        // angle α at the centre between the point and the direction back to p:
-        // α = asin(sin θ / sin θmax) − θ, so cos α = cos θ √(1 − s²) + sin²θ / sin θmax
-        let cos_a = (cos_t * (1.0 - s2).sqrt() + sin2_t / sin_max).min(1.0);
-        let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
         let phi = 2.0 * PI * u[1];
+        let sin_t = sin2_t.sqrt();
         let w = to_center / d;
-        let frame = Frame::from_normal(w);
-        let across = frame.to_world(Vec3::new(phi.cos(), phi.sin(), 0.0));
-        let x = self.center + (across * sin_a - w * cos_a) * self.radius;
-        Some((self.surface_point(x), 1.0 / (2.0 * PI * omc_max)))
+        let dir =
+            Frame::from_normal(w).to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+        // r² − d² sin²θ = r² (1 − sin²θ / sin²θmax) ≥ 0 inside the cone
+        let root = r * (1.0 - (sin2_t / sin2_max).min(1.0)).sqrt();
+        let t = (d - r) * (d + r) / (d * cos_t + root);
+        Some((self.surface_point(p + dir * t), 1.0 / (2.0 * PI * omc_max)))
     }
 
     /// A point uniformly distributed over the area; pdf 1/area.
@@ -158,6 +158,15 @@ mod tests {
                 );
                 let omc = 1.0 - (1.0 - (r / d) * (r / d)).sqrt();
                 assert!((pdf * 2.0 * PI * omc - 1.0).abs() < 1e-6 || omc < 1e-12);
+                // its direction makes the sampled angle with the axis: 1 − cos θ = u₀(1 − cos θmax)
+                let w = (s.center - p).normalize();
+                let omc_max = s.visible_cone(p).unwrap();
+                let got = 1.0 - dir.dot(w);
+                assert!(
+                    (got - u[0] * omc_max).abs() <= 1e-6 * omc_max + 1e-15,
+                    "r {r} d {d} u {u:?}: 1 − cos θ {got} vs {}",
+                    u[0] * omc_max
+                );
             }
         }
         // from inside or on the surface: no cone

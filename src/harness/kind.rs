@@ -145,7 +145,6 @@ impl<K: Kind> DynKind for Registered<K> {
     }
 }
 
-/// A scene-level check's render settings (None = the scene's own value).
 /// One variant of an isolation ladder: what it keeps of the failed check, and the check.
 #[derive(Debug, Clone)]
 pub struct Rung {
@@ -155,6 +154,7 @@ pub struct Rung {
     pub check: Check,
 }
 
+/// A scene-level check's render settings (None = the scene's own value).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct RenderOverrides {
     /// Samples per pixel.

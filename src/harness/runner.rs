@@ -255,9 +255,13 @@ fn isolate_failures(
             models: subject.models,
             seed: check_seed(check.seed, &check.name, opts.seed),
             threads: opts.threads,
-            alpha,
+            // the level the check itself was judged at (Holm's step-down threshold included)
+            alpha: o.alpha.unwrap_or(alpha),
             deadline: None,
         };
+        if check.kind.ladder(check).is_empty() {
+            continue;
+        }
         progress(Progress::Isolating(&check.name));
         let budget = isolation::BUDGET_FACTOR * o.seconds.max(0.1);
         let deviation = match (o.estimate, o.expected) {

@@ -294,7 +294,17 @@ impl Light {
             Light::Area { shape, .. } => {
                 if let Shape::Sphere(sphere) = &shapes[*shape as usize] {
                     if let Some(omc_max) = sphere.visible_cone(p) {
-                        return 1.0 / (2.0 * PI * omc_max);
+                        // the cone sampler picks only the near side, the cap of points x with
+                        // (x − c)·(p − c) ≥ r²; a ray through a null-material emitter can reach
+                        // the far side, which light sampling never produces
+                        let r2 = sphere.radius * sphere.radius;
+                        let near =
+                            (hit.p - sphere.center).dot(p - sphere.center) >= r2 * (1.0 - 1e-9);
+                        return if near {
+                            1.0 / (2.0 * PI * omc_max)
+                        } else {
+                            0.0
+                        };
                     }
                 }
                 let v = hit.p - p;

@@ -190,6 +190,7 @@ impl Kind for ReciprocityImage {
                 s.observer.name()
             ),
         )?;
+        m.rel_tolerance = Some(ctx.rel_tolerance(check.rel_tolerance));
         let whole: Vec<String> = results
             .iter()
             .filter(|r| !environment && r.region == regions[0].name)

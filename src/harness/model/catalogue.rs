@@ -195,7 +195,9 @@ pub fn phases() -> Vec<(String, PhaseFunction, f64)> {
 }
 
 /// A light's sampling routine as seen from point `p`, with the pdf obtained independently by
-/// intersecting the light's shape (d²/(|cos θl| A) summed over the hits along the direction).
+/// intersecting the light's shape: d²/(|cos θl| A) summed over the hits along the direction,
+/// or, for a sphere seen from outside (sampled by its cone), 1 over the solid angle it subtends
+/// for every direction that hits it.
 pub struct LightSampler {
     /// The light (area lights refer to `shapes`).
     pub light: Light,
@@ -216,17 +218,16 @@ impl LightSampler {
                     // Seen from clearly outside, the sampler is uniform over the directions
                     // that hit the sphere: 1 over the solid angle it subtends, 2π(1 − cos θmax)
                     // with sin θmax = r/d.
-                    let d = (sphere.center - self.p).length();
-                    if sphere.clearly_outside(self.p) {
+                    // (the rule for "outside" is the sampler's specification; the density is
+                    // computed here from the geometry)
+                    if sphere.visible_cone(self.p).is_some() {
+                        let d = (sphere.center - self.p).length();
+                        let sin2_max = (sphere.radius / d).powi(2);
+                        let solid_angle = 2.0 * PI * sin2_max / (1.0 + (1.0 - sin2_max).sqrt());
                         let hits = sphere
                             .intersect(&Ray { o: self.p, d: w }, f64::INFINITY)
                             .is_some();
-                        let cos_max = (1.0 - (sphere.radius / d).powi(2)).sqrt();
-                        return if hits {
-                            1.0 / (2.0 * PI * (1.0 - cos_max))
-                        } else {
-                            0.0
-                        };
+                        return if hits { 1.0 / solid_angle } else { 0.0 };
                     }
                 }
                 let mut pdf = 0.0;
