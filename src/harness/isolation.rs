@@ -4,7 +4,7 @@
 //! diagnosis, not a verdict: the check's verdict stays as it was. Bounded by a time budget.
 
 use super::context::{check_seed, Context};
-use super::kind::Check;
+use super::kind::Rung;
 use super::measurement::{fmt_sig, judge};
 use super::outcome::Verdict;
 use std::time::{Duration, Instant};
@@ -12,25 +12,24 @@ use std::time::{Duration, Instant};
 /// The budget of a ladder as a multiple of the failed check's own time.
 pub const BUDGET_FACTOR: f64 = 4.0;
 
-/// Runs the ladder of `check` (which failed at per-test level `ctx.alpha`, off its expected
-/// value by the relative `deviation`) within `budget` seconds; returns the finding in one
-/// line, or None when the kind has no ladder. A failing rung whose deviation has the other sign
+/// Runs `ladder`, the failed check's ([`super::kind::Kind::ladder`]; it failed at per-test level
+/// `ctx.alpha`, off its expected value by the relative `deviation`) within `budget` seconds;
+/// returns the finding in one line, or None when the ladder is empty. A failing rung whose deviation has the other sign
 /// than the check's is reported as a second effect; sizes are shown, not compared (an error
 /// per bounce grows with depth).
 pub fn isolate(
-    check: &Check,
+    ladder: &[Rung],
     ctx: &Context,
     run_seed: u64,
     budget: f64,
     deviation: Option<f64>,
 ) -> Option<String> {
-    let ladder = check.kind.ladder(check);
     if ladder.is_empty() {
         return None;
     }
     let start = Instant::now();
     let mut passed: Vec<String> = Vec::new();
-    for rung in &ladder {
+    for rung in ladder {
         let left = budget - start.elapsed().as_secs_f64();
         if left <= 0.0 {
             return Some(format!(
@@ -108,7 +107,7 @@ pub fn isolate(
 }
 
 /// (estimate − expected)/expected, when expected is not 0.
-fn relative(estimate: f64, expected: f64) -> Option<f64> {
+pub fn relative(estimate: f64, expected: f64) -> Option<f64> {
     (expected != 0.0).then(|| estimate / expected - 1.0)
 }
 

@@ -259,15 +259,16 @@ fn isolate_failures(
             alpha: o.alpha.unwrap_or(alpha),
             deadline: None,
         };
-        if check.kind.ladder(check).is_empty() {
+        let ladder = check.kind.ladder(check);
+        if ladder.is_empty() {
             continue;
         }
         progress(Progress::Isolating(&check.name));
         let budget = isolation::BUDGET_FACTOR * o.seconds.max(0.1);
-        let deviation = match (o.estimate, o.expected) {
-            (Some(e), Some(x)) if x != 0.0 => Some(e / x - 1.0),
-            _ => None,
-        };
-        o.isolation = isolation::isolate(check, &ctx, opts.seed, budget, deviation);
+        let deviation = o
+            .estimate
+            .zip(o.expected)
+            .and_then(|(e, x)| isolation::relative(e, x));
+        o.isolation = isolation::isolate(&ladder, &ctx, opts.seed, budget, deviation);
     }
 }

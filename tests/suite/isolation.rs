@@ -137,7 +137,9 @@ fn a_ladder_stops_at_its_budget() {
         alpha: 1e-3,
         deadline: None,
     };
-    let found = furnace::harness::isolation::isolate(&check, &ctx, 1, 0.0, None).unwrap();
+    let found =
+        furnace::harness::isolation::isolate(&check.kind.ladder(&check), &ctx, 1, 0.0, None)
+            .unwrap();
     assert!(
         found.starts_with("stopped at its budget") && found.contains("no simpler variant ran"),
         "{found}"
