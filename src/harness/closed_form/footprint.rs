@@ -20,6 +20,18 @@ pub fn ray_average(
     f: &dyn Fn(Ray) -> Result<f64, CheckError>,
     k: usize,
 ) -> Result<f64, CheckError> {
+    Ok(ray_average_n(scene, width, height, region, &|r| Ok([f(r)?]), k)?[0])
+}
+
+/// [`ray_average`] of a closed form with `N` components (e.g. X, Y, Z), each averaged alike.
+pub fn ray_average_n<const N: usize>(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(Ray) -> Result<[f64; N], CheckError>,
+    k: usize,
+) -> Result<[f64; N], CheckError> {
     let prims = witness::primitive_count(scene.aggregate.shapes());
     if prims > witness::MAX_PRIMITIVES {
         return Err(CheckError::Setup(format!(
@@ -28,15 +40,18 @@ pub fn ray_average(
         )));
     }
     let eye = Eye::new(&scene.camera, width, height).map_err(CheckError::Setup)?;
-    let mut sum = 0.0;
+    let mut sum = [0.0; N];
     for j in 0..k {
         for i in 0..k {
             let x = region[0] as f64 + (region[2] - region[0]) as f64 * (i as f64 + 0.5) / k as f64;
             let y = region[1] as f64 + (region[3] - region[1]) as f64 * (j as f64 + 0.5) / k as f64;
-            sum += f(eye.ray(x, y))?;
+            let v = f(eye.ray(x, y))?;
+            for c in 0..N {
+                sum[c] += v[c];
+            }
         }
     }
-    Ok(sum / (k * k) as f64)
+    Ok(sum.map(|s| s / (k * k) as f64))
 }
 
 /// Closed-form value of every pixel of `region` (row-major), each averaged over its footprint.
@@ -80,10 +95,23 @@ pub fn per_pixel_rays(
     f: &dyn Fn(Ray) -> Result<f64, CheckError>,
     k: usize,
 ) -> Result<Vec<f64>, CheckError> {
+    let v = per_pixel_rays_n(scene, width, height, region, &|r| Ok([f(r)?]), k)?;
+    Ok(v.into_iter().map(|[x]| x).collect())
+}
+
+/// [`per_pixel_rays`] of a closed form with `N` components.
+pub fn per_pixel_rays_n<const N: usize>(
+    scene: &Scene,
+    width: usize,
+    height: usize,
+    region: [usize; 4],
+    f: &dyn Fn(Ray) -> Result<[f64; N], CheckError>,
+    k: usize,
+) -> Result<Vec<[f64; N]>, CheckError> {
     let mut v = Vec::new();
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
-            v.push(ray_average(
+            v.push(ray_average_n(
                 scene,
                 width,
                 height,

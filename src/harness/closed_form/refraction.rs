@@ -5,6 +5,7 @@
 //! branch; any other material is refused. Written apart from `scattering`: its own Sellmeier
 //! sum, Fresnel equations and refraction vector.
 
+use super::footprint::per_pixel_rays_n;
 use super::witness;
 use crate::geometry::{Ray, Shape};
 use crate::harness::error::CheckError;
@@ -234,40 +235,15 @@ pub fn expectation(
             "the refraction closed form takes planar shapes (quads, meshes) only".into(),
         ));
     }
-    let prims = witness::primitive_count(scene.aggregate.shapes());
-    if prims > witness::MAX_PRIMITIVES {
-        return Err(CheckError::Setup(format!(
-            "the scene has {prims} primitives; closed forms cast their rays against every one (at most {})",
-            witness::MAX_PRIMITIVES
-        )));
-    }
-    let eye = witness::Eye::new(&scene.camera, width, height).map_err(CheckError::Setup)?;
-    let k = FOOTPRINT_K;
-    let mut out: [Vec<f64>; 3] = Default::default();
-    for y in region[1]..region[3] {
-        for x in region[0]..region[2] {
-            // k×k midpoint quadrature of the box-filtered footprint
-            let mut sum = [0.0; 3];
-            for j in 0..k {
-                for i in 0..k {
-                    let (fx, fy) = ((i as f64 + 0.5) / k as f64, (j as f64 + 0.5) / k as f64);
-                    let v = ray_xyz(
-                        scene,
-                        eye.ray(x as f64 + fx, y as f64 + fy),
-                        max_depth,
-                        observer,
-                    )?;
-                    for c in 0..3 {
-                        sum[c] += v[c] / (k * k) as f64;
-                    }
-                }
-            }
-            for c in 0..3 {
-                out[c].push(sum[c]);
-            }
-        }
-    }
-    Ok(out)
+    let px = per_pixel_rays_n(
+        scene,
+        width,
+        height,
+        region,
+        &|ray| ray_xyz(scene, ray, max_depth, observer),
+        FOOTPRINT_K,
+    )?;
+    Ok([0, 1, 2].map(|c| px.iter().map(|v| v[c]).collect()))
 }
 
 #[cfg(test)]
