@@ -11,6 +11,7 @@ pub use light::{render_light_part, render_light_paths, LightImage};
 use crate::film::blocks::{spans, BlockFold, Piece};
 use crate::film::partial::PartialFilm;
 use crate::film::{Film, Pixel};
+use crate::integrators::radiosity::Solution;
 use crate::integrators::PathTracer;
 use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
@@ -211,8 +212,39 @@ pub fn render(
     settings: &RenderSettings,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
+    render_whole(scene, settings, Estimator::PathTracer, progress)
+}
+
+/// Renders the image of a radiosity solution of `scene` (settings as for [`render`]; the
+/// integrator fields are unused): each camera sample takes the XYZ of the patch side it sees,
+/// so the only noise left is the pixel footprint's.
+pub fn render_radiosity(
+    scene: &Scene,
+    settings: &RenderSettings,
+    solution: &Solution,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Film, RenderError> {
+    render_whole(scene, settings, Estimator::Radiosity(solution), progress)
+}
+
+/// What gives a camera sample its XYZ.
+#[derive(Clone, Copy)]
+enum Estimator<'a> {
+    /// settings.integrator's path tracer, through the film response.
+    PathTracer,
+    /// The XYZ of the radiosity solution's patch side the camera ray sees.
+    Radiosity(&'a Solution),
+}
+
+fn render_whole(
+    scene: &Scene,
+    settings: &RenderSettings,
+    estimator: Estimator,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Film, RenderError> {
     let blocks = 0..sample_blocks(settings.spp);
-    let (mut pieces, truncated_paths) = render_blocks(scene, settings, blocks, true, progress)?;
+    let (mut pieces, truncated_paths) =
+        render_blocks(scene, settings, blocks, true, estimator, progress)?;
     Ok(Film {
         width: settings.width,
         height: settings.height,
@@ -239,7 +271,14 @@ pub fn render_part(
         )));
     }
     let layout = spans(blocks.clone());
-    let (pieces, truncated_paths) = render_blocks(scene, settings, blocks, false, progress)?;
+    let (pieces, truncated_paths) = render_blocks(
+        scene,
+        settings,
+        blocks,
+        false,
+        Estimator::PathTracer,
+        progress,
+    )?;
     let pieces = layout
         .into_iter()
         .zip(pieces)
@@ -262,6 +301,7 @@ fn render_blocks(
     settings: &RenderSettings,
     blocks: std::ops::Range<u64>,
     whole: bool,
+    estimator: Estimator,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<(Vec<Vec<Pixel>>, u64), RenderError> {
     let (w, h) = (settings.width, settings.height);
@@ -327,14 +367,29 @@ fn render_blocks(
                                     s,
                                     settings.spp,
                                 );
-                                let u_lambda = rng.next_f64();
-                                let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
-                                let [jx, jy] = rng.next_2d();
-                                let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                                let (l, was_cut) =
-                                    settings.integrator.trace(scene, ray, &mut wl, &mut rng);
-                                cut += u64::from(was_cut);
-                                let xyz = response.xyz(&l, &wl);
+                                let xyz = match estimator {
+                                    Estimator::PathTracer => {
+                                        let u_lambda = rng.next_f64();
+                                        let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
+                                        let [jx, jy] = rng.next_2d();
+                                        let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                                        let (l, was_cut) = settings
+                                            .integrator
+                                            .trace(scene, ray, &mut wl, &mut rng);
+                                        cut += u64::from(was_cut);
+                                        response.xyz(&l, &wl)
+                                    }
+                                    Estimator::Radiosity(solution) => {
+                                        let [jx, jy] = rng.next_2d();
+                                        let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                                        scene
+                                            .aggregate
+                                            .intersect(&ray, f64::INFINITY)
+                                            .map_or([0.0; 3], |hit| {
+                                                solution.xyz_at(hit.shape, hit.point.p, -ray.d)
+                                            })
+                                    }
+                                };
                                 px.add(xyz, observer.xyz_to_rgb(xyz));
                             }
                             fold.push(px, &merge);

@@ -3,6 +3,9 @@
 //! [`super::adapter::External`].
 
 use crate::film::Film;
+use crate::integrators::radiosity::{
+    point_to_polygon, solve_with, PointFactor, RadiositySettings, SolveStats,
+};
 use crate::render::light::{trace_light_image, LightImage};
 use crate::render::{render, RenderSettings};
 use crate::scene::Scene;
@@ -68,6 +71,39 @@ pub trait Renderer: Sync {
             self.name()
         )))
     }
+
+    /// Solves `scene` by radiosity (`radiosity`) and renders the solution with `settings`'
+    /// camera samples, returning the image and the solve's statistics. Only furnace's own
+    /// renderer has a radiosity solver: the default is an error naming the renderer.
+    fn render_radiosity(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _radiosity: &RadiositySettings,
+    ) -> Result<(Film, SolveStats), RendererError> {
+        Err(RendererError(format!(
+            "{} has no radiosity solver furnace can drive",
+            self.name()
+        )))
+    }
+}
+
+/// The radiosity image of `scene` solved with the point form factor `factor` (furnace's own
+/// is [`crate::integrators::radiosity::point_to_polygon`]; a negative control passes a
+/// wrong one).
+pub fn radiosity_image(
+    scene: &Scene,
+    settings: &RenderSettings,
+    radiosity: &RadiositySettings,
+    factor: PointFactor,
+) -> Result<(Film, SolveStats), RendererError> {
+    let mut rs = radiosity.clone();
+    rs.deadline = rs.deadline.or(settings.deadline);
+    let solution = solve_with(scene, &rs, &settings.observer, factor)
+        .map_err(|e| RendererError(e.to_string()))?;
+    let film = crate::render::render_radiosity(scene, settings, &solution, &|_| {})
+        .map_err(|e| RendererError(e.to_string()))?;
+    Ok((film, solution.stats))
 }
 
 /// furnace's own path tracer.
@@ -86,6 +122,15 @@ impl Renderer for BuiltIn {
         )?;
         Ok(film)
     }
+    fn render_radiosity(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        radiosity: &RadiositySettings,
+    ) -> Result<(Film, SolveStats), RendererError> {
+        radiosity_image(scene, settings, radiosity, point_to_polygon)
+    }
+
     fn render_light_paths(
         &self,
         scene: &Scene,

@@ -4,6 +4,7 @@
 
 pub mod light;
 pub mod path;
+pub mod radiosity;
 
 pub use light::LightTracer;
 pub use path::{power_heuristic, shadow_transmittance, PathTracer, Strategy};
