@@ -278,6 +278,59 @@ pub fn region_test(
     }
 }
 
+/// Blocks per side of the default region grid.
+pub const DEFAULT_GRID: usize = 4;
+
+/// The k×k grid of blocks over the image, named `block (column, row)`.
+pub fn grid_regions(k: usize) -> Vec<Region> {
+    let f = |i: usize| i as f64 / k as f64;
+    (0..k)
+        .flat_map(|j| {
+            (0..k).map(move |i| Region {
+                name: format!("block ({i}, {j})"),
+                rect: [f(i), f(j), f(i + 1), f(j + 1)],
+            })
+        })
+        .collect()
+}
+
+/// Where an image comparison looks: a regions file, or (without one) a k×k grid of blocks;
+/// the manifest keys `regions` and `grid`, one or the other.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct RegionChoice {
+    /// Named regions from a regions file (empty: the grid).
+    pub regions: Vec<Region>,
+    /// Blocks per side of the grid (None: [`DEFAULT_GRID`]).
+    pub grid: Option<usize>,
+}
+
+impl RegionChoice {
+    /// Reads the `regions` and `grid` keys.
+    pub fn parse(k: &super::keys::Keys) -> Result<Self, crate::io::LocatedError> {
+        if k.has("grid") && k.has("regions") {
+            return Err(k.error_at(
+                "grid",
+                "give either `grid` (k x k blocks) or `regions` (a regions file), not both".into(),
+            ));
+        }
+        Ok(RegionChoice {
+            regions: regions_key(k, "regions")?,
+            grid: k.int("grid", 1, 64)?,
+        })
+    }
+
+    /// `first` followed by the file's regions, or by the grid's blocks.
+    pub fn after(&self, first: Vec<Region>) -> Vec<Region> {
+        let mut out = first;
+        if self.regions.is_empty() {
+            out.extend(grid_regions(self.grid.unwrap_or(DEFAULT_GRID)));
+        } else {
+            out.extend(self.regions.iter().cloned());
+        }
+        out
+    }
+}
+
 /// The regions every comparison starts with: the whole image.
 pub fn whole_image() -> Region {
     Region {
@@ -545,6 +598,22 @@ pub fn regions_measurement(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_grid_tiles_the_image() {
+        let g = grid_regions(4);
+        assert_eq!(g.len(), 16);
+        let mut covered = vec![0u32; 32 * 32];
+        for r in &g {
+            let [x0, y0, x1, y1] = r.pixels(32, 32).unwrap();
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    covered[y * 32 + x] += 1;
+                }
+            }
+        }
+        assert!(covered.iter().all(|c| *c == 1));
+    }
     use crate::math::rng::SampleStream;
 
     /// A synthetic render of a known image: pixel means with Gaussian noise of known variance.

@@ -112,6 +112,22 @@ pub mod common {
         doc: "regions file (TOML [[region]] tables with name and rect in image fractions), relative to the manifest",
     };
 
+    /// The `patch_size` key: the longest patch edge of a radiosity solve.
+    pub const PATCH_SIZE: Key = Key {
+        name: "patch_size",
+        ty: "length > 0 (scene units)",
+        default: "the smallest giving at most 1024 patches",
+        doc: "longest patch edge of the radiosity solve",
+    };
+
+    /// The `grid` key: blocks per side of a region grid.
+    pub const GRID: Key = Key {
+        name: "grid",
+        ty: "integer 1..=64",
+        default: "4",
+        doc: "blocks per side of the region grid (instead of `regions`)",
+    };
+
     /// The `observer` key: the colour pipeline the image is rendered with.
     pub const OBSERVER: Key = Key {
         name: "observer",
@@ -262,6 +278,15 @@ impl<'a> Keys<'a> {
                 Ok(Some(x))
             }
         }
+    }
+
+    /// `key` as a finite number > 0.
+    pub fn positive(&self, key: &str) -> Result<Option<f64>, LocatedError> {
+        let x = self.non_negative(key)?;
+        if x == Some(0.0) {
+            return Err(self.error_at(key, format!("{key} must be > 0")));
+        }
+        Ok(x)
     }
 
     /// `key` as a list of finite numbers (all > 0 when `positive_only`); empty when absent.

@@ -2,9 +2,9 @@
 //! The order is the order error messages list them in.
 
 use super::checks::{
-    albedo, chi2, convergence, energy, estimators, furnace, half_space, hg, image, lambert,
-    measured, phase, radiance, reciprocity, reciprocity_image, refraction, scale, smooth_limit,
-    transmittance, weights,
+    albedo, algorithm_agreement, chi2, convergence, energy, estimators, furnace, half_space, hg,
+    image, lambert, measured, phase, radiance, radiosity_furnace, reciprocity, reciprocity_image,
+    refraction, scale, smooth_limit, transmittance, weights,
 };
 use super::kind::{DynKind, Registered};
 use std::marker::PhantomData;
@@ -31,6 +31,8 @@ pub static KINDS: &[&dyn DynKind] = &[
     &Registered::<measured::Measured>(PhantomData),
     &Registered::<reciprocity_image::ReciprocityImage>(PhantomData),
     &Registered::<convergence::Convergence>(PhantomData),
+    &Registered::<radiosity_furnace::RadiosityFurnace>(PhantomData),
+    &Registered::<algorithm_agreement::AlgorithmAgreement>(PhantomData),
 ];
 
 /// The kind named `name`.

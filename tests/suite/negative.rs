@@ -1536,3 +1536,93 @@ fn refraction_rejects_an_index_inverted_across_the_interface() {
     let inverted = wrong_index("glass-wedge.toml", "ior = 1.6", "ior = 0.625");
     assert_rejected(m, check, &inverted);
 }
+
+// ---------------------------------------------------------------- radiosity
+
+/// A radiosity solver with a wrong point form factor (the rest is furnace's).
+struct BrokenRadiosity(furnace::integrators::radiosity::PointFactor);
+impl Renderer for BrokenRadiosity {
+    fn name(&self) -> String {
+        "radiosity with a wrong form factor".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(scene, s)
+    }
+    fn render_radiosity(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        r: &furnace::integrators::radiosity::RadiositySettings,
+    ) -> Result<(Film, furnace::integrators::radiosity::SolveStats), furnace::harness::RendererError>
+    {
+        furnace::harness::renderer::radiosity_image(scene, s, r, self.0)
+    }
+}
+
+/// The point-to-point approximation F ≈ cos θx cos θy A / (π r²) from the polygon's centroid:
+/// the textbook shortcut, wrong wherever a patch is near (adjacent walls, corners).
+fn centroid_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
+    let c = polygon.iter().copied().sum::<Vec3>() / polygon.len() as f64;
+    let normal = (polygon[1] - polygon[0]).cross(polygon[2] - polygon[0]);
+    let area = if polygon.len() == 4 {
+        normal.length()
+    } else {
+        0.5 * normal.length()
+    };
+    let d = c - x;
+    let r2 = d.length_squared();
+    let w = d / r2.sqrt();
+    let (cx, cy) = (n.dot(w), normal.normalize().dot(w).abs());
+    if cx <= 0.0 {
+        return 0.0;
+    }
+    cx * cy * area / (PI * r2)
+}
+
+/// A point factor that loses a tenth: a wrong normalisation (1/(2π) taken as 0.9/(2π)).
+fn lossy_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
+    0.9 * furnace::integrators::radiosity::point_to_polygon(x, n, polygon)
+}
+
+#[test]
+fn radiosity_furnace_rejects_the_point_to_point_form_factor() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "radiosity/furnace-box*", &BuiltIn, Verdict::Pass);
+    assert_all(
+        manifest,
+        "radiosity/furnace-box[albedo=0.5]",
+        &BrokenRadiosity(centroid_factor),
+        Verdict::Fail,
+    );
+}
+
+#[test]
+fn algorithm_agreement_rejects_a_radiosity_that_loses_light() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "radiosity/cornell-box", &BuiltIn, Verdict::Pass);
+    assert_all(
+        manifest,
+        "radiosity/cornell-box",
+        &BrokenRadiosity(lossy_factor),
+        Verdict::Fail,
+    );
+}
+
+/// Near the Cornell box's corners the point-to-point factor exceeds 1 by far: the solve has
+/// no finite solution, and the check says so as an ERROR naming the row sum (not a verdict on
+/// the image).
+#[test]
+fn algorithm_agreement_refuses_form_factors_that_create_light() {
+    for (n, v, m) in verdicts(
+        "tests/manifests/algorithms.toml",
+        "radiosity/cornell-box",
+        &BrokenRadiosity(centroid_factor),
+    ) {
+        assert_eq!(v, Verdict::Error, "{n}: {m}");
+        assert!(m.contains("row sum"), "{m}");
+    }
+}

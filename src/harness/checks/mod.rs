@@ -3,6 +3,7 @@
 //! several share lives in `closed_form/`, `model/`, `region.rs` or `compare.rs`.
 
 pub mod albedo;
+pub mod algorithm_agreement;
 pub mod chi2;
 pub mod convergence;
 pub mod energy;
@@ -15,6 +16,7 @@ pub mod lambert;
 pub mod measured;
 pub mod phase;
 pub mod radiance;
+pub mod radiosity_furnace;
 pub mod reciprocity;
 pub mod reciprocity_image;
 pub mod refraction;

@@ -19,8 +19,8 @@
 //! refuses the latter with an error naming the light).
 
 use crate::harness::compare::{
-    region_dof, region_mean, region_test, regions_key, regions_measurement, whole_image, Region,
-    RgbImage, CHANNELS,
+    region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
+    CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -31,31 +31,13 @@ use crate::io::LocatedError;
 use crate::math::rng::mix64;
 use crate::spectrum::Observer;
 
-/// Blocks per side of the default region grid.
-pub const DEFAULT_GRID: usize = 4;
-
-/// The k×k grid of blocks over the image, named `block (column, row)`.
-pub fn grid_regions(k: usize) -> Vec<Region> {
-    let f = |i: usize| i as f64 / k as f64;
-    (0..k)
-        .flat_map(|j| {
-            (0..k).map(move |i| Region {
-                name: format!("block ({i}, {j})"),
-                rect: [f(i), f(j), f(i + 1), f(j + 1)],
-            })
-        })
-        .collect()
-}
-
 /// Parameters of a reciprocity_image check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
     /// Colour pipeline of both images.
     pub observer: Observer,
-    /// Named regions (empty: the whole image and a grid of blocks).
-    pub regions: Vec<Region>,
-    /// Blocks per side of the region grid (None: [`DEFAULT_GRID`]).
-    pub grid: Option<usize>,
+    /// Where the images are compared (after the whole image).
+    pub regions: RegionChoice,
     /// Light paths traced (None: spp × width × height).
     pub light_paths: Option<u64>,
 }
@@ -79,12 +61,7 @@ impl Kind for ReciprocityImage {
         common::HEIGHT,
         common::MAX_DEPTH,
         common::ROULETTE,
-        Key {
-            name: "grid",
-            ty: "integer 1..=64",
-            default: "4",
-            doc: "blocks per side of the region grid (instead of `regions`)",
-        },
+        common::GRID,
         common::REGIONS,
         common::OBSERVER,
         common::SEED,
@@ -93,16 +70,9 @@ impl Kind for ReciprocityImage {
     const SCOPE: Scope = Scope::Furnace;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
-        if k.has("grid") && k.has("regions") {
-            return Err(k.error_at(
-                "grid",
-                "give either `grid` (k x k blocks) or `regions` (a regions file), not both".into(),
-            ));
-        }
         Ok(Params {
             observer: k.observer()?,
-            regions: regions_key(k, "regions")?,
-            grid: k.int("grid", 1, 64)?,
+            regions: RegionChoice::parse(k)?,
             light_paths: k.int("light_paths", 2, 1 << 40)?,
         })
     }
@@ -128,19 +98,15 @@ impl Kind for ReciprocityImage {
             .lights
             .iter()
             .any(|l| matches!(l, crate::lights::Light::Environment { .. }));
-        let mut regions = Vec::new();
-        if environment {
-            if p.regions.is_empty() {
+        let first = if environment {
+            if p.regions.regions.is_empty() {
                 return Err("the scene has an environment light: give `regions` (a regions file) that avoids the pixels where the camera sees the environment directly; light paths cannot reach the eye that way".into());
             }
+            vec![]
         } else {
-            regions.push(whole_image());
-        }
-        if p.regions.is_empty() {
-            regions.extend(grid_regions(p.grid.unwrap_or(DEFAULT_GRID)));
-        } else {
-            regions.extend(p.regions.iter().cloned());
-        }
+            vec![whole_image()]
+        };
+        let regions = p.regions.after(first);
         let rects = regions
             .iter()
             .map(|r| r.pixels(w, h))
@@ -209,26 +175,5 @@ impl Kind for ReciprocityImage {
             m.message = format!("{}; {}: {}", m.message, regions[0].name, whole.join(", "));
         }
         Ok(m)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn the_grid_tiles_the_image() {
-        let g = grid_regions(4);
-        assert_eq!(g.len(), 16);
-        let mut covered = vec![0u32; 32 * 32];
-        for r in &g {
-            let [x0, y0, x1, y1] = r.pixels(32, 32).unwrap();
-            for y in y0..y1 {
-                for x in x0..x1 {
-                    covered[y * 32 + x] += 1;
-                }
-            }
-        }
-        assert!(covered.iter().all(|c| *c == 1));
     }
 }
