@@ -407,3 +407,77 @@ fn color_colours_verdicts_only_when_asked_or_on_a_terminal() {
     let (code, _) = run(&["--color", "sometimes"], false);
     assert_eq!(code, Some(2));
 }
+
+#[test]
+fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-rad-{}", std::process::id()));
+    let exr = dir.join("cbox.exr");
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/cornell-box.toml",
+            "--integrator",
+            "radiosity",
+            "--patch-size",
+            "200",
+            "--width",
+            "16",
+            "--height",
+            "16",
+            "--spp",
+            "4",
+            "-o",
+        ])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("Gauss-Seidel sweeps"), "{text}");
+    assert!(text.contains("discretisation error estimate"), "{text}");
+    assert!(exr.exists());
+    std::fs::remove_dir_all(&dir).ok();
+
+    // what radiosity does not model, and a patch size too small, are refused by name
+    for (args, says) in [
+        (
+            vec!["scenes/cornell-glossy.toml"],
+            "radiosity models diffuse surfaces",
+        ),
+        (
+            vec!["scenes/cornell-box.toml", "--patch-size", "1"],
+            "use a patch size of at least",
+        ),
+        (
+            vec!["scenes/cornell-box.toml", "--patch-size", "0"],
+            "positive length",
+        ),
+    ] {
+        let out = furnace()
+            .args([
+                "render",
+                "--integrator",
+                "radiosity",
+                "-o",
+                "/nonexistent/x.exr",
+            ])
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{args:?}: {err}"
+        );
+    }
+    let out = furnace()
+        .args(["render", "scenes/cornell-box.toml", "--patch-size", "10"])
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("only used by --integrator radiosity"));
+}
