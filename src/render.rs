@@ -5,8 +5,10 @@
 //! ([`render_part`], merged by film::partial).
 
 pub mod light;
+pub mod sppm;
 
 pub use light::{render_light_part, render_light_paths, LightImage};
+pub use sppm::{render_sppm, render_sppm_runs};
 
 use crate::film::blocks::{spans, BlockFold, Piece};
 use crate::film::partial::PartialFilm;

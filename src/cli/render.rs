@@ -39,8 +39,20 @@ pub struct RenderArgs {
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
     /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) or radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint).
-    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity"])]
+    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm"])]
     integrator: String,
+    /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each).
+    #[arg(long, default_value_t = 64)]
+    iterations: u64,
+    /// Photons emitted per SPPM iteration.
+    #[arg(long, default_value_t = 100_000)]
+    photons_per_iteration: u64,
+    /// Initial gather radius of SPPM, scene units [default: 1/50 of the scene's bounding radius].
+    #[arg(long)]
+    radius: Option<f64>,
+    /// Independent SPPM runs: each pixel's mean and variance come from their spread (one run's pixels are correlated across iterations).
+    #[arg(long, default_value_t = 4)]
+    runs: u64,
     /// Longest patch edge of --integrator radiosity, scene units [default: the smallest that gives at most 1024 patches]. The solve is also run at twice this size, and the images' difference reported as the discretisation error estimate.
     #[arg(long, value_name = "LENGTH")]
     patch_size: Option<f64>,
@@ -214,6 +226,15 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     if a.patch_size.is_some() && a.integrator != "radiosity" {
         return Err(anyhow::anyhow!("--patch-size is only used by --integrator radiosity").into());
     }
+    if a.integrator == "sppm" {
+        if a.renderer.is_some() || shard.is_some() {
+            return Err(anyhow::anyhow!(
+                "--integrator sppm renders in one process with furnace's own photon mapper: no --renderer, no --shard"
+            )
+            .into());
+        }
+        return render_sppm_image(&a, &scene, &settings, attrs, &exr_path, &png_path);
+    }
     if a.integrator == "radiosity" {
         if a.renderer.is_some() || shard.is_some() {
             return Err(anyhow::anyhow!(
@@ -345,6 +366,65 @@ fn render_radiosity_image(
         settings.height,
         settings.spp,
         secs
+    );
+    Ok(code)
+}
+
+/// `furnace render --integrator sppm`.
+fn render_sppm_image(
+    a: &RenderArgs,
+    scene: &Scene,
+    settings: &RenderSettings,
+    mut attrs: Vec<(String, String)>,
+    exr_path: &Path,
+    png_path: &Path,
+) -> Result<i32, Failure> {
+    let sppm = furnace::integrators::sppm::Sppm {
+        iterations: a.iterations,
+        photons_per_iteration: a.photons_per_iteration,
+        initial_radius: a.radius,
+        ..Default::default()
+    };
+    let photons = a
+        .runs
+        .saturating_mul(a.iterations)
+        .saturating_mul(a.photons_per_iteration);
+    if photons > a.max_samples {
+        return Err(anyhow::anyhow!(
+            "the render would trace {photons} photons (runs x iterations x photons per iteration); the work budget is {}: raise it with --max-samples",
+            a.max_samples
+        )
+        .into());
+    }
+    let bar = progress_bar(super::quiet(), a.runs.saturating_mul(a.iterations))?;
+    let start = Instant::now();
+    let film =
+        furnace::render::render_sppm(scene, settings, &sppm, a.runs, &|n| bar.set_position(n))
+            .context("cannot render")?;
+    let secs = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    for (k, v) in [
+        ("furnace.sppm_iterations", a.iterations.to_string()),
+        (
+            "furnace.sppm_photons_per_iteration",
+            a.photons_per_iteration.to_string(),
+        ),
+        ("furnace.sppm_runs", a.runs.to_string()),
+        ("furnace.variance_dof", a.runs.saturating_sub(1).to_string()),
+    ] {
+        attrs.retain(|(name, _)| name != k);
+        attrs.push((k.into(), v));
+    }
+    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    super::say!(
+        "sppm: {} runs x {} iterations x {} photons, {}x{} px, {:.2} s wall, {:.3} M photons/s",
+        a.runs,
+        a.iterations,
+        a.photons_per_iteration,
+        settings.width,
+        settings.height,
+        secs,
+        photons as f64 / secs / 1e6
     );
     Ok(code)
 }

@@ -6,7 +6,9 @@ use crate::film::Film;
 use crate::integrators::radiosity::{
     point_to_polygon, solve_with, PointFactor, RadiositySettings, SolveStats,
 };
+use crate::integrators::sppm::Sppm;
 use crate::render::light::{trace_light_image, LightImage};
+use crate::render::sppm::DensityEstimate;
 use crate::render::{render, RenderSettings};
 use crate::scene::Scene;
 
@@ -72,6 +74,22 @@ pub trait Renderer: Sync {
         )))
     }
 
+    /// Renders `scene` by stochastic progressive photon mapping: `runs` independent images
+    /// (their spread is the standard error; one run's pixels are correlated). Only furnace's own
+    /// renderer has a photon mapper: the default is an error naming the renderer.
+    fn render_sppm(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _sppm: &Sppm,
+        _runs: u64,
+    ) -> Result<Vec<Film>, RendererError> {
+        Err(RendererError(format!(
+            "{} has no photon mapper furnace can drive",
+            self.name()
+        )))
+    }
+
     /// Solves `scene` by radiosity (`radiosity`) and renders the solution with `settings`'
     /// camera samples, returning the image and the solve's statistics. Only furnace's own
     /// renderer has a radiosity solver: the default is an error naming the renderer.
@@ -86,6 +104,19 @@ pub trait Renderer: Sync {
             self.name()
         )))
     }
+}
+
+/// The `runs` independent SPPM images of `scene` with the density estimate `estimate`
+/// (furnace's own is [`crate::render::sppm::density`]; a negative control passes a wrong one).
+pub fn sppm_images(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    runs: u64,
+    estimate: DensityEstimate,
+) -> Result<Vec<Film>, RendererError> {
+    crate::render::render_sppm_runs(scene, settings, sppm, runs, estimate, &|_| {})
+        .map_err(|e| RendererError(e.to_string()))
 }
 
 /// The radiosity image of `scene` solved with the point form factor `factor` (furnace's own
@@ -129,6 +160,16 @@ impl Renderer for BuiltIn {
         radiosity: &RadiositySettings,
     ) -> Result<(Film, SolveStats), RendererError> {
         radiosity_image(scene, settings, radiosity, point_to_polygon)
+    }
+
+    fn render_sppm(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        sppm: &Sppm,
+        runs: u64,
+    ) -> Result<Vec<Film>, RendererError> {
+        sppm_images(scene, settings, sppm, runs, crate::render::sppm::density)
     }
 
     fn render_light_paths(

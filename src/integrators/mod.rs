@@ -5,6 +5,7 @@
 pub mod light;
 pub mod path;
 pub mod radiosity;
+pub mod sppm;
 
 pub use light::LightTracer;
 pub use path::{power_heuristic, shadow_transmittance, PathTracer, Strategy};

@@ -440,7 +440,6 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
     assert!(text.contains("Gauss-Seidel sweeps"), "{text}");
     assert!(text.contains("discretisation error estimate"), "{text}");
     assert!(exr.exists());
-    std::fs::remove_dir_all(&dir).ok();
 
     // what radiosity does not model, and a patch size too small, are refused by name
     for (args, says) in [
@@ -474,6 +473,37 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
             "{args:?}: {err}"
         );
     }
+    // SPPM: a few photons, the photon rate reported
+    let exr = dir.join("cbox-sppm.exr");
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/cornell-box.toml",
+            "--integrator",
+            "sppm",
+            "--iterations",
+            "2",
+            "--photons-per-iteration",
+            "2000",
+            "--runs",
+            "2",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "-o",
+        ])
+        .arg(&exr)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("M photons/s") && exr.exists(), "{text}");
+    std::fs::remove_dir_all(&dir).ok();
     let out = furnace()
         .args(["render", "scenes/cornell-box.toml", "--patch-size", "10"])
         .output()

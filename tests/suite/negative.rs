@@ -1626,3 +1626,63 @@ fn algorithm_agreement_refuses_form_factors_that_create_light() {
         assert!(m.contains("row sum"), "{m}");
     }
 }
+
+// ---------------------------------------------------------------- photon mapping
+
+/// SPPM with a wrong density estimate (the rest is furnace's).
+struct BrokenSppm(furnace::render::sppm::DensityEstimate);
+impl Renderer for BrokenSppm {
+    fn name(&self) -> String {
+        "SPPM with a wrong density estimate".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(scene, s)
+    }
+    fn render_sppm(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        sppm: &furnace::integrators::sppm::Sppm,
+        runs: u64,
+    ) -> Result<Vec<Film>, furnace::harness::RendererError> {
+        furnace::harness::renderer::sppm_images(scene, s, sppm, runs, self.0)
+    }
+}
+
+/// The photon flux not divided by the number of photons emitted: τ/(π r²).
+fn flux_per_area(tau: f64, _photons: f64, r2: f64) -> f64 {
+    tau / (PI * r2)
+}
+
+/// The gather disc's area taken as r² (π dropped): 3.14 times too bright indirect light.
+fn square_area(tau: f64, photons: f64, r2: f64) -> f64 {
+    tau / (photons * r2)
+}
+
+#[test]
+fn algorithm_agreement_rejects_photons_not_divided_by_their_count() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "sppm/furnace-box*", &BuiltIn, Verdict::Pass);
+    assert_all(
+        manifest,
+        "sppm/furnace-box*",
+        &BrokenSppm(flux_per_area),
+        Verdict::Fail,
+    );
+}
+
+#[test]
+fn algorithm_agreement_rejects_a_gather_area_without_pi() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "sppm/cornell-box", &BuiltIn, Verdict::Pass);
+    assert_all(
+        manifest,
+        "sppm/cornell-box",
+        &BrokenSppm(square_area),
+        Verdict::Fail,
+    );
+}

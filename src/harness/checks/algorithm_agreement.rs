@@ -1,12 +1,14 @@
 //! `algorithm_agreement`: two rendering algorithms that share nothing but the scene and the
-//! camera must give the same image. Here furnace's path tracer (Monte Carlo, NEE + MIS, all
-//! bounces by unbiased roulette) against its radiosity solver (deterministic finite elements,
-//! Goral et al. 1984): each region × channel mean is compared by the z test of
-//! harness::compare, with the radiosity image's discretisation error estimated by refinement
-//! (the same camera samples through the solution at twice the patch size; the difference
-//! bounds the first-order error of the finer one, Cohen & Wallace 1993, §6.2) allowed as a
-//! per-region tolerance, and the check's p is the Šidák combination over regions.
-//! Diffuse scenes lit by area emitters only (radiosity refuses anything else by name).
+//! camera must give the same image: furnace's path tracer (Monte Carlo, NEE + MIS, all bounces
+//! by unbiased roulette) against its radiosity solver (deterministic finite elements, Goral et
+//! al. 1984) or its photon mapper (SPPM, Hachisuka & Jensen 2009). Each region × channel mean
+//! is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
+//! own bias is estimated by refinement and allowed per region as a tolerance: radiosity at the
+//! patch size h against 2h (the same camera samples; the difference bounds the first-order error
+//! of the finer one, Cohen & Wallace 1993, §6.2), SPPM at the initial radius r/2 against r (its
+//! bias shrinks at least linearly with the radius). The check's p is the Šidák combination
+//! over regions. Radiosity takes diffuse scenes lit by area emitters, SPPM surface scenes
+//! without environment lights; each refuses the rest by name.
 
 use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
@@ -17,15 +19,35 @@ use crate::harness::measurement::fmt_sig;
 use crate::harness::region::settings_for;
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
 use crate::integrators::radiosity::{default_patch_size, RadiositySettings};
+use crate::integrators::sppm::Sppm;
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
 use crate::math::rng::mix64;
 
+/// The algorithm compared with the path tracer.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Algorithm {
+    /// Radiosity at a patch size (None: the solver's default).
+    Radiosity {
+        /// Longest patch edge, scene units.
+        patch_size: Option<f64>,
+    },
+    /// SPPM with its settings and independent runs.
+    Sppm {
+        /// Iterations, photons, radius.
+        settings: Sppm,
+        /// Independent runs (the standard error's sample).
+        runs: u64,
+    },
+}
+
 /// Parameters of an algorithm_agreement check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
-    /// Longest patch edge of the radiosity solve (None: the solver's default).
-    pub patch_size: Option<f64>,
+    /// The algorithm under comparison.
+    pub algorithm: Algorithm,
+    /// Estimate its bias by refinement and allow it (false: it must agree within noise alone).
+    pub refine: bool,
     /// Where the images are compared (after the whole image).
     pub regions: RegionChoice,
 }
@@ -38,16 +60,47 @@ impl Kind for AlgorithmAgreement {
     const NAME: &'static str = "algorithm_agreement";
     const KEYS: &'static [Key] = &[
         common::SCENE,
+        common::VARY,
         common::SPP,
         common::WIDTH,
         common::HEIGHT,
         Key {
             name: "integrator",
-            ty: "\"radiosity\"",
+            ty: "\"radiosity\" or \"sppm\"",
             default: "(required)",
             doc: "the algorithm compared with the path tracer",
         },
+        Key {
+            name: "refine",
+            ty: "boolean",
+            default: "true",
+            doc: "estimate the algorithm's bias by refinement (patch size or radius halved) and allow it per region; false where it is unbiased",
+        },
         common::PATCH_SIZE,
+        Key {
+            name: "iterations",
+            ty: "integer 1..=100000",
+            default: "64",
+            doc: "SPPM iterations",
+        },
+        Key {
+            name: "photons_per_iteration",
+            ty: "integer 1..=10^9",
+            default: "100000",
+            doc: "SPPM photons per iteration",
+        },
+        Key {
+            name: "runs",
+            ty: "integer 2..=1000",
+            default: "4",
+            doc: "independent SPPM runs (their spread is the standard error)",
+        },
+        Key {
+            name: "radius",
+            ty: "length > 0 (scene units)",
+            default: "1/50 of the scene's bounding radius",
+            doc: "SPPM's initial gather radius",
+        },
         common::GRID,
         common::REGIONS,
         common::SEED,
@@ -56,23 +109,44 @@ impl Kind for AlgorithmAgreement {
     const SCOPE: Scope = Scope::Furnace;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
-        match k.get::<String>("integrator")? {
-            Some(i) if i.get_ref() == "radiosity" => {}
+        let algorithm = match k.get::<String>("integrator")? {
+            Some(i) if i.get_ref() == "radiosity" => Algorithm::Radiosity {
+                patch_size: k.positive("patch_size")?,
+            },
+            Some(i) if i.get_ref() == "sppm" => {
+                let d = Sppm::default();
+                Algorithm::Sppm {
+                    settings: Sppm {
+                        iterations: k.int("iterations", 1, 100_000)?.unwrap_or(d.iterations),
+                        photons_per_iteration: k
+                            .int("photons_per_iteration", 1, 1_000_000_000)?
+                            .unwrap_or(d.photons_per_iteration),
+                        initial_radius: k.positive("radius")?,
+                        ..d
+                    },
+                    runs: k.int("runs", 2, 1000)?.unwrap_or(4),
+                }
+            }
             Some(i) => {
                 return Err(k.error(
                     i.span(),
                     "integrator",
-                    format!("unknown integrator {:?}; known: \"radiosity\"", i.get_ref()),
+                    format!(
+                        "unknown integrator {:?}; known: \"radiosity\", \"sppm\"",
+                        i.get_ref()
+                    ),
                 ))
             }
-            None => return Err(k.error_at(
-                "integrator",
-                "give `integrator = \"radiosity\"`: the algorithm compared with the path tracer"
-                    .into(),
-            )),
-        }
+            None => {
+                return Err(k.error_at(
+                    "integrator",
+                    "give `integrator = \"radiosity\"` or `\"sppm\"`: the algorithm compared with the path tracer".into(),
+                ))
+            }
+        };
         Ok(Params {
-            patch_size: k.positive("patch_size")?,
+            algorithm,
+            refine: k.get::<bool>("refine")?.is_none_or(|b| *b.get_ref()),
             regions: RegionChoice::parse(k)?,
         })
     }
@@ -86,11 +160,11 @@ impl Kind for AlgorithmAgreement {
         })
     }
 
-    /// Renders the scene by path tracing and by radiosity at two patch sizes and compares.
+    /// Renders the scene by path tracing and by the algorithm (twice with `refine`) and compares.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let scene = check.scene()?;
         if scene.render.max_depth.is_some() {
-            return Err("radiosity solves every bounce: the scene's render.max_depth must be absent (unlimited) for the path tracer to estimate the same image".into());
+            return Err("radiosity and SPPM render every bounce: the scene's render.max_depth must be absent (unlimited) for the path tracer to estimate the same image".into());
         }
         let s = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
         let (w, h) = (s.width, s.height);
@@ -100,54 +174,147 @@ impl Kind for AlgorithmAgreement {
             .map(|r| r.pixels(w, h))
             .collect::<Result<Vec<_>, _>>()?;
         let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
-        // independent camera samples for the radiosity images (the same for both sizes, so
-        // their difference is the discretisation's alone)
+        // independent samples for the algorithm's images (the same for both of its images, so
+        // that their difference is the refinement's alone)
         let mut rs = s.clone();
         rs.seed = mix64(ctx.seed ^ 0x5241_4449_4f53_4954);
-        let size = p
-            .patch_size
-            .unwrap_or_else(|| default_patch_size(scene.aggregate.shapes()));
-        let solve_at = |size: f64| {
-            let settings = RadiositySettings {
-                patch_size: Some(size),
-                ..Default::default()
-            };
-            ctx.renderer.render_radiosity(scene, &rs, &settings)
-        };
-        let (fine, st) = solve_at(size)?;
-        let (coarse, st_coarse) = solve_at(2.0 * size)?;
-        let (fine, coarse) = (RgbImage::from_film(&fine), RgbImage::from_film(&coarse));
+        let (test, coarse, what) = render_pair(scene, &rs, &p.algorithm, p.refine, ctx)?;
         let mut results = Vec::with_capacity(rects.len() * 3);
         let mut widest = 0.0f64;
         for (reg, rect) in regions.iter().zip(&rects) {
             for (c, channel) in CHANNELS.iter().enumerate() {
-                let test = region_mean(&fine, c, *rect);
+                let (t, dof) = test.region(c, *rect);
                 let reference = region_mean(&path, c, *rect);
-                let discretisation = (region_mean(&coarse, c, *rect).0 - test.0).abs()
-                    / reference.0.abs().max(f64::MIN_POSITIVE);
-                widest = widest.max(discretisation);
+                let bias = coarse.as_ref().map_or(0.0, |coarse| {
+                    (coarse.region(c, *rect).0 .0 - t.0).abs()
+                        / reference.0.abs().max(f64::MIN_POSITIVE)
+                });
+                widest = widest.max(bias);
                 results.push(region_test(
                     &reg.name,
                     channel,
-                    test,
+                    t,
                     reference,
-                    [region_dof(&fine, c, *rect), region_dof(&path, c, *rect)],
-                    discretisation + ctx.rel_tolerance(check.rel_tolerance),
+                    [dof, region_dof(&path, c, *rect)],
+                    bias + ctx.rel_tolerance(check.rel_tolerance),
                 ));
             }
         }
+        let allowance = if p.refine {
+            format!(
+                "; bias allowance per region from refinement, up to {} relative",
+                fmt_sig(widest)
+            )
+        } else {
+            "; no bias allowance (refine = false)".into()
+        };
         regions_measurement(
             &results,
             2 * (w * h) as u64 * s.spp,
             &format!(
-                "radiosity = test ({} patches of at most {}, solver bound {}; discretisation allowance per region |L(h) - L(2h)| from {} patches, up to {} relative), path tracer ({} spp, unlimited depth) = reference, {w}x{h}",
-                st.patches,
-                fmt_sig(st.patch_size),
-                fmt_sig(st.error_bound),
-                st_coarse.patches,
-                fmt_sig(widest),
+                "{what}{allowance} = test, path tracer ({} spp, unlimited depth) = reference, {w}x{h}",
                 s.spp
             ),
         )
+    }
+}
+
+/// An algorithm's images: one with independent pixels (radiosity: each pixel's camera
+/// samples are its own), or independent runs whose pixels are correlated within a run (SPPM:
+/// shared photons and wavelengths), where a region's error comes from the runs' region means.
+enum Images {
+    Pixels(Box<RgbImage>),
+    Runs(Vec<RgbImage>),
+}
+
+impl Images {
+    /// Region mean of channel `c` with its standard error, and the error's degrees of freedom.
+    fn region(&self, c: usize, rect: [usize; 4]) -> ((f64, f64), f64) {
+        match self {
+            Images::Pixels(img) => (region_mean(img, c, rect), region_dof(img, c, rect)),
+            Images::Runs(runs) => {
+                let means: Vec<f64> = runs.iter().map(|r| region_mean(r, c, rect).0).collect();
+                let k = means.len() as f64;
+                let mean = means.iter().sum::<f64>() / k;
+                let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
+                ((mean, (var / k).sqrt()), k - 1.0)
+            }
+        }
+    }
+}
+
+/// The algorithm's image, and with `refine` its coarser twin (radiosity at twice the patch
+/// size, SPPM at twice the radius), with a description.
+fn render_pair(
+    scene: &crate::scene::Scene,
+    s: &crate::render::RenderSettings,
+    algorithm: &Algorithm,
+    refine: bool,
+    ctx: &Context,
+) -> Result<(Images, Option<Images>, String), CheckError> {
+    match algorithm {
+        Algorithm::Radiosity { patch_size } => {
+            let size = patch_size.unwrap_or_else(|| default_patch_size(scene.aggregate.shapes()));
+            let solve_at = |size: f64| {
+                let settings = RadiositySettings {
+                    patch_size: Some(size),
+                    ..Default::default()
+                };
+                ctx.renderer.render_radiosity(scene, s, &settings)
+            };
+            let (fine, st) = solve_at(size)?;
+            let coarse = if refine {
+                let coarse = solve_at(2.0 * size)?.0;
+                Some(Images::Pixels(Box::new(RgbImage::from_film(&coarse))))
+            } else {
+                None
+            };
+            Ok((
+                Images::Pixels(Box::new(RgbImage::from_film(&fine))),
+                coarse,
+                format!(
+                    "radiosity ({} patches of at most {}, solver bound {})",
+                    st.patches,
+                    fmt_sig(st.patch_size),
+                    fmt_sig(st.error_bound)
+                ),
+            ))
+        }
+        Algorithm::Sppm { settings, runs } => {
+            let r = settings
+                .initial_radius
+                .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
+            let at = |radius: f64| {
+                let sp = Sppm {
+                    initial_radius: Some(radius),
+                    ..*settings
+                };
+                let films = ctx.renderer.render_sppm(scene, s, &sp, *runs)?;
+                if films.len() as u64 != *runs {
+                    return Err(CheckError::Renderer(format!(
+                        "the photon mapper returned {} runs for {runs}",
+                        films.len()
+                    )));
+                }
+                Ok::<_, CheckError>(Images::Runs(
+                    films.iter().map(RgbImage::from_film).collect(),
+                ))
+            };
+            let (test, coarse) = if refine {
+                (at(r / 2.0)?, Some(at(r)?))
+            } else {
+                (at(r)?, None)
+            };
+            Ok((
+                test,
+                coarse,
+                format!(
+                    "SPPM ({runs} runs x {} iterations x {} photons, initial radius {})",
+                    settings.iterations,
+                    settings.photons_per_iteration,
+                    fmt_sig(if refine { r / 2.0 } else { r })
+                ),
+            ))
+        }
     }
 }

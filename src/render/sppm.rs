@@ -1,0 +1,388 @@
+//! The SPPM iteration loop (integrators::sppm has the camera and photon paths): visible points
+//! in a uniform grid of cells as wide as the largest radius, photons in a fixed number of
+//! chunks whose per-pixel sums are merged in chunk order (so the image is bit-identical for
+//! any thread count), the radius update of Hachisuka & Jensen 2009 (eq. 6–9), and `runs`
+//! independent runs whose spread gives each pixel's standard error (one run's pixels are
+//! correlated across iterations, so a run is one sample).
+
+use super::{FilmResponse, RenderError, RenderSettings};
+use crate::film::{Film, Pixel};
+use crate::integrators::sppm::{camera_path, trace_photon, unsupported, Sppm, VisiblePoint};
+use crate::math::rng::{mix64, SampleStream};
+use crate::math::Vec3;
+use crate::scattering::Bxdf;
+use crate::scene::Scene;
+use crate::spectrum::Wavelengths;
+use rayon::prelude::*;
+
+/// Photon chunks per iteration: the unit of parallel work and of the fixed merge order.
+const CHUNKS: u64 = 16;
+
+/// The radiance estimate from flux: (accumulated flux τ, photons emitted over the run, squared
+/// radius) → τ/(N π r²) (Hachisuka & Jensen 2009, eq. 10). A parameter of
+/// [`render_sppm_with`] so that a negative control can pass a wrong one.
+pub type DensityEstimate = fn(tau: f64, photons: f64, r2: f64) -> f64;
+
+/// τ/(N π r²): the flux over the emitted photons and the gather disc's area.
+pub fn density(tau: f64, photons: f64, r2: f64) -> f64 {
+    tau / (photons * std::f64::consts::PI * r2)
+}
+
+/// Renders `scene` by SPPM: `runs` independent runs (≥ 2 for a standard error), each
+/// `sppm.iterations` iterations; each pixel's samples are the runs' estimates. The pixels of
+/// one run share its photons and wavelengths, so a region's standard error must come from the
+/// runs' region means ([`render_sppm_runs`]), not from the pixel variances.
+pub fn render_sppm(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    runs: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Film, RenderError> {
+    let films = render_sppm_runs(scene, settings, sppm, runs, density, progress)?;
+    let mut film = films[0].clone();
+    for other in &films[1..] {
+        crate::film::merge_pixels(&mut film.pixels, &other.pixels);
+    }
+    Ok(film)
+}
+
+/// The `runs` independent SPPM images (one sample per pixel each), with the density estimate
+/// `estimate`.
+pub fn render_sppm_runs(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    runs: u64,
+    estimate: DensityEstimate,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Vec<Film>, RenderError> {
+    if let Some(why) = unsupported(scene) {
+        return Err(RenderError::Settings(format!(
+            "SPPM cannot render this scene: {why}"
+        )));
+    }
+    if sppm.iterations == 0 || sppm.photons_per_iteration == 0 || runs == 0 {
+        return Err(RenderError::Settings(
+            "SPPM needs at least one run, one iteration and one photon per iteration".into(),
+        ));
+    }
+    if !(sppm.alpha > 0.0 && sppm.alpha <= 1.0) {
+        return Err(RenderError::Settings(format!(
+            "SPPM's alpha must be in (0, 1], got {}",
+            sppm.alpha
+        )));
+    }
+    let (w, h) = (settings.width, settings.height);
+    crate::limits::image(w as u64, h as u64).map_err(|e| RenderError::Settings(e.to_string()))?;
+    let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
+    let radius = sppm
+        .initial_radius
+        .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
+    if !(radius.is_finite() && radius > 0.0) {
+        return Err(RenderError::Settings(format!(
+            "SPPM's initial radius must be a positive length, got {radius}"
+        )));
+    }
+    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let lanes = settings.spectral.wavelengths;
+    let response = FilmResponse::new(&settings.observer, grey, lanes);
+    let n = w * h;
+    let mut films = Vec::with_capacity(runs as usize);
+    let start = std::time::Instant::now();
+    let mut run_all = || -> Result<(), RenderError> {
+        for run in 0..runs {
+            let seed = mix64(settings.seed ^ mix64(run.wrapping_add(0x5350_504d)));
+            let mut state = State::new(n, radius);
+            for it in 0..sppm.iterations {
+                if settings
+                    .deadline
+                    .is_some_and(|d| std::time::Instant::now() >= d)
+                {
+                    return Err(RenderError::OutOfTime {
+                        seconds: start.elapsed().as_secs_f64(),
+                        done: run * sppm.iterations + it,
+                        total: runs * sppm.iterations,
+                    });
+                }
+                // one set of wavelengths per iteration, shared by its camera and photon paths,
+                // stratified over the iterations (one stratum each, jittered): the run's
+                // spectral integral is then a stratified quadrature, not `iterations` random
+                // draws that would tint the whole image alike
+                let jitter = SampleStream::new(seed, u64::MAX, it).next_f64();
+                let u = (it as f64 + jitter) / sppm.iterations as f64;
+                let wl = Wavelengths::for_film(u, lanes, grey);
+                let visible: Vec<([f64; 3], Option<VisiblePoint>)> = (0..n)
+                    .into_par_iter()
+                    .map(|px| {
+                        let mut rng = SampleStream::new(seed, px as u64, it);
+                        let [jx, jy] = rng.next_2d();
+                        let (x, y) = ((px % w) as f64 + jx, (px / w) as f64 + jy);
+                        let (le, vp) = camera_path(scene, camera.ray(x, y, w, h), &wl, &mut rng);
+                        (response.xyz(&le, &wl), vp)
+                    })
+                    .collect();
+                for (acc, (le, _)) in state.le.iter_mut().zip(&visible) {
+                    (0..3).for_each(|c| acc[c] += le[c]);
+                }
+                let grid = Grid::new(&visible, &state.r2);
+                let photons = sppm.photons_per_iteration;
+                let chunks: Vec<Vec<[f64; 4]>> = (0..CHUNKS)
+                    .into_par_iter()
+                    .map(|c| {
+                        let mut acc = vec![[0.0; 4]; n];
+                        for k in photons * c / CHUNKS..photons * (c + 1) / CHUNKS {
+                            let mut rng = SampleStream::new(seed ^ 0x5048_4f54, k, it);
+                            trace_photon(scene, sppm, &wl, &mut rng, &mut |hit| {
+                                grid.near(hit.p, |px| {
+                                    let Some(vp) = &visible[px].1 else { return };
+                                    let d2 = (vp.point.p - hit.p).length_squared();
+                                    // inside the radius, and arriving on the side the camera sees
+                                    if d2 > state.r2[px] || hit.wi.dot(vp.point.n) * vp.wo.z <= 0.0
+                                    {
+                                        return;
+                                    }
+                                    let bsdf = &scene.bsdfs[vp.shape as usize];
+                                    let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi), &wl);
+                                    let xyz = response.xyz(&(vp.beta * f * hit.power), &wl);
+                                    let a = &mut acc[px];
+                                    (0..3).for_each(|i| a[i] += xyz[i]);
+                                    a[3] += 1.0;
+                                });
+                            });
+                        }
+                        acc
+                    })
+                    .collect();
+                let mut found = vec![[0.0; 4]; n];
+                for chunk in &chunks {
+                    for (f, a) in found.iter_mut().zip(chunk) {
+                        (0..4).for_each(|i| f[i] += a[i]);
+                    }
+                }
+                state.update(&found, sppm.alpha);
+                progress(run * sppm.iterations + it + 1);
+            }
+            let scale = 1.0 / sppm.iterations as f64;
+            let emitted = (sppm.iterations * sppm.photons_per_iteration) as f64;
+            let mut pixels = vec![Pixel::default(); n];
+            for (px, pixel) in pixels.iter_mut().enumerate() {
+                let xyz: [f64; 3] = std::array::from_fn(|c| {
+                    state.le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
+                });
+                pixel.add(xyz, settings.observer.xyz_to_rgb(xyz));
+            }
+            films.push(Film {
+                width: w,
+                height: h,
+                pixels,
+                truncated_paths: 0,
+            });
+        }
+        Ok(())
+    };
+    if settings.threads == 0 {
+        run_all()?;
+    } else {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(settings.threads)
+            .build()
+            .map_err(|e| RenderError::Threads {
+                threads: settings.threads,
+                message: e.to_string(),
+            })?
+            .install(run_all)?;
+    }
+    Ok(films)
+}
+
+/// Per-pixel SPPM statistics (Hachisuka & Jensen 2009, §3–4).
+struct State {
+    /// Squared radius, scene units².
+    r2: Vec<f64>,
+    /// Accumulated photon count N.
+    count: Vec<f64>,
+    /// Accumulated flux τ (XYZ).
+    tau: Vec<[f64; 3]>,
+    /// Emission seen by the camera paths, summed over iterations (XYZ).
+    le: Vec<[f64; 3]>,
+}
+
+impl State {
+    fn new(n: usize, radius: f64) -> Self {
+        State {
+            r2: vec![radius * radius; n],
+            count: vec![0.0; n],
+            tau: vec![[0.0; 3]; n],
+            le: vec![[0.0; 3]; n],
+        }
+    }
+
+    /// N' = N + αM, R'² = R² (N + αM)/(N + M), τ' = (τ + Φ) R'²/R² (the paper's eq. 6–9).
+    fn update(&mut self, found: &[[f64; 4]], alpha: f64) {
+        for (px, f) in found.iter().enumerate() {
+            let m = f[3];
+            if m == 0.0 {
+                continue;
+            }
+            let n_new = self.count[px] + alpha * m;
+            let ratio = n_new / (self.count[px] + m);
+            for (tau, flux) in self.tau[px].iter_mut().zip(f) {
+                *tau = (*tau + flux) * ratio;
+            }
+            self.r2[px] *= ratio;
+            self.count[px] = n_new;
+        }
+    }
+}
+
+/// Visible points in a uniform grid of cubic cells at least as wide as the largest radius
+/// (and at least 1/128 of the points' extent, so the grid stays small), stored as one index
+/// list per cell (compressed rows): a photon's neighbours are in its own cell and the 26
+/// around it.
+struct Grid {
+    lo: Vec3,
+    cell: f64,
+    dims: [i64; 3],
+    start: Vec<u32>,
+    items: Vec<u32>,
+}
+
+impl Grid {
+    fn new(visible: &[([f64; 3], Option<VisiblePoint>)], r2: &[f64]) -> Self {
+        let (mut lo, mut hi) = (Vec3::INFINITY, Vec3::NEG_INFINITY);
+        for vp in visible.iter().filter_map(|v| v.1.as_ref()) {
+            lo = lo.min(vp.point.p);
+            hi = hi.max(vp.point.p);
+        }
+        if lo.x > hi.x {
+            return Grid {
+                lo: Vec3::ZERO,
+                cell: 1.0,
+                dims: [1; 3],
+                start: vec![0, 0],
+                items: vec![],
+            };
+        }
+        let radius = r2.iter().fold(0.0f64, |m, &v| m.max(v)).sqrt();
+        let extent = (hi - lo).max_element();
+        let cell = radius.max(extent / 128.0).max(f64::MIN_POSITIVE);
+        let dims = ((hi - lo) / cell).to_array().map(|d| d.floor() as i64 + 1);
+        let grid = |cell_of: &dyn Fn(usize) -> usize| {
+            let total = (dims[0] * dims[1] * dims[2]) as usize;
+            let mut start = vec![0u32; total + 1];
+            let members: Vec<(usize, usize)> = visible
+                .iter()
+                .enumerate()
+                .filter(|v| v.1 .1.is_some())
+                .map(|(px, _)| (cell_of(px), px))
+                .collect();
+            for &(c, _) in &members {
+                start[c + 1] += 1;
+            }
+            for i in 0..total {
+                start[i + 1] += start[i];
+            }
+            let mut fill = start.clone();
+            let mut items = vec![0u32; members.len()];
+            for &(c, px) in &members {
+                items[fill[c] as usize] = px as u32;
+                fill[c] += 1;
+            }
+            (start, items)
+        };
+        let this = Grid {
+            lo,
+            cell,
+            dims,
+            start: vec![],
+            items: vec![],
+        };
+        let (start, items) = grid(&|px| {
+            let p = visible[px].1.as_ref().expect("filtered").point.p;
+            this.index(this.coords(p))
+                .expect("a visible point lies in the grid")
+        });
+        Grid {
+            start,
+            items,
+            ..this
+        }
+    }
+
+    fn coords(&self, p: Vec3) -> [i64; 3] {
+        ((p - self.lo) / self.cell)
+            .to_array()
+            .map(|v| v.floor() as i64)
+    }
+
+    fn index(&self, c: [i64; 3]) -> Option<usize> {
+        let inside = (0..3).all(|i| c[i] >= 0 && c[i] < self.dims[i]);
+        inside.then(|| ((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize)
+    }
+
+    fn near(&self, p: Vec3, mut each: impl FnMut(usize)) {
+        let k = self.coords(p);
+        for dz in -1..=1 {
+            for dy in -1..=1 {
+                for dx in -1..=1 {
+                    if let Some(c) = self.index([k[0] + dx, k[1] + dy, k[2] + dz]) {
+                        let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
+                        self.items[a..b].iter().for_each(|&px| each(px as usize));
+                    }
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::integrators::PathTracer;
+    use crate::math::rng::Sampler;
+    use std::path::Path;
+
+    fn settings(threads: usize) -> RenderSettings {
+        RenderSettings {
+            width: 8,
+            height: 8,
+            spp: 1,
+            seed: 3,
+            threads,
+            integrator: PathTracer::default(),
+            observer: Default::default(),
+            sampler: Sampler::Independent,
+            spectral: Default::default(),
+            deadline: None,
+        }
+    }
+
+    #[test]
+    fn the_image_does_not_depend_on_the_thread_count() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let sppm = Sppm {
+            iterations: 2,
+            photons_per_iteration: 3000,
+            ..Default::default()
+        };
+        let a = render_sppm(&scene, &settings(1), &sppm, 2, &|_| {}).unwrap();
+        let b = render_sppm(&scene, &settings(2), &sppm, 2, &|_| {}).unwrap();
+        assert_eq!(a.pixels, b.pixels);
+        assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+    }
+
+    #[test]
+    fn media_and_environments_are_refused_by_name() {
+        for (scene, says) in [
+            ("scenes/hg-fog.toml", "participating media"),
+            ("scenes/rayleigh-sky.toml", "participating media"),
+            ("scenes/mesh-test.toml", "environment light"),
+        ] {
+            let scene = Scene::load(Path::new(scene)).unwrap();
+            let sppm = Sppm::default();
+            let e = render_sppm(&scene, &settings(1), &sppm, 2, &|_| {}).unwrap_err();
+            assert!(e.to_string().contains(says), "{e}");
+        }
+    }
+}
