@@ -39,12 +39,21 @@ pub fn render_sppm(
     runs: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
-    let films = render_sppm_runs(scene, settings, sppm, runs, density, progress)?;
-    let mut film = films[0].clone();
-    for other in &films[1..] {
-        crate::film::merge_pixels(&mut film.pixels, &other.pixels);
-    }
-    Ok(film)
+    let mut merged: Option<Film> = None;
+    sppm_core(
+        scene,
+        settings,
+        sppm,
+        runs,
+        density,
+        progress,
+        1,
+        &mut |film| match &mut merged {
+            None => merged = Some(film),
+            Some(m) => crate::film::merge_pixels(&mut m.pixels, &film.pixels),
+        },
+    )?;
+    Ok(merged.expect("at least one run"))
 }
 
 /// The `runs` independent SPPM images (one sample per pixel each), with the density estimate
@@ -57,6 +66,39 @@ pub fn render_sppm_runs(
     estimate: DensityEstimate,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Vec<Film>, RenderError> {
+    let mut films = Vec::new();
+    sppm_core(
+        scene,
+        settings,
+        sppm,
+        runs,
+        estimate,
+        progress,
+        runs,
+        &mut |f| films.push(f),
+    )?;
+    Ok(films)
+}
+
+/// Bytes of SPPM state per pixel besides the kept films: the photon chunks' sums, the visible
+/// point, the per-pixel statistics and one run's film.
+const BYTES_PER_PIXEL: u64 = CHUNKS * 32 + 560;
+
+/// Memory SPPM may hold (its per-pixel state times the pixels), bytes.
+pub const MAX_BYTES: u64 = 8 << 30;
+
+/// The iteration loop; `on_run` receives each run's film; `kept` films are held at once.
+#[allow(clippy::too_many_arguments)]
+fn sppm_core(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    runs: u64,
+    estimate: DensityEstimate,
+    progress: &(dyn Fn(u64) + Sync),
+    kept: u64,
+    on_run: &mut (dyn FnMut(Film) + Send),
+) -> Result<(), RenderError> {
     if let Some(why) = unsupported(scene) {
         return Err(RenderError::Settings(format!(
             "SPPM cannot render this scene: {why}"
@@ -75,6 +117,15 @@ pub fn render_sppm_runs(
     }
     let (w, h) = (settings.width, settings.height);
     crate::limits::image(w as u64, h as u64).map_err(|e| RenderError::Settings(e.to_string()))?;
+    let bytes = (w as u64 * h as u64).saturating_mul(BYTES_PER_PIXEL + kept.saturating_mul(240));
+    if bytes > MAX_BYTES {
+        return Err(RenderError::Settings(format!(
+            "SPPM would hold {:.1} GiB of per-pixel state for a {w}x{h} image (about {} bytes a pixel); the limit is {} GiB: render a smaller image",
+            bytes as f64 / (1u64 << 30) as f64,
+            BYTES_PER_PIXEL,
+            MAX_BYTES >> 30
+        )));
+    }
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let radius = sppm
         .initial_radius
@@ -88,7 +139,6 @@ pub fn render_sppm_runs(
     let lanes = settings.spectral.wavelengths;
     let response = FilmResponse::new(&settings.observer, grey, lanes);
     let n = w * h;
-    let mut films = Vec::with_capacity(runs as usize);
     let start = std::time::Instant::now();
     let mut run_all = || -> Result<(), RenderError> {
         for run in 0..runs {
@@ -172,7 +222,7 @@ pub fn render_sppm_runs(
                 });
                 pixel.add(xyz, settings.observer.xyz_to_rgb(xyz));
             }
-            films.push(Film {
+            on_run(Film {
                 width: w,
                 height: h,
                 pixels,
@@ -193,7 +243,7 @@ pub fn render_sppm_runs(
             })?
             .install(run_all)?;
     }
-    Ok(films)
+    Ok(())
 }
 
 /// Per-pixel SPPM statistics (Hachisuka & Jensen 2009, §3–4).
@@ -370,6 +420,15 @@ mod tests {
         let b = render_sppm(&scene, &settings(2), &sppm, 2, &|_| {}).unwrap();
         assert_eq!(a.pixels, b.pixels);
         assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+    }
+
+    #[test]
+    fn an_image_too_large_for_its_state_is_refused_before_allocating() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let mut s = settings(1);
+        (s.width, s.height) = (4096, 4096);
+        let e = render_sppm(&scene, &s, &Sppm::default(), 4, &|_| {}).unwrap_err();
+        assert!(e.to_string().contains("GiB of per-pixel state"), "{e}");
     }
 
     #[test]
