@@ -226,6 +226,15 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     if a.patch_size.is_some() && a.integrator != "radiosity" {
         return Err(anyhow::anyhow!("--patch-size is only used by --integrator radiosity").into());
     }
+    if (a.integrator == "sppm" || a.integrator == "radiosity")
+        && settings.integrator.max_depth.is_some()
+    {
+        return Err(anyhow::anyhow!(
+            "--integrator {} renders every bounce: drop --max-depth (or the scene's render.max_depth)",
+            a.integrator
+        )
+        .into());
+    }
     if a.integrator == "sppm" {
         if a.renderer.is_some() || shard.is_some() {
             return Err(anyhow::anyhow!(
@@ -295,7 +304,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
 /// `furnace render --integrator radiosity`: solves at the patch size and at twice it, writes
 /// the finer image and reports the two images' difference as its discretisation error
 /// estimate (the first-order error of piecewise-constant radiosity halves with the patch
-/// size, so the difference bounds the finer one's error; Cohen & Wallace 1993, §6.2).
+/// size, so the difference estimates the finer one's error (Richardson; low where convergence is slower); Cohen & Wallace 1993, §6.2).
 fn render_radiosity_image(
     a: &RenderArgs,
     scene: &Scene,

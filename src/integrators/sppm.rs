@@ -2,7 +2,8 @@
 //! photon mapping", SIGGRAPH Asia): per iteration, one camera path per pixel through specular
 //! (delta) surfaces to its first non-delta surface, the visible point; then photons from the
 //! emitters, traced with the adjoint BSDF as the light tracer traces them, deposit
-//! P·β·f(ωo, ωi) at every visible point within its pixel's radius of each non-delta hit. The
+//! P·β·f(ωo, ωi) at every visible point within its pixel's radius of each non-delta hit (f
+//! decides the sides: a reflector's is 0 across the surface, a rough dielectric's BTDF is not). The
 //! radius shrinks by the paper's rule with α (eq. 6–9), so the estimate is consistent: bias and
 //! variance both vanish as iterations grow. This file holds the two path kinds; the iteration
 //! loop, the visible-point grid and the film are in render::sppm.
@@ -144,6 +145,8 @@ pub fn camera_path(
         }
         ray = ray::spawn(&sp, frame.to_world(bs.wi));
     }
+    // cut by the chain guard: counted as no visible point (64 specular bounces in a row
+    // carry no measurable light in a real scene)
     (le, None)
 }
 

@@ -25,6 +25,9 @@ pub type DensityEstimate = fn(tau: f64, photons: f64, r2: f64) -> f64;
 
 /// τ/(N π r²): the flux over the emitted photons and the gather disc's area.
 pub fn density(tau: f64, photons: f64, r2: f64) -> f64 {
+    if tau == 0.0 {
+        return 0.0; // no photon found: nothing gathered, whatever the radius
+    }
     tau / (photons * std::f64::consts::PI * r2)
 }
 
@@ -130,7 +133,7 @@ fn sppm_core(
     let radius = sppm
         .initial_radius
         .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
-    if !(radius.is_finite() && radius > 0.0) {
+    if !(radius.is_finite() && radius > 0.0 && (radius * radius).is_normal()) {
         return Err(RenderError::Settings(format!(
             "SPPM's initial radius must be a positive length, got {radius}"
         )));
@@ -144,6 +147,7 @@ fn sppm_core(
         for run in 0..runs {
             let seed = mix64(settings.seed ^ mix64(run.wrapping_add(0x5350_504d)));
             let mut state = State::new(n, radius);
+            let mut truncated = 0u64;
             for it in 0..sppm.iterations {
                 if settings
                     .deadline
@@ -177,35 +181,40 @@ fn sppm_core(
                 }
                 let grid = Grid::new(&visible, &state.r2);
                 let photons = sppm.photons_per_iteration;
-                let chunks: Vec<Vec<[f64; 4]>> = (0..CHUNKS)
+                let chunks: Vec<(Vec<[f64; 4]>, u64)> = (0..CHUNKS)
                     .into_par_iter()
                     .map(|c| {
                         let mut acc = vec![[0.0; 4]; n];
-                        for k in photons * c / CHUNKS..photons * (c + 1) / CHUNKS {
+                        let part = |c: u64| (photons as u128 * c as u128 / CHUNKS as u128) as u64;
+                        let mut cut = 0u64;
+                        for k in part(c)..part(c + 1) {
                             let mut rng = SampleStream::new(seed ^ 0x5048_4f54, k, it);
-                            trace_photon(scene, sppm, &wl, &mut rng, &mut |hit| {
-                                grid.near(hit.p, |px| {
-                                    let Some(vp) = &visible[px].1 else { return };
-                                    let d2 = (vp.point.p - hit.p).length_squared();
-                                    // inside the radius, and arriving on the side the camera sees
-                                    if d2 > state.r2[px] || hit.wi.dot(vp.point.n) * vp.wo.z <= 0.0
-                                    {
-                                        return;
-                                    }
-                                    let bsdf = &scene.bsdfs[vp.shape as usize];
-                                    let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi), &wl);
-                                    let xyz = response.xyz(&(vp.beta * f * hit.power), &wl);
-                                    let a = &mut acc[px];
-                                    (0..3).for_each(|i| a[i] += xyz[i]);
-                                    a[3] += 1.0;
-                                });
-                            });
+                            cut +=
+                                u64::from(trace_photon(scene, sppm, &wl, &mut rng, &mut |hit| {
+                                    grid.near(hit.p, |px| {
+                                        let Some(vp) = &visible[px].1 else { return };
+                                        let d2 = (vp.point.p - hit.p).length_squared();
+                                        // inside the radius; which sides count is the BSDF's to say
+                                        // (a reflector's f is 0 across its surface, a dielectric's
+                                        // BTDF gathers the photons arriving from inside)
+                                        if d2 > state.r2[px] {
+                                            return;
+                                        }
+                                        let bsdf = &scene.bsdfs[vp.shape as usize];
+                                        let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi), &wl);
+                                        let xyz = response.xyz(&(vp.beta * f * hit.power), &wl);
+                                        let a = &mut acc[px];
+                                        (0..3).for_each(|i| a[i] += xyz[i]);
+                                        a[3] += 1.0;
+                                    });
+                                }));
                         }
-                        acc
+                        (acc, cut)
                     })
                     .collect();
                 let mut found = vec![[0.0; 4]; n];
-                for chunk in &chunks {
+                for (chunk, cut) in &chunks {
+                    truncated += cut;
                     for (f, a) in found.iter_mut().zip(chunk) {
                         (0..4).for_each(|i| f[i] += a[i]);
                     }
@@ -214,7 +223,7 @@ fn sppm_core(
                 progress(run * sppm.iterations + it + 1);
             }
             let scale = 1.0 / sppm.iterations as f64;
-            let emitted = (sppm.iterations * sppm.photons_per_iteration) as f64;
+            let emitted = sppm.iterations as f64 * sppm.photons_per_iteration as f64;
             let mut pixels = vec![Pixel::default(); n];
             for (px, pixel) in pixels.iter_mut().enumerate() {
                 let xyz: [f64; 3] = std::array::from_fn(|c| {
@@ -226,7 +235,7 @@ fn sppm_core(
                 width: w,
                 height: h,
                 pixels,
-                truncated_paths: 0,
+                truncated_paths: truncated,
             });
         }
         Ok(())
@@ -314,7 +323,13 @@ impl Grid {
                 items: vec![],
             };
         }
-        let radius = r2.iter().fold(0.0f64, |m, &v| m.max(v)).sqrt();
+        // the largest radius among pixels with a visible point (the others never gather)
+        let radius = visible
+            .iter()
+            .zip(r2)
+            .filter(|(v, _)| v.1.is_some())
+            .fold(0.0f64, |m, (_, &r2)| m.max(r2))
+            .sqrt();
         let extent = (hi - lo).max_element();
         let cell = radius.max(extent / 128.0).max(f64::MIN_POSITIVE);
         let dims = ((hi - lo) / cell).to_array().map(|d| d.floor() as i64 + 1);
@@ -376,7 +391,11 @@ impl Grid {
         for dz in -1..=1 {
             for dy in -1..=1 {
                 for dx in -1..=1 {
-                    if let Some(c) = self.index([k[0] + dx, k[1] + dy, k[2] + dz]) {
+                    if let Some(c) = self.index([
+                        k[0].saturating_add(dx),
+                        k[1].saturating_add(dy),
+                        k[2].saturating_add(dz),
+                    ]) {
                         let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
                         self.items[a..b].iter().for_each(|&px| each(px as usize));
                     }

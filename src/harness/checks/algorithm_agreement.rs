@@ -4,9 +4,10 @@
 //! al. 1984) or its photon mapper (SPPM, Hachisuka & Jensen 2009). Each region × channel mean
 //! is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
 //! own bias is estimated by refinement and allowed per region as a tolerance: radiosity at the
-//! patch size h against 2h (the same camera samples; the difference bounds the first-order error
-//! of the finer one, Cohen & Wallace 1993, §6.2), SPPM at the initial radius r/2 against r (its
-//! bias shrinks at least linearly with the radius). The check's p is the Šidák combination
+//! patch size h against 2h (the same camera samples; the difference estimates the first-order
+//! error of the finer one, Cohen & Wallace 1993, §6.2), SPPM at the initial radius r/2 against r
+//! (its bias shrinks at least linearly with the radius; the runs paired by seed, the mean paired
+//! difference less one standard error). The check's p is the Šidák combination
 //! over regions. Radiosity takes diffuse scenes lit by area emitters, SPPM surface scenes
 //! without environment lights; each refuses the rest by name.
 
@@ -186,8 +187,7 @@ impl Kind for AlgorithmAgreement {
                 let (t, dof) = test.region(c, *rect);
                 let reference = region_mean(&path, c, *rect);
                 let bias = coarse.as_ref().map_or(0.0, |coarse| {
-                    (coarse.region(c, *rect).0 .0 - t.0).abs()
-                        / reference.0.abs().max(f64::MIN_POSITIVE)
+                    test.refinement(coarse, c, *rect) / reference.0.abs().max(f64::MIN_POSITIVE)
                 });
                 widest = widest.max(bias);
                 results.push(region_test(
@@ -239,6 +239,27 @@ impl Images {
                 let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
                 ((mean, (var / k).sqrt()), k - 1.0)
             }
+        }
+    }
+
+    /// The bias allowance of this image given its coarser twin, absolute: for radiosity the
+    /// region difference (both images share their camera samples, so it is the
+    /// discretisation's alone); for SPPM runs paired by seed, the mean paired difference less
+    /// one standard error of it, so that the runs' noise is not allowed twice.
+    fn refinement(&self, coarse: &Images, c: usize, rect: [usize; 4]) -> f64 {
+        match (self, coarse) {
+            (Images::Runs(fine), Images::Runs(coarse)) if fine.len() == coarse.len() => {
+                let d: Vec<f64> = fine
+                    .iter()
+                    .zip(coarse)
+                    .map(|(f, c2)| region_mean(c2, c, rect).0 - region_mean(f, c, rect).0)
+                    .collect();
+                let k = d.len() as f64;
+                let mean = d.iter().sum::<f64>() / k;
+                let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0);
+                (mean.abs() - (var / k).sqrt()).max(0.0)
+            }
+            _ => (coarse.region(c, rect).0 .0 - self.region(c, rect).0 .0).abs(),
         }
     }
 }

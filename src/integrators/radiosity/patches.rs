@@ -90,9 +90,18 @@ pub enum MeshError {
         /// A patch size that fits.
         suggested: f64,
     },
+    /// More triangles and quads than patches allowed: no patch size fits.
+    #[error("the scene has {count} quads and triangles, more than the {limit} patches a dense radiosity solve allows at any patch size")]
+    TooManyPrimitives {
+        /// Quads and triangles.
+        count: u64,
+        /// The limit.
+        limit: u64,
+    },
 }
 
-/// Patches the solver accepts at most (a 2n × n form-factor table of f64, 268 MB at 4096).
+/// Patches the solver accepts at most (up to n form factors of 16 bytes in each of 2n rows,
+/// 537 MB at 4096).
 pub const MAX_PATCHES: u64 = 4096;
 
 fn cells(edge: f64, size: f64) -> usize {
@@ -131,6 +140,13 @@ fn triangle_cuts(v: &[Vec3; 3], size: f64) -> usize {
 /// Cuts every shape into patches of edge at most `size` (scene units).
 pub fn mesh(shapes: &[Shape], size: f64) -> Result<(Vec<Patch>, Vec<Cut>), MeshError> {
     let total = count(shapes, size)?;
+    let primitives: u64 = shapes.iter().map(|s| s.primitive_count() as u64).sum();
+    if primitives > MAX_PATCHES {
+        return Err(MeshError::TooManyPrimitives {
+            count: primitives,
+            limit: MAX_PATCHES,
+        });
+    }
     if total > MAX_PATCHES {
         // patch count scales as 1/size², so this size gives about MAX_PATCHES
         let suggested = size * (total as f64 / MAX_PATCHES as f64).sqrt() * 1.01;
