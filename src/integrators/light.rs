@@ -115,6 +115,56 @@ fn eye_point(c: &SensorConnection) -> SurfacePoint {
     }
 }
 
+/// The start of a light path or photon: a uniformly chosen light (p_sel = 1/lights) and its
+/// emitted ray, from five uniform numbers drawn in a fixed order (light, select, position,
+/// side, direction). None without lights or with a black emission.
+pub struct Emission<'a> {
+    /// The light.
+    pub light: &'a Light,
+    /// Its emitted ray.
+    pub sample: crate::lights::EmissionSample,
+    /// Probability of choosing that light.
+    pub select_pdf: f64,
+}
+
+impl<'a> Emission<'a> {
+    /// Samples a light and its emission at wavelengths `wl`.
+    pub fn sample(scene: &'a Scene, wl: &Wavelengths, rng: &mut SampleStream) -> Option<Self> {
+        let n = scene.lights.len();
+        if n == 0 {
+            return None;
+        }
+        let select_pdf = 1.0 / n as f64;
+        let u_light = rng.next_f64();
+        let u_select = rng.next_f64();
+        let u_pos = rng.next_2d();
+        let u_side = rng.next_f64();
+        let u_dir = rng.next_2d();
+        let light = &scene.lights[((u_light * n as f64) as usize).min(n - 1)];
+        let shapes = scene.aggregate.shapes();
+        let bounds = scene.aggregate.bounding_sphere();
+        let sample = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, bounds, wl)?;
+        (!sample.emitted.is_black()).then_some(Emission {
+            light,
+            sample,
+            select_pdf,
+        })
+    }
+}
+
+/// The ray an emission sample starts (a point light's from its position, an area light's
+/// moved off its surface).
+pub fn emitted_ray(es: &crate::lights::EmissionSample) -> Ray {
+    if es.delta_position {
+        Ray {
+            o: es.point.p,
+            d: es.direction,
+        }
+    } else {
+        ray::spawn(&es.point, es.direction)
+    }
+}
+
 impl LightTracer {
     /// Traces one light path at wavelengths `wl` and appends its contributions to `splats`
     /// (unordered; several may land in one pixel). Environment light enters through the disk
@@ -130,24 +180,14 @@ impl LightTracer {
         rng: &mut SampleStream,
         splats: &mut Vec<Splat>,
     ) -> bool {
-        let shapes = scene.aggregate.shapes();
-        let n_lights = scene.lights.len() as f64;
-        let select_pdf = 1.0 / n_lights;
-        let u_light = rng.next_f64();
-        let u_select = rng.next_f64();
-        let u_pos = rng.next_2d();
-        let u_side = rng.next_f64();
-        let u_dir = rng.next_2d();
-        let li = ((u_light * n_lights) as usize).min(scene.lights.len() - 1);
-        let light = &scene.lights[li];
-        let bounds = scene.aggregate.bounding_sphere();
-        let Some(es) = light.sample_emission(u_select, u_pos, u_side, u_dir, shapes, bounds, wl)
+        let Some(Emission {
+            light,
+            sample: es,
+            select_pdf,
+        }) = Emission::sample(scene, wl, rng)
         else {
             return false;
         };
-        if es.emitted.is_black() {
-            return false;
-        }
 
         // Depth 0: the emitter point seen directly, c₀ = L_e/(p_sel p_A)·|cos θ_x₀|·W_e cos θ_e/d².
         if let (
@@ -182,14 +222,7 @@ impl LightTracer {
         // The particle's power weight P = L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7, s = 1).
         let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
         let mut beta = SampledSpectrum::ONE;
-        let mut ray = if es.delta_position {
-            Ray {
-                o: es.point.p,
-                d: es.direction,
-            }
-        } else {
-            ray::spawn(&es.point, es.direction)
-        };
+        let mut ray = emitted_ray(&es);
         // Index of the vertex the ray is about to reach = bounces its camera connection counts.
         let mut k: u32 = 1;
         while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {

@@ -8,6 +8,7 @@
 //! variance both vanish as iterations grow. This file holds the two path kinds; the iteration
 //! loop, the visible-point grid and the film are in render::sppm.
 
+use super::light::{emitted_ray, Emission};
 use crate::geometry::{ray, Ray, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
@@ -172,40 +173,18 @@ pub fn trace_photon(
     rng: &mut SampleStream,
     deposit: &mut impl FnMut(&PhotonHit),
 ) -> bool {
-    let shapes = scene.aggregate.shapes();
-    let n_lights = scene.lights.len();
-    if n_lights == 0 {
-        return false;
-    }
-    let select_pdf = 1.0 / n_lights as f64;
-    let (u_light, u_select, u_pos, u_side, u_dir) = (
-        rng.next_f64(),
-        rng.next_f64(),
-        rng.next_2d(),
-        rng.next_f64(),
-        rng.next_2d(),
-    );
-    let li = ((u_light * n_lights as f64) as usize).min(n_lights - 1);
-    let bounds = scene.aggregate.bounding_sphere();
-    let Some(es) =
-        scene.lights[li].sample_emission(u_select, u_pos, u_side, u_dir, shapes, bounds, wl)
+    let Some(Emission {
+        sample: es,
+        select_pdf,
+        ..
+    }) = Emission::sample(scene, wl, rng)
     else {
         return false;
     };
-    if es.emitted.is_black() {
-        return false;
-    }
     // the light tracer's particle weight P = Le |cos θ₀|/(p_sel p_A p_ω) (Veach 1997, eq. 10.7)
     let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
     let mut beta = SampledSpectrum::ONE;
-    let mut ray = if es.delta_position {
-        Ray {
-            o: es.point.p,
-            d: es.direction,
-        }
-    } else {
-        ray::spawn(&es.point, es.direction)
-    };
+    let mut ray = emitted_ray(&es);
     let mut bounces: u32 = 0;
     while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
         if bounces > super::MAX_PATH_EVENTS {
