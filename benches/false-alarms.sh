@@ -26,7 +26,9 @@ furnace=${FURNACE:-target/release/furnace}
 out=reports/false-alarms/pvalues.tsv
 mkdir -p "$(dirname "$out")"
 [ -f "$out" ] || printf 'seed\tbuild\tcheck\tverdict\tp\n' > "$out"
-build=$(git describe --always --dirty)
+# the build: the commit, "-dirty" when anything but this results file differs from it
+build=$(git describe --always)
+git diff --quiet HEAD -- . ":(exclude)$out" || build="$build-dirty"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 for seed in $(seq "$first" "$last"); do
