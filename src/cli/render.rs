@@ -235,23 +235,19 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    if a.integrator == "sppm" {
+    if a.integrator == "sppm" || a.integrator == "radiosity" {
         if a.renderer.is_some() || shard.is_some() {
             return Err(anyhow::anyhow!(
-                "--integrator sppm renders in one process with furnace's own photon mapper: no --renderer, no --shard"
+                "--integrator {} renders in one process with furnace's own solver: no --renderer, no --shard",
+                a.integrator
             )
             .into());
         }
-        return render_sppm_image(&a, &scene, &settings, attrs, &exr_path, &png_path);
-    }
-    if a.integrator == "radiosity" {
-        if a.renderer.is_some() || shard.is_some() {
-            return Err(anyhow::anyhow!(
-                "--integrator radiosity renders in one process with furnace's own solver: no --renderer, no --shard"
-            )
-            .into());
-        }
-        return render_radiosity_image(&a, &scene, &settings, attrs, &exr_path, &png_path);
+        return if a.integrator == "sppm" {
+            render_sppm_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
+        } else {
+            render_radiosity_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
+        };
     }
     if let Some(spec) = &a.renderer {
         return render_external(
@@ -392,6 +388,8 @@ fn render_sppm_image(
         iterations: a.iterations,
         photons_per_iteration: a.photons_per_iteration,
         initial_radius: a.radius,
+        // --rr-depth off: photons end only by absorption (or the path-length guard)
+        rr_depth: settings.integrator.rr_depth.unwrap_or(u32::MAX),
         ..Default::default()
     };
     let photons = a
