@@ -18,7 +18,7 @@ use crate::harness::compare::{
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::region::settings_for;
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::radiosity::{default_patch_size, RadiositySettings};
 use crate::integrators::sppm::Sppm;
 use crate::integrators::Strategy;
@@ -149,15 +149,6 @@ impl Kind for AlgorithmAgreement {
             algorithm,
             refine: k.get::<bool>("refine")?.is_none_or(|b| *b.get_ref()),
             regions: RegionChoice::parse(k)?,
-        })
-    }
-
-    fn not_applicable(_: &Check, _: &Params, subject: &Subject) -> Option<String> {
-        (!subject.renderer.is_reference()).then(|| {
-            format!(
-                "kind algorithm_agreement compares furnace's own algorithms with each other; {} is judged by the image kinds",
-                subject.renderer.name()
-            )
         })
     }
 

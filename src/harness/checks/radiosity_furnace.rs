@@ -8,7 +8,7 @@ use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::region::{region_of, settings_for};
-use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope, Subject};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::radiosity::RadiositySettings;
 use crate::integrators::Strategy;
 use crate::io::LocatedError;
@@ -46,15 +46,6 @@ impl Kind for RadiosityFurnace {
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         Ok(Params {
             patch_size: k.positive("patch_size")?,
-        })
-    }
-
-    fn not_applicable(_: &Check, _: &Params, subject: &Subject) -> Option<String> {
-        (!subject.renderer.is_reference()).then(|| {
-            format!(
-                "kind radiosity_furnace judges furnace's radiosity solver; {} has none furnace can drive",
-                subject.renderer.name()
-            )
         })
     }
 
