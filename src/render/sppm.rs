@@ -296,7 +296,8 @@ impl State {
 }
 
 /// Visible points in a uniform grid of cubic cells at least as wide as the largest radius
-/// (and at least 1/128 of the points' extent, so the grid stays small), stored as one index
+/// (and at least 1/∛(8n) of the n points' extent, at most 1/128 of it, so that the grid has no
+/// more than about 8 cells per point and stays cheap to build each iteration), stored as one index
 /// list per cell (compressed rows): a photon's neighbours are in its own cell and the 26
 /// around it.
 struct Grid {
@@ -331,7 +332,9 @@ impl Grid {
             .fold(0.0f64, |m, (_, &r2)| m.max(r2))
             .sqrt();
         let extent = (hi - lo).max_element();
-        let cell = radius.max(extent / 128.0).max(f64::MIN_POSITIVE);
+        let points = visible.iter().filter(|v| v.1.is_some()).count();
+        let divisions = (8.0 * points as f64).cbrt().clamp(1.0, 128.0);
+        let cell = radius.max(extent / divisions).max(f64::MIN_POSITIVE);
         let dims = ((hi - lo) / cell).to_array().map(|d| d.floor() as i64 + 1);
         let grid = |cell_of: &dyn Fn(usize) -> usize| {
             let total = (dims[0] * dims[1] * dims[2]) as usize;
