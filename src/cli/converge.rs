@@ -3,7 +3,8 @@
 use super::{write_file, Failure};
 use anyhow::Context;
 use clap::Args;
-use furnace::harness::checks::convergence;
+use furnace::harness::checks::{convergence, reference_convergence};
+use furnace::harness::ladder;
 use furnace::harness::{self, manifest, BuiltIn};
 use furnace::report::convergence::{line, page, ManifestLadders};
 use furnace::report::plot::Series;
@@ -11,7 +12,7 @@ use std::path::PathBuf;
 
 #[derive(Debug, Args)]
 pub struct ConvergeArgs {
-    /// Manifests with `convergence` checks.
+    /// Manifests with `convergence` or `reference_convergence` checks (others are skipped).
     manifests: Vec<PathBuf>,
     /// Run seed.
     #[arg(long, default_value_t = 1)]
@@ -45,10 +46,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         let checks =
             manifest::load(f).with_context(|| format!("invalid manifest {}", f.display()))?;
         let mut series = Vec::new();
-        for (check, params) in checks
-            .iter()
-            .filter_map(|c| c.params_as::<convergence::Params>().map(|p| (c, p)))
-        {
+        for check in &checks {
             let ctx = harness::Context {
                 renderer: &BuiltIn,
                 models: None,
@@ -57,20 +55,26 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
                 threads: a.threads,
                 alpha: 0.01,
             };
-            let l = convergence::ladder(check, params, &ctx)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", check.name))?;
-            let summary = convergence::summarize(&check.name, &l, params.slope, a.target)
+            let measured = if let Some(p) = check.params_as::<convergence::Params>() {
+                convergence::ladder(check, p, &ctx).map(|l| (l, p.slope))
+            } else if let Some(p) = check.params_as::<reference_convergence::Params>() {
+                reference_convergence::ladder(check, p, &ctx).map(|l| (l, p.slope))
+            } else {
+                continue;
+            };
+            let (l, slope) = measured.map_err(|e| anyhow::anyhow!("{}: {e}", check.name))?;
+            let summary = ladder::summarize(&check.name, &l, slope, a.target)
                 .ok_or_else(|| anyhow::anyhow!("{}: the ladder has no rungs", check.name))?;
             super::say!("{}", line(&summary));
             table.push(summary);
             let mean = l.rungs[0].reference_mean.abs().max(f64::MIN_POSITIVE);
             let label = check.name.rsplit('/').next().unwrap_or(&check.name);
-            let curve = |x: &dyn Fn(&convergence::Rung) -> f64, guide: Option<f64>| Series {
+            let curve = |x: &dyn Fn(&ladder::Rung) -> f64, guide: Option<f64>| Series {
                 name: label.to_string(),
                 points: l.rungs.iter().map(|r| (x(r), r.rmse / mean)).collect(),
                 guide_slope: guide,
             };
-            let predicted = 0.5 * (params.slope[0] + params.slope[1]);
+            let predicted = 0.5 * (slope[0] + slope[1]);
             series.push(curve(&|r| r.spp as f64, Some(predicted)));
             time_error.push(curve(&|r| r.seconds, None));
         }

@@ -92,7 +92,7 @@ enum Command {
     Check(check::CheckArgs),
     /// Compare a test image with a reference (linear EXRs with R, G, B and optional variance.R/G/B): region statistics, metrics, where they differ; exit 1 when they disagree beyond noise.
     Compare(compare::CompareArgs),
-    /// Measure convergence ladders (the `convergence` checks of the manifests): RMSE vs samples per sampler, fitted rates, time per sample, efficiency; writes an HTML page with log-log and time-error plots.
+    /// Measure convergence ladders (the `convergence` and `reference_convergence` checks of the manifests): RMSE vs samples per estimator, fitted rates, time per sample, efficiency; writes an HTML page with log-log and time-error plots.
     Converge(converge::ConvergeArgs),
     /// Turn check results (JSON) and image comparisons into one self-contained HTML page and a Markdown summary; exit 1 when something failed.
     Report(report::ReportArgs),

@@ -4,7 +4,7 @@
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
 //! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test` → `context`, `keys` → `kind` →
 //! `model/`,
-//! `closed_form/`, `region`, `compare`, `adapter` → `checks/` (one file per kind) →
+//! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `isolation` → `runner`.
 
 pub mod adapter;
@@ -16,6 +16,7 @@ pub mod error;
 pub mod isolation;
 pub mod keys;
 pub mod kind;
+pub mod ladder;
 pub mod manifest;
 pub mod measurement;
 pub mod model;

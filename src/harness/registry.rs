@@ -4,7 +4,7 @@
 use super::checks::{
     albedo, algorithm_agreement, chi2, convergence, energy, estimators, furnace, half_space, hg,
     image, lambert, measured, phase, radiance, radiosity_furnace, reciprocity, reciprocity_image,
-    refraction, scale, smooth_limit, transmittance, weights,
+    reference_convergence, refraction, scale, smooth_limit, transmittance, weights,
 };
 use super::kind::{DynKind, Registered};
 use std::marker::PhantomData;
@@ -33,6 +33,7 @@ pub static KINDS: &[&dyn DynKind] = &[
     &Registered::<convergence::Convergence>(PhantomData),
     &Registered::<radiosity_furnace::RadiosityFurnace>(PhantomData),
     &Registered::<algorithm_agreement::AlgorithmAgreement>(PhantomData),
+    &Registered::<reference_convergence::ReferenceConvergence>(PhantomData),
 ];
 
 /// The kind named `name`.

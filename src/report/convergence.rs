@@ -4,7 +4,7 @@
 //! ladder), and one of relative RMSE against render time over every rung.
 
 use super::plot::{loglog, PlotError, Series};
-use crate::harness::checks::convergence::LadderSummary;
+use crate::harness::ladder::LadderSummary;
 use maud::{html, PreEscaped, DOCTYPE};
 
 /// One manifest's ladders: its name and one series (relative RMSE against spp) per check.
@@ -57,8 +57,8 @@ pub fn page(
         plots.push((
             m.manifest.as_str(),
             loglog(
-                "relative RMSE vs samples per pixel (dashed: the rate theory predicts)",
-                "samples per pixel",
+                "relative RMSE vs N (dashed: the rate theory predicts)",
+                "N: samples per pixel (SPPM: iterations)",
                 "RMSE / mean",
                 &m.series,
             )?,
@@ -85,8 +85,11 @@ pub fn page(
                     strong { (passed) " of " (table.len()) " ladders at their predicted rate" }
                 }
                 p {
-                    "seed " (seed) "; RMSE of each pixel against its closed-form footprint average, over "
-                    "the region and the seeds of each rung; slope and constant of ln RMSE = ln C + "
+                    "seed " (seed) "; RMSE of each pixel against its closed-form footprint average "
+                    "(convergence checks) or against the path tracer's high-spp image less that "
+                    "image's pixel variance (reference_convergence checks), over the region and the "
+                    "seeds (runs) of each rung; N is samples per pixel, for SPPM iterations (one "
+                    "camera sample per pixel each); slope and constant of ln RMSE = ln C + "
                     "slope·ln N by least squares (95 % CI, Student t); expected: the allowed slope "
                     "range the manifest states (−0.5 for independent samples); verdict: the slope "
                     "test and the power law's lack of fit, Šidák-combined, at a per-ladder α of "
@@ -95,7 +98,7 @@ pub fn page(
                 }
                 table {
                     tr {
-                        th.l { "configuration" } th.l { "sampler" } th { "verdict" } th { "p" }
+                        th.l { "configuration" } th.l { "estimator" } th { "verdict" } th { "p" }
                         th { "slope ± 95 % CI" } th { "expected" } th { "C" } th { "s / sample" }
                         th { "efficiency" } th { "N*" } th { "time to target, s" }
                     }

@@ -1629,11 +1629,23 @@ fn algorithm_agreement_refuses_form_factors_that_create_light() {
 
 // ---------------------------------------------------------------- photon mapping
 
-/// SPPM with a wrong density estimate (the rest is furnace's).
-struct BrokenSppm(furnace::render::sppm::DensityEstimate);
+/// SPPM with a wrong density estimate, or with its radius held fixed (the rest is furnace's).
+struct BrokenSppm {
+    density: furnace::render::sppm::DensityEstimate,
+    /// Replaces the radius reduction α (1: the radius never shrinks).
+    alpha: Option<f64>,
+}
+impl BrokenSppm {
+    fn density(density: furnace::render::sppm::DensityEstimate) -> Self {
+        BrokenSppm {
+            density,
+            alpha: None,
+        }
+    }
+}
 impl Renderer for BrokenSppm {
     fn name(&self) -> String {
-        "SPPM with a wrong density estimate".into()
+        "SPPM with a wrong density estimate or radius reduction".into()
     }
     fn render(
         &self,
@@ -1649,7 +1661,11 @@ impl Renderer for BrokenSppm {
         sppm: &furnace::integrators::sppm::Sppm,
         runs: u64,
     ) -> Result<Vec<Film>, furnace::harness::RendererError> {
-        furnace::harness::renderer::sppm_images(scene, s, sppm, runs, self.0)
+        let sppm = furnace::integrators::sppm::Sppm {
+            alpha: self.alpha.unwrap_or(sppm.alpha),
+            ..*sppm
+        };
+        furnace::harness::renderer::sppm_images(scene, s, &sppm, runs, self.density)
     }
 }
 
@@ -1670,7 +1686,7 @@ fn algorithm_agreement_rejects_photons_not_divided_by_their_count() {
     assert_all(
         manifest,
         "sppm/furnace-box*",
-        &BrokenSppm(flux_per_area),
+        &BrokenSppm::density(flux_per_area),
         Verdict::Fail,
     );
 }
@@ -1682,7 +1698,37 @@ fn algorithm_agreement_rejects_a_gather_area_without_pi() {
     assert_all(
         manifest,
         "sppm/cornell-box",
-        &BrokenSppm(square_area),
+        &BrokenSppm::density(square_area),
         Verdict::Fail,
     );
+}
+
+#[test]
+fn reference_convergence_rejects_a_photon_mapper_whose_radius_never_shrinks() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(
+        manifest,
+        "sppm/cornell-convergence",
+        &BuiltIn,
+        Verdict::Pass,
+    );
+    // α = 1 keeps every pixel's radius: its variance falls as N^-1/2 and its bias stays
+    let fixed = BrokenSppm {
+        density: furnace::render::sppm::density,
+        alpha: Some(1.0),
+    };
+    // rejected for the stated reason: the fitted rate is steeper than the band
+    for (n, v, m) in verdicts(manifest, "sppm/cornell-convergence", &fixed) {
+        assert_eq!(v, Verdict::Fail, "{n}: {m}");
+        let slope: f64 = m
+            .split("RMSE ∝ N^")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|x| x.parse().ok())
+            .unwrap_or_else(|| panic!("{n}: no fitted slope in {m}"));
+        assert!(
+            slope < -0.4,
+            "{n}: slope {slope} is not below the band: {m}"
+        );
+    }
 }

@@ -11,8 +11,8 @@
 //! Runs in `cargo test --release` wherever Chromium is installed (`apt-get install chromium`;
 //! `FURNACE_CHROMIUM` names another binary) and prints why it is skipped where it is not.
 
-use furnace::harness::checks::convergence::LadderSummary;
 use furnace::harness::compare::{compare, RgbImage};
+use furnace::harness::ladder::LadderSummary;
 use furnace::report::convergence::{self, ManifestLadders};
 use furnace::report::html;
 use furnace::report::plot::Series;

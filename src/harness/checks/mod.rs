@@ -19,6 +19,7 @@ pub mod radiance;
 pub mod radiosity_furnace;
 pub mod reciprocity;
 pub mod reciprocity_image;
+pub mod reference_convergence;
 pub mod refraction;
 pub mod scale;
 pub mod smooth_limit;

@@ -1,0 +1,272 @@
+//! `reference_convergence`: the convergence ladder of an estimator against a high-spp image of
+//! the path tracer, for scenes with no closed form. Each rung renders `runs` independent images
+//! at N (SPPM: iterations; path and light tracer: paths per pixel); a run's error is the mean
+//! over the region's pixels of (x − y)² less the reference pixel's own variance of the mean
+//! (E[(x − y)²] = MSE(x) + Var(y) for independent x, y), so the reference's noise is not counted
+//! as the estimator's. The ladder is fitted and tested as `convergence`'s (harness::ladder).
+//!
+//! Rates: the path and light tracers are unbiased, RMSE ∝ N^−1/2. SPPM with radius reduction α
+//! (Hachisuka & Jensen 2009, eq. 6–9) has variance ∝ N^−α and squared bias ∝ r⁴ ∝ N^−2(1−α)
+//! (Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach", ToG 30(3),
+//! §4.3: r² ∝ N^−(1−α)); at α = 2/3 both give RMSE ∝ N^−1/3, so the rate holds whichever term
+//! dominates, away from edges (a gather ball straddling an edge has bias ∝ r, not r²). With
+//! the radius held fixed (α = 1) the variance falls as N^−1/2 and the bias stays: the ladder
+//! leaves the N^−1/3 band on both counts.
+
+use crate::harness::keys::{common, Key, Keys};
+use crate::harness::ladder::{counts, fit, measurement, slope, Rung};
+use crate::harness::measurement::fmt_sig;
+use crate::harness::region::{region_of, settings_for};
+use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
+use crate::integrators::sppm::Sppm;
+use crate::integrators::Strategy;
+use crate::io::LocatedError;
+use crate::math::rng::mix64;
+use std::time::Instant;
+
+/// The estimator whose ladder is measured.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Estimator {
+    /// furnace's path tracer (NEE + MIS), N = samples per pixel.
+    Path,
+    /// furnace's light tracer, N = light paths per pixel of the image.
+    Light,
+    /// SPPM with these settings (`iterations` is replaced by each rung's N).
+    Sppm(Sppm),
+}
+
+impl Estimator {
+    /// Short name for reports.
+    pub fn label(&self) -> String {
+        match self {
+            Estimator::Path => "path".into(),
+            Estimator::Light => "light".into(),
+            Estimator::Sppm(s) => format!(
+                "sppm a={}, {} photons/it",
+                fmt_sig(s.alpha),
+                s.photons_per_iteration
+            ),
+        }
+    }
+}
+
+/// Parameters of a reference_convergence check.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Params {
+    /// The estimator.
+    pub estimator: Estimator,
+    /// N of each rung, increasing.
+    pub ladder: Vec<u64>,
+    /// Independent runs per rung.
+    pub runs: u64,
+    /// Samples per pixel of the path-traced reference.
+    pub reference_spp: u64,
+    /// Allowed slope range [min, max].
+    pub slope: [f64; 2],
+}
+
+/// The `reference_convergence` kind.
+pub struct ReferenceConvergence;
+
+impl Kind for ReferenceConvergence {
+    type Params = Params;
+    const NAME: &'static str = "reference_convergence";
+    const KEYS: &'static [Key] = &[
+        common::SCENE,
+        Key {
+            name: "integrator",
+            ty: "\"sppm\", \"path\" or \"light\"",
+            default: "(required)",
+            doc: "the estimator whose ladder is measured",
+        },
+        Key {
+            name: "ladder",
+            ty: "at least 3 increasing integers in 1..=2^16",
+            default: "(required)",
+            doc: "N of each rung: SPPM iterations, or paths per pixel",
+        },
+        Key {
+            name: "runs",
+            ty: "integer 2..=1024",
+            default: "8",
+            doc: "independent runs per rung (their spread weights the fit)",
+        },
+        Key {
+            name: "photons_per_iteration",
+            ty: "integer 1..=10^9",
+            default: "100000",
+            doc: "SPPM photons per iteration",
+        },
+        Key {
+            name: "radius",
+            ty: "length > 0 (scene units)",
+            default: "1/50 of the scene's bounding radius",
+            doc: "SPPM's initial gather radius",
+        },
+        Key {
+            name: "reference_spp",
+            ty: "integer 1..=2^20",
+            default: "4096",
+            doc: "samples per pixel of the path-traced reference",
+        },
+        Key {
+            name: "slope",
+            ty: "[min, max], min < max < 0",
+            default: "(required)",
+            doc: "allowed range of the fitted RMSE slope (RMSE ∝ N^slope)",
+        },
+        common::WIDTH,
+        common::HEIGHT,
+        common::REGION,
+        common::SEED,
+    ];
+    const SCOPE: Scope = Scope::Furnace;
+
+    fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let estimator = match k.get::<String>("integrator")? {
+            Some(i) => match i.get_ref().as_str() {
+                "path" => Estimator::Path,
+                "light" => Estimator::Light,
+                "sppm" => {
+                    let d = Sppm::default();
+                    Estimator::Sppm(Sppm {
+                        photons_per_iteration: k
+                            .int("photons_per_iteration", 1, 1_000_000_000)?
+                            .unwrap_or(d.photons_per_iteration),
+                        initial_radius: k.positive("radius")?,
+                        ..d
+                    })
+                }
+                other => {
+                    return Err(k.error(
+                        i.span(),
+                        "integrator",
+                        format!("unknown integrator {other:?}; known: \"sppm\", \"path\", \"light\""),
+                    ))
+                }
+            },
+            None => {
+                return Err(k.error_at(
+                    "integrator",
+                    "give `integrator = \"sppm\"`, `\"path\"` or `\"light\"`: the estimator whose ladder is measured".into(),
+                ))
+            }
+        };
+        Ok(Params {
+            estimator,
+            ladder: counts(k, "ladder", 1 << 16)?,
+            runs: k.int("runs", 2, 1024)?.unwrap_or(8),
+            reference_spp: k.int("reference_spp", 1, 1 << 20)?.unwrap_or(4096),
+            slope: slope(k)?,
+        })
+    }
+
+    fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
+        let l = ladder(check, p, ctx)?;
+        let samples = l.rungs.iter().map(|r| r.samples).sum::<u64>() * p.runs;
+        let what = format!(
+            "{} against the path tracer at {} spp (its pixel variance subtracted)",
+            l.sampler, p.reference_spp
+        );
+        Ok(measurement(&l, p.slope, p.runs, samples, &what))
+    }
+}
+
+/// Renders the reference and the rungs of a reference_convergence check and fits the ladder.
+pub fn ladder(
+    check: &Check,
+    p: &Params,
+    ctx: &Context,
+) -> Result<crate::harness::ladder::Ladder, CheckError> {
+    let scene = check.scene()?;
+    if scene.render.max_depth.is_some() {
+        return Err("the scene caps the path depth; the estimators compared here render every bounce, so render.max_depth must be absent".into());
+    }
+    let base = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
+    let region = region_of(check, &base)?;
+    let (w, h) = (base.width, base.height);
+    let pixels = region_pixels(w, region);
+
+    let mut rs = base.clone();
+    rs.spp = p.reference_spp;
+    rs.seed = mix64(ctx.seed ^ 0x5245_4645_5245_4e43);
+    let reference = ctx.renderer.render(scene, &rs)?;
+    let (y_ref, v_ref) = (reference.means(1), reference.mean_variances(1));
+    let ref_mean = pixels.iter().map(|&i| y_ref[i]).sum::<f64>() / pixels.len() as f64;
+    let ref_var = pixels.iter().map(|&i| v_ref[i]).sum::<f64>() / pixels.len() as f64;
+
+    let mut rungs = Vec::with_capacity(p.ladder.len());
+    for (r, &n) in p.ladder.iter().enumerate() {
+        let mut s = base.clone();
+        s.seed = mix64(ctx.seed ^ ((r as u64 + 1) << 32));
+        let t0 = Instant::now();
+        let images: Vec<Vec<f64>> = match p.estimator {
+            Estimator::Sppm(sp) => {
+                let sp = Sppm {
+                    iterations: n,
+                    ..sp
+                };
+                let films = ctx.renderer.render_sppm(scene, &s, &sp, p.runs)?;
+                if films.len() as u64 != p.runs {
+                    return Err(CheckError::Renderer(format!(
+                        "the photon mapper returned {} runs for {}",
+                        films.len(),
+                        p.runs
+                    )));
+                }
+                films.iter().map(|f| f.means(1)).collect()
+            }
+            Estimator::Path | Estimator::Light => (0..p.runs)
+                .map(|k| {
+                    let mut sk = s.clone();
+                    sk.seed = mix64(s.seed ^ (k + 1));
+                    sk.spp = n;
+                    Ok(if p.estimator == Estimator::Path {
+                        ctx.renderer.render(scene, &sk)?.means(1)
+                    } else {
+                        let paths = n.saturating_mul((w * h) as u64);
+                        ctx.renderer
+                            .render_light_paths(scene, &sk, paths, &[])?
+                            .film
+                            .means(1)
+                    })
+                })
+                .collect::<Result<_, CheckError>>()?,
+        };
+        let seconds = t0.elapsed().as_secs_f64() / p.runs as f64;
+        let mse: Vec<f64> = images
+            .iter()
+            .map(|y| {
+                pixels
+                    .iter()
+                    .map(|&i| (y[i] - y_ref[i]).powi(2))
+                    .sum::<f64>()
+                    / pixels.len() as f64
+                    - ref_var
+            })
+            .collect();
+        let mean_mse = mse.iter().sum::<f64>() / mse.len() as f64;
+        if mean_mse.is_nan() || mean_mse <= 0.0 {
+            return Err(CheckError::Setup(format!(
+                "at N = {n} the estimator's squared error ({}) does not exceed the reference's pixel variance ({}): raise reference_spp or lower the rung",
+                fmt_sig(mean_mse + ref_var),
+                fmt_sig(ref_var)
+            )));
+        }
+        rungs.push(Rung::from_mses(
+            n,
+            &mse,
+            ref_mean,
+            seconds,
+            n * (w * h) as u64,
+        ));
+    }
+    fit(&p.estimator.label(), rungs, p.runs)
+}
+
+/// Row-major indices of the pixels of `region` in an image `w` wide.
+fn region_pixels(w: usize, region: [usize; 4]) -> Vec<usize> {
+    (region[1]..region[3])
+        .flat_map(|y| (region[0]..region[2]).map(move |x| y * w + x))
+        .collect()
+}
