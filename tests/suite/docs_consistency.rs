@@ -237,3 +237,56 @@ fn the_convergence_table_is_the_committed_reports() {
         );
     }
 }
+
+#[test]
+fn the_glossy_efficiency_table_is_the_committed_reports() {
+    // docs/rendering.md's efficiency table quotes reports/glossy-efficiency.html: per estimator
+    // the slope with its CI word for word, C, seconds per sample and efficiency to their
+    // printed digits, the time to target to two significant digits.
+    let html = read("reports/glossy-efficiency.html");
+    let row = Regex::new(r"(?s)<tr[^>]*>(.*?)</tr>").unwrap();
+    let cell = Regex::new(r"(?s)<t[dh][^>]*>(.*?)</t[dh]>").unwrap();
+    let tag = Regex::new(r"<[^>]+>").unwrap();
+    let mut report: Vec<Vec<String>> = Vec::new();
+    for r in row.captures_iter(&html) {
+        let cells: Vec<String> = cell
+            .captures_iter(&r[1])
+            .map(|c| tag.replace_all(&c[1], "").trim().to_string())
+            .collect();
+        if cells.len() == 11 && cells[0].starts_with("glossy/") {
+            report.push(cells);
+        }
+    }
+    assert_eq!(report.len(), 3, "the report's table: {report:?}");
+    let doc = read("docs/rendering.md");
+    let table = &doc[doc
+        .find("| estimator | ladder | fitted rate |")
+        .expect("the efficiency table")..];
+    let rows: Vec<Vec<String>> = table
+        .lines()
+        .skip(2)
+        .take_while(|l| l.starts_with('|'))
+        .map(|l| {
+            l.trim_matches('|')
+                .split('|')
+                .map(|c| c.trim().replace('−', "-"))
+                .collect()
+        })
+        .collect();
+    assert_eq!(rows.len(), report.len(), "rows: {rows:?}");
+    let close = |quoted: &str, reported: &str, what: &str| {
+        let q: f64 = quoted.trim_end_matches(" s").parse().unwrap();
+        let r: f64 = reported.parse().unwrap();
+        assert!(
+            (q / r - 1.0).abs() < 0.06,
+            "docs/rendering.md quotes {what} {quoted} where the report has {reported}"
+        );
+    };
+    for (q, r) in rows.iter().zip(&report) {
+        assert_eq!(q[2], r[4], "the slope of {}", r[0]);
+        close(&q[3], &r[6], "C");
+        close(&q[4], &r[7], "seconds per sample");
+        close(&q[5], &r[8], "efficiency");
+        close(&q[6], &r[10], "time to target");
+    }
+}
