@@ -1583,6 +1583,17 @@ fn centroid_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
     cx * cy * area / (PI * r2)
 }
 
+/// The point-to-point factor with the receiver's cosine missing: cos θy A / (π r²), for the
+/// polygons in front of the point.
+fn no_cosine_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
+    let c = polygon.iter().copied().sum::<Vec3>() / polygon.len() as f64;
+    let cx = n.dot((c - x).normalize());
+    if cx <= 0.0 {
+        return 0.0;
+    }
+    centroid_factor(x, n, polygon) / cx
+}
+
 /// A point factor that loses a tenth: a wrong normalisation (1/(2π) taken as 0.9/(2π)).
 fn lossy_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
     0.9 * furnace::integrators::radiosity::point_to_polygon(x, n, polygon)
@@ -1598,6 +1609,20 @@ fn radiosity_furnace_rejects_the_point_to_point_form_factor() {
         &BrokenRadiosity(centroid_factor),
         Verdict::Fail,
     );
+}
+
+/// Without the receiver's cosine the factors' rows sum to about 2: even at albedo 0.5 the
+/// solve has no finite solution, and the check is an ERROR naming the row sum.
+#[test]
+fn radiosity_furnace_refuses_a_form_factor_missing_a_cosine() {
+    for (n, v, m) in verdicts(
+        "tests/manifests/algorithms.toml",
+        "radiosity/furnace-box[albedo=0.5]",
+        &BrokenRadiosity(no_cosine_factor),
+    ) {
+        assert_eq!(v, Verdict::Error, "{n}: {m}");
+        assert!(m.contains("row sum"), "{m}");
+    }
 }
 
 #[test]
