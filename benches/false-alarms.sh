@@ -17,13 +17,21 @@
 #   git worktree add ../furnace-sweep HEAD && cargo build --release
 #   FURNACE=$PWD/target/release/furnace ../furnace-sweep/benches/false-alarms.sh 1001 1100
 #   cat ../furnace-sweep/reports/false-alarms/pvalues.tsv   # then commit it here
+#
+# FILTER (a --filter glob), ALPHA (--alpha) and OUT (the results file) sweep one new check
+# alone; a check's seed derives from the run seed and its name only, so its p-value at a seed is
+# the one a whole-suite run at that seed would give, and ALPHA set to the suite's per-test level
+# gives the suite's verdict:
+#
+#   FILTER=sppm/cornell-convergence ALPHA=1.005e-4 \
+#     OUT=reports/false-alarms/sppm-cornell-convergence.tsv benches/false-alarms.sh 1001 1100
 set -euo pipefail
 first=${1:?first seed}
 last=${2:?last seed}
 cd "$(dirname "$0")/.."
 furnace=${FURNACE:-target/release/furnace}
 [ -x "$furnace" ] || cargo build --release
-out=reports/false-alarms/pvalues.tsv
+out=${OUT:-reports/false-alarms/pvalues.tsv}
 mkdir -p "$(dirname "$out")"
 [ -f "$out" ] || printf 'seed\tbuild\tcheck\tverdict\tp\n' > "$out"
 # the build: the commit, "-dirty" when anything but this results file differs from it
@@ -34,7 +42,7 @@ trap 'rm -rf "$tmp"' EXIT
 for seed in $(seq "$first" "$last"); do
   if cut -f1 "$out" | grep -qx "$seed"; then continue; fi
   # Exit code 1 (a check failed) is data here, not an error.
-  "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" || [ $? -eq 1 ]
+  "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" ${FILTER:+--filter "$FILTER"} ${ALPHA:+--alpha "$ALPHA"} || [ $? -eq 1 ]
   # One line per outcome: name, verdict, p-value ("-" when the check has none).
   python3 - "$tmp/run.json" "$seed" "$build" >> "$out" <<'EOF'
 import json, sys
