@@ -14,14 +14,14 @@ use crate::stats::regression::{fit_line, fit_line_weighted, t_sf, t_two_sided_qu
 /// One rung of the ladder.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Rung {
-    /// Samples per pixel.
+    /// N: samples per pixel (SPPM: iterations, one camera sample per pixel each).
     pub spp: u64,
     /// Root-mean-square error over the region's pixels and the seeds.
     pub rmse: f64,
     /// Standard error of ln RMSE from the spread of the per-seed MSEs (delta method:
     /// se(ln √MSE) = se(MSE)/(2·MSE)).
     pub ln_rmse_se: f64,
-    /// Mean of the closed form over the region (for relative errors).
+    /// Mean of the reference (closed form or rendered) over the region, for relative errors.
     pub reference_mean: f64,
     /// Wall time per render, seconds (mean over seeds).
     pub seconds: f64,
@@ -32,7 +32,7 @@ pub struct Rung {
 /// A measured ladder and its fitted rate.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Ladder {
-    /// Sampler name.
+    /// What converged: the sampler, or the estimator with its settings.
     pub sampler: String,
     /// Rungs in ladder order.
     pub rungs: Vec<Rung>,
@@ -43,7 +43,7 @@ pub struct Ladder {
 }
 
 impl Rung {
-    /// A rung from the per-seed mean squared errors `mse` (K ≥ 1 of them), with the region's
+    /// A rung from the per-seed mean squared errors `mse` (K ≥ 2 of them), with the region's
     /// reference mean, the mean seconds per render and the camera paths per render.
     pub fn from_mses(
         spp: u64,
@@ -116,7 +116,7 @@ pub fn fit(sampler: &str, rungs: Vec<Rung>, seeds: u64) -> Result<Ladder, CheckE
 pub struct LadderSummary {
     /// The check's name.
     pub name: String,
-    /// Sampler name.
+    /// What converged (the ladder's `sampler`).
     pub sampler: String,
     /// Fitted slope of ln RMSE against ln N.
     pub slope: f64,
