@@ -44,10 +44,13 @@ for seed in $(seq "$first" "$last"); do
   # Exit code 1 (a check failed) is data here, not an error.
   "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" ${FILTER:+--filter "$FILTER"} ${ALPHA:+--alpha "$ALPHA"} || [ $? -eq 1 ]
   # One line per outcome: name, verdict, p-value ("-" when the check has none).
-  python3 - "$tmp/run.json" "$seed" "$build" >> "$out" <<'EOF'
+  # With FILTER, only the selected checks (the others are reported as skipped).
+  python3 - "$tmp/run.json" "$seed" "$build" "${FILTER:+selected}" >> "$out" <<'EOF'
 import json, sys
 run = json.load(open(sys.argv[1]))
 for o in run["outcomes"]:
+    if sys.argv[4] and o["verdict"] == "SKIPPED":
+        continue
     p = o.get("p_value")
     print(f'{sys.argv[2]}\t{sys.argv[3]}\t{o["name"]}\t{o["verdict"]}\t{"-" if p is None else repr(p)}')
 EOF
