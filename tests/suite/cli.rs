@@ -511,3 +511,47 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("only used by --integrator radiosity"));
 }
+
+#[test]
+fn converge_measures_reference_ladders_of_every_estimator() {
+    let dir = std::env::temp_dir().join(format!("furnace-cli-conv-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = root("scenes/cornell-box.toml");
+    let mut manifest = String::new();
+    for (name, extra) in [
+        ("path", "ladder = [4, 8, 16]"),
+        ("light", "ladder = [4, 8, 16]"),
+        ("sppm", "ladder = [2, 4, 8]\nphotons_per_iteration = 500"),
+    ] {
+        manifest += &format!(
+            "[[check]]\nname = \"tiny/{name}\"\nkind = \"reference_convergence\"\nintegrator = \"{name}\"\nscene = {scene:?}\nwidth = 8\nheight = 8\nruns = 2\nreference_spp = 256\nslope = [-2.0, -0.01]\n{extra}\n\n"
+        );
+    }
+    let m = dir.join("tiny.toml");
+    std::fs::write(&m, manifest).unwrap();
+    let html = dir.join("tiny.html");
+    let out = furnace()
+        .arg("converge")
+        .arg(&m)
+        .arg("--report")
+        .arg(&html)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for label in [
+        "tiny/path",
+        "tiny/light",
+        "tiny/sppm",
+        "sppm a=0.6667, 500 photons/it",
+    ] {
+        assert!(text.contains(label), "{label} missing:\n{text}");
+    }
+    let page = std::fs::read_to_string(&html).unwrap();
+    assert!(page.contains("reference_convergence"), "{page}");
+    std::fs::remove_dir_all(&dir).ok();
+}
