@@ -166,3 +166,61 @@ fn binomial_tail_known_values() {
     // P(X ≥ 3 | 10, 0.5) = 1 − (1 + 10 + 45)/1024
     assert!((binomial_upper_tail(3, 10, 0.5) - (1.0 - 56.0 / 1024.0)).abs() < 1e-12);
 }
+
+/// One check swept alone (`FILTER=… ALPHA=… OUT=reports/false-alarms/NAME.tsv
+/// benches/false-alarms.sh`): at the suite's per-test level its false alarms must be
+/// compatible with twice that level (the test plus the variance diagnosis), its p-values not
+/// piled up below 0.05, and docs/statistics.md must quote the file as it is.
+#[test]
+fn single_check_sweeps_stay_within_their_level() {
+    let dir = root("reports/false-alarms");
+    let doc = std::fs::read_to_string(root("docs/statistics.md")).unwrap();
+    let mut files: Vec<_> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| {
+            p.extension().is_some_and(|e| e == "tsv")
+                && p.file_name().is_some_and(|n| n != "pvalues.tsv")
+        })
+        .collect();
+    files.sort();
+    for path in files {
+        let text = std::fs::read_to_string(&path).unwrap();
+        let (mut seeds, mut alarms, mut below, mut ps) = (Vec::new(), 0usize, 0usize, 0usize);
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split('\t').collect();
+            assert_eq!(f.len(), 5, "{}: {line:?}", path.display());
+            seeds.push(f[0].parse::<u64>().unwrap());
+            if f[3] != "PASS" && f[3] != "SKIPPED" {
+                alarms += 1;
+            }
+            if f[4] != "-" {
+                ps += 1;
+                below += usize::from(f[4].parse::<f64>().unwrap() < 0.05);
+            }
+        }
+        let name = path.file_name().unwrap().to_string_lossy().to_string();
+        assert!(seeds.len() >= 100, "{name}: {} seeds", seeds.len());
+        // the suite's per-test level, 1 % over 100 stochastic tests (Šidák), doubled
+        let level = 2.0 * (1.0 - 0.99f64.powf(0.01));
+        assert!(
+            binomial_upper_tail(alarms, seeds.len(), level) > 1e-3,
+            "{name}: {alarms} alarms in {} seeds",
+            seeds.len()
+        );
+        assert!(
+            binomial_upper_tail(below, ps, 0.05) > 1e-3,
+            "{name}: {below} of {ps} p-values below 0.05"
+        );
+        let quote = format!(
+            "{name}: {} seeds ({}–{}), {alarms} not passed; {below} of {ps} p-values below 0.05",
+            seeds.len(),
+            seeds.iter().min().unwrap(),
+            seeds.iter().max().unwrap(),
+        );
+        assert!(
+            doc.contains(&quote),
+            "docs/statistics.md does not quote {name}; it should say: {quote}"
+        );
+    }
+}
