@@ -46,6 +46,11 @@ pub struct RendererDesc {
     /// Independent runs per image (≥ 2).
     #[serde(default)]
     pub batches: Option<u32>,
+    /// The sample pattern within a pixel (default `independent`; `stratified`, `sobol`, or any
+    /// other name such as `tabulated-sobol`): a convergence check that states one pattern's
+    /// rate judges only renderers that sample with it.
+    #[serde(default)]
+    pub sampler: Option<String>,
     /// A command that succeeds when the renderer is installed.
     #[serde(default)]
     pub probe: Option<Vec<String>>,
@@ -137,6 +142,16 @@ pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, Rende
                     "{}: need 2..=1024 independent runs for a standard error",
                     d.batches.unwrap_or(0)
                 ),
+            ));
+        }
+        if d.sampler
+            .as_ref()
+            .is_some_and(|x| x.is_empty() || x.chars().any(char::is_whitespace))
+        {
+            return Err(at(
+                "sampler",
+                "give the pattern's name, one word such as \"independent\" or \"tabulated-sobol\""
+                    .into(),
             ));
         }
         if d.command.is_none() && d.models.is_none() {
@@ -492,6 +507,13 @@ impl Renderer for External {
 
     fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, RendererError> {
         self.render_batches(scene, s).map_err(RendererError)
+    }
+
+    fn sampler(&self) -> String {
+        self.desc
+            .sampler
+            .clone()
+            .unwrap_or_else(|| "independent".into())
     }
 }
 

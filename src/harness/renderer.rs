@@ -53,6 +53,12 @@ pub trait Renderer: Sync {
     fn image_rounding(&self) -> f64 {
         crate::stats::ROUNDING
     }
+    /// The sample pattern within a pixel of its images, by name (`independent`, `stratified`,
+    /// `sobol`, or the renderer's own name for another pattern): a convergence check that
+    /// states one pattern's rate judges only renderers that sample with it.
+    fn sampler(&self) -> String {
+        "independent".into()
+    }
     /// False for a renderer that serves only models (no image command).
     fn renders_images(&self) -> bool {
         true

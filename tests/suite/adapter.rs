@@ -166,6 +166,50 @@ fn external_renderers_skip_checks_that_state_furnace_internals() {
     }
 }
 
+/// A renderer's table states its sample pattern; a convergence check that states another
+/// pattern's rate does not judge it (Cycles samples with a tabulated Sobol pattern, and its
+/// independent-rate ladders read -0.70 to -1.03 where -0.5 is stated).
+#[test]
+fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
+    let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
+    for (pattern, applies) in [
+        ("tabulated-sobol", &[][..]),
+        (
+            "sobol",
+            &["convergence/sobol-smooth", "convergence/sobol-edge"][..],
+        ),
+    ] {
+        let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
+        let text = std::fs::read_to_string(&path).unwrap().replace(
+            "batches = 4\n",
+            &format!("batches = 4\nsampler = {pattern:?}\n"),
+        );
+        std::fs::write(&path, text).unwrap();
+        let r = load_renderers(&path).unwrap();
+        let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+        let subject = harness::Subject {
+            renderer: &ext,
+            models: None,
+        };
+        for s in &specs {
+            let why = s.kind.not_applicable(s, &subject);
+            let want = applies.contains(&s.name.as_str());
+            assert_eq!(why.is_none(), want, "{pattern}: {}: {why:?}", s.name);
+            if let Some(why) = why {
+                assert!(why.contains(pattern), "{why}");
+            }
+        }
+    }
+    // a pattern is one word
+    let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("batches = 4\n", "batches = 4\nsampler = \"\"\n");
+    std::fs::write(&path, text).unwrap();
+    let e = load_renderers(&path).unwrap_err();
+    assert!(e.contains("renderer.stand-in.sampler"), "{e}");
+}
+
 /// A check that fails against an external renderer leaves a reproducer bundle beside the
 /// report: README.md with the numbers and the re-run command, outcome.json, and the exported
 /// scene with a command.sh that re-runs the renderer alone; the report links it. A passing

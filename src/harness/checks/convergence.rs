@@ -251,9 +251,12 @@ impl Kind for Convergence {
         if renderer.is_reference() {
             return None;
         }
-        (p.sampler != Sampler::Independent || p.strategy != Strategy::Mis).then(|| {
+        // another renderer runs its own estimator (MIS in every one judged so far) with the
+        // pattern its table states
+        let pattern = renderer.sampler();
+        (p.strategy != Strategy::Mis || pattern != p.sampler.name()).then(|| {
             format!(
-                "this convergence check states the rate of furnace's {} sampler with {:?}; {} uses its own sampler and estimator",
+                "this convergence check states the rate of {} sampling with {:?}; {} uses its own estimator and samples with its {pattern} pattern",
                 p.sampler.name(),
                 p.strategy,
                 renderer.name()
