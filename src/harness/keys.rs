@@ -112,6 +112,20 @@ pub mod common {
         doc: "regions file (TOML [[region]] tables with name and rect in image fractions), relative to the manifest",
     };
 
+    /// SPPM's photons per iteration.
+    pub const PHOTONS_PER_ITERATION: Key = Key {
+        name: "photons_per_iteration",
+        ty: "integer 1..=10^9",
+        default: "100000",
+        doc: "SPPM photons per iteration",
+    };
+    /// SPPM's initial gather radius.
+    pub const SPPM_RADIUS: Key = Key {
+        name: "radius",
+        ty: "length > 0 (scene units)",
+        default: "1/50 of the scene's bounding radius",
+        doc: "SPPM's initial gather radius",
+    };
     /// The `patch_size` key: the longest patch edge of a radiosity solve.
     pub const PATCH_SIZE: Key = Key {
         name: "patch_size",

@@ -189,20 +189,26 @@ fn quoted_test_counts_and_levels_match_the_committed_report() {
     );
 }
 
+/// The cells of every table row of an HTML page, tags stripped and trimmed.
+fn html_rows(html: &str) -> Vec<Vec<String>> {
+    let row = Regex::new(r"(?s)<tr[^>]*>(.*?)</tr>").unwrap();
+    let cell = Regex::new(r"(?s)<t[dh][^>]*>(.*?)</t[dh]>").unwrap();
+    let tag = Regex::new(r"<[^>]+>").unwrap();
+    row.captures_iter(html)
+        .map(|r| {
+            cell.captures_iter(&r[1])
+                .map(|c| tag.replace_all(&c[1], "").trim().to_string())
+                .collect()
+        })
+        .collect()
+}
+
 #[test]
 fn the_convergence_table_is_the_committed_reports() {
     // docs/convergence.md's table of measured rates quotes reports/convergence.html: slopes
     // word for word, times to target to their two significant digits.
-    let html = read("reports/convergence.html");
-    let row = Regex::new(r"(?s)<tr[^>]*>(.*?)</tr>").unwrap();
-    let cell = Regex::new(r"(?s)<t[dh][^>]*>(.*?)</t[dh]>").unwrap();
-    let tag = Regex::new(r"<[^>]+>").unwrap();
     let mut report: Vec<(String, f64)> = Vec::new(); // (slope, time to target in s)
-    for r in row.captures_iter(&html) {
-        let cells: Vec<String> = cell
-            .captures_iter(&r[1])
-            .map(|c| tag.replace_all(&c[1], "").trim().to_string())
-            .collect();
+    for cells in html_rows(&read("reports/convergence.html")) {
         // configuration, sampler, verdict, p, slope ± CI, expected, C, s/sample, efficiency,
         // N*, time to target
         if cells.len() == 11 && cells[0].starts_with("convergence/") {
@@ -243,20 +249,10 @@ fn the_glossy_efficiency_table_is_the_committed_reports() {
     // docs/rendering.md's efficiency table quotes reports/glossy-efficiency.html: per estimator
     // the slope with its CI word for word, C, seconds per sample and efficiency to their
     // printed digits, the time to target to two significant digits.
-    let html = read("reports/glossy-efficiency.html");
-    let row = Regex::new(r"(?s)<tr[^>]*>(.*?)</tr>").unwrap();
-    let cell = Regex::new(r"(?s)<t[dh][^>]*>(.*?)</t[dh]>").unwrap();
-    let tag = Regex::new(r"<[^>]+>").unwrap();
-    let mut report: Vec<Vec<String>> = Vec::new();
-    for r in row.captures_iter(&html) {
-        let cells: Vec<String> = cell
-            .captures_iter(&r[1])
-            .map(|c| tag.replace_all(&c[1], "").trim().to_string())
-            .collect();
-        if cells.len() == 11 && cells[0].starts_with("glossy/") {
-            report.push(cells);
-        }
-    }
+    let report: Vec<Vec<String>> = html_rows(&read("reports/glossy-efficiency.html"))
+        .into_iter()
+        .filter(|cells| cells.len() == 11 && cells[0].starts_with("glossy/"))
+        .collect();
     assert_eq!(report.len(), 3, "the report's table: {report:?}");
     let doc = read("docs/rendering.md");
     let table = &doc[doc

@@ -91,18 +91,8 @@ impl Kind for ReferenceConvergence {
             default: "8",
             doc: "independent runs per rung (their spread weights the fit)",
         },
-        Key {
-            name: "photons_per_iteration",
-            ty: "integer 1..=10^9",
-            default: "100000",
-            doc: "SPPM photons per iteration",
-        },
-        Key {
-            name: "radius",
-            ty: "length > 0 (scene units)",
-            default: "1/50 of the scene's bounding radius",
-            doc: "SPPM's initial gather radius",
-        },
+        common::PHOTONS_PER_ITERATION,
+        common::SPPM_RADIUS,
         Key {
             name: "reference_spp",
             ty: "integer 1..=2^20",
