@@ -39,6 +39,28 @@ pub fn reflectance_rgb(s: &Spectrum) -> [f64; 3] {
     std::array::from_fn(|k| rgb[k] / white[k])
 }
 
+/// [`emission_rgb`] of an emitted spectrum, refused by name when a channel is negative: a
+/// narrow band (360–365 nm, say) lies outside the sRGB gamut, and an RGB renderer clamps the
+/// negative channel to 0, which changes Y by a factor of 20 (both Cycles and LuxCore read the
+/// same clamped value; reports/renderers/four/FINDINGS.md).
+pub fn emission_rgb_in_gamut(
+    what: impl Fn() -> String,
+    s: &Spectrum,
+) -> Result<[f64; 3], ExportError> {
+    let rgb = emission_rgb(s);
+    if rgb.iter().all(|c| *c >= 0.0 && c.is_finite()) {
+        return Ok(rgb);
+    }
+    Err(ExportError::Unsupported {
+        format: FORMAT,
+        what: what(),
+        why: format!(
+            "an emission spectrum whose linear sRGB is ({:.4e}, {:.4e}, {:.4e}): outside the sRGB gamut, and an RGB renderer clamps a negative channel to 0",
+            rgb[0], rgb[1], rgb[2]
+        ),
+    })
+}
+
 /// [`reflectance_rgb`] of a quantity that must not be negative (a reflectance, an index, a
 /// coefficient): a spectrum outside the sRGB gamut can map to a negative channel, which no
 /// renderer can take; it is refused by name rather than clamped.
@@ -144,7 +166,10 @@ pub fn export(scene: &Scene) -> Result<Value, ExportError> {
                 radiance,
                 two_sided,
                 ..
-            }) => json!({"rgb": emission_rgb(radiance), "two_sided": two_sided}),
+            }) => {
+                json!({"rgb": emission_rgb_in_gamut(|| format!("shape[{i}] emission"), radiance)?,
+                "two_sided": two_sided})
+            }
             _ => Value::Null,
         };
         let (interior, exterior) = match scene.shape_media[i] {
@@ -178,9 +203,10 @@ pub fn export(scene: &Scene) -> Result<Value, ExportError> {
                 position,
                 intensity,
             } => lights.push(json!({"type": "point", "position": v3(*position),
-                "intensity_rgb": emission_rgb(intensity)})),
+                "intensity_rgb": emission_rgb_in_gamut(|| "point light intensity".into(), intensity)?})),
             Light::Environment { radiance } => {
-                lights.push(json!({"type": "environment", "radiance_rgb": emission_rgb(radiance)}))
+                lights.push(json!({"type": "environment",
+                    "radiance_rgb": emission_rgb_in_gamut(|| "environment radiance".into(), radiance)?}))
             }
         }
     }
@@ -304,5 +330,28 @@ mod tests {
             e.contains("shape[0] material reflectance") && e.contains("sRGB gamut"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn an_emission_outside_the_srgb_gamut_is_refused_not_clamped() {
+        // 360-365 nm, as radiance/band-at-360nm: its linear sRGB has a negative green, which
+        // Cycles and LuxCore clamp to 0 (Y 0.00541 instead of 2.48e-4)
+        let s = scene(&format!(
+            "{CAMERA}[materials.m]\ntype = \"diffuse\"\nreflectance = 0.0\n\
+             [spectra]\nband = {{ wavelengths = [359.0, 360.0, 365.0, 366.0], values = [0.0, 1.0, 1.0, 0.0] }}\n\
+             [[shape]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\nemission = \"band\"\n"
+        ));
+        let e = export(&s).unwrap_err().to_string();
+        assert!(
+            e.contains("shape[0] emission") && e.contains("clamps a negative channel"),
+            "{e}"
+        );
+        // a broad emitter in the gamut still exports
+        let s = scene(&format!(
+            "{CAMERA}[materials.m]\ntype = \"diffuse\"\nreflectance = 0.0\n\
+             [spectra]\nwarm = {{ blackbody = 4000.0, scale = 1.0e-3 }}\n\
+             [[shape]]\ntype = \"sphere\"\ncenter = [0.0, 0.0, 0.0]\nradius = 1.0\nmaterial = \"m\"\nemission = \"warm\"\n"
+        ));
+        assert!(export(&s).is_ok());
     }
 }

@@ -51,6 +51,12 @@ pub struct RendererDesc {
     /// rate judges only renderers that sample with it.
     #[serde(default)]
     pub sampler: Option<String>,
+    /// Its colour pipeline: `spectral` (the default; for Mitsuba, variants named `*_rgb` are
+    /// `rgb`) or `rgb`. An RGB renderer multiplies RGB projections where a spectral one
+    /// multiplies spectra, so scenes with coloured BSDFs or media are refused (SKIPPED with
+    /// the reason) rather than judged against spectral closed forms.
+    #[serde(default)]
+    pub colour: Option<String>,
     /// A command that succeeds when the renderer is installed.
     #[serde(default)]
     pub probe: Option<Vec<String>>,
@@ -152,6 +158,18 @@ pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, Rende
                 "sampler",
                 "give the pattern's name, one word such as \"independent\" or \"tabulated-sobol\""
                     .into(),
+            ));
+        }
+        if d.colour
+            .as_ref()
+            .is_some_and(|c| c != "rgb" && c != "spectral")
+        {
+            return Err(at(
+                "colour",
+                format!(
+                    "{:?}; allowed: \"spectral\", \"rgb\"",
+                    d.colour.as_deref().unwrap_or("")
+                ),
             ));
         }
         if d.command.is_none() && d.models.is_none() {
@@ -518,6 +536,14 @@ impl Renderer for External {
 }
 
 impl External {
+    /// Whether it renders in RGB (`colour = "rgb"`, or a Mitsuba variant named `*_rgb`).
+    pub fn renders_rgb(&self) -> bool {
+        match self.desc.colour.as_deref() {
+            Some(c) => c == "rgb",
+            None => self.variant.ends_with("_rgb"),
+        }
+    }
+
     /// Renders the image as `batches` independent runs of the command.
     fn render_batches(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, String> {
         let fold = self.render_batch_range(scene, s, 0..self.batches())?;
@@ -571,6 +597,13 @@ impl External {
         if s.integrator.strategy != Strategy::Mis {
             return Err(format!(
                 "{} runs its own estimator; checks that select BSDF-only or light-only sampling do not apply",
+                self.label
+            ));
+        }
+        if self.renders_rgb() && !scene.scatters_grey() {
+            return Err(format!(
+                "{}{} renders in RGB: this scene's BSDFs or media vary with wavelength, and a product of RGB projections is not the projection of the spectral product (Cycles, LuxCore and Mitsuba's own scalar_rgb all read the Cornell box's red wall in blue +580 to +610 % against the spectral reference; reports/renderers/four/FINDINGS.md)",
+                super::renderer::UNSUPPORTED,
                 self.label
             ));
         }

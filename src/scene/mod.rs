@@ -142,15 +142,20 @@ impl Scene {
     /// True when every spectrum in the scene is constant, so radiance does not depend on
     /// wavelength and the renderer may skip wavelength sampling (grey mode).
     pub fn is_grey(&self) -> bool {
-        let bsdfs = self.bsdfs.iter().all(Bsdf::is_constant);
         let lights = self.lights.iter().all(|l| match l {
             Light::Area { radiance, .. } | Light::Environment { radiance } => {
                 radiance.is_constant()
             }
             Light::Point { intensity, .. } => intensity.is_constant(),
         });
-        let media = self.media.iter().all(Medium::is_constant);
-        bsdfs && lights && media
+        self.scatters_grey() && lights
+    }
+
+    /// Whether every BSDF and medium is the same at every wavelength (emission may be
+    /// coloured): the only scenes an RGB renderer computes exactly as a spectral one does,
+    /// since a product of spectra is not the product of their RGB projections.
+    pub fn scatters_grey(&self) -> bool {
+        self.bsdfs.iter().all(Bsdf::is_constant) && self.media.iter().all(Medium::is_constant)
     }
 
     /// The same scene with every position mapped to `scale`·p + `offset` (camera included);

@@ -415,3 +415,62 @@ fn a_black_box_gets_the_float32_rounding_allowance_and_no_more() {
     assert_eq!(v, Verdict::Fail, "{m}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An RGB renderer (`colour = "rgb"`, or a Mitsuba variant named `*_rgb`) is not judged on a
+/// scene whose BSDFs or media vary with wavelength: the check is SKIPPED with the reason, since
+/// a product of RGB projections is not the projection of the spectral product (Cycles, LuxCore
+/// and Mitsuba's scalar_rgb all read the Cornell box's red wall in blue about +600 %). A grey
+/// scene is still judged, and an unknown pipeline name is an error.
+#[test]
+fn rgb_renderers_are_not_judged_against_spectral_products() {
+    let specs: Vec<_> = [
+        "tests/manifests/reference.toml",
+        "tests/manifests/furnace.toml",
+    ]
+    .iter()
+    .flat_map(|m| manifest::load(&root(m)).unwrap())
+    .filter(|s| s.name == "mitsuba/cornell-box" || s.name == "furnace/sphere[albedo=0.5]")
+    .collect();
+    assert_eq!(specs.len(), 2);
+    let opts = RunOptions {
+        family_alpha: 1e-4,
+        ..RunOptions::default()
+    };
+    let path = renderers("tests/manifests/scenes/furnace-sphere-0.5.toml", "\"true\"");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("batches = 4\n", "batches = 4\ncolour = \"rgb\"\n");
+    std::fs::write(&path, text).unwrap();
+    let r = load_renderers(&path).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    assert!(ext.renders_rgb());
+    let report = harness::run(&specs, &opts, &ext, vec![], &mut |_| {});
+    let by_name = |n: &str| report.outcomes.iter().find(|o| o.name == n).unwrap();
+    let cornell = by_name("mitsuba/cornell-box");
+    assert_eq!(cornell.verdict, Verdict::Skipped, "{}", cornell.message);
+    assert!(
+        cornell.message.contains("renders in RGB"),
+        "{}",
+        cornell.message
+    );
+    let grey = by_name("furnace/sphere[albedo=0.5]");
+    assert_eq!(grey.verdict, Verdict::Pass, "{}", grey.message);
+    // without the key, a variant named *_rgb is an RGB renderer and *_spectral is not
+    let r = load_renderers(&renderers("scenes/furnace-sphere.toml", "\"true\"")).unwrap();
+    assert!(External::from_spec("stand-in:scalar_rgb", &r, &root(""))
+        .unwrap()
+        .renders_rgb());
+    assert!(
+        !External::from_spec("stand-in:scalar_spectral", &r, &root(""))
+            .unwrap()
+            .renders_rgb()
+    );
+    // an unknown pipeline is refused when the table is read
+    let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("batches = 4\n", "batches = 4\ncolour = \"cmyk\"\n");
+    std::fs::write(&path, text).unwrap();
+    let e = load_renderers(&path).unwrap_err();
+    assert!(e.contains("renderer.stand-in.colour"), "{e}");
+}
