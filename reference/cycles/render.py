@@ -116,9 +116,105 @@ def parse_args(argv=None):
     p = sj.parser(__doc__.split("\n")[0], default_subdiv=7)
     p.add_argument("--cycles-max-bounces", type=int, default=None,
                    help="verification only: set Cycles' max_bounces directly, bypassing the depth mapping")
+    p.add_argument("--max-truncation", type=float, default=1e-4,
+                   help="largest relative bound on the energy an unlimited depth loses to Cycles' 1024-bounce "
+                        "limit (a^(K+1)/(1-a) at K = 1025 furnace bounces, for the largest albedo a < 1); above "
+                        "it the scene is refused, not rendered low (default: %(default)s)")
     p.add_argument("--allow-eta-mismatch", action="store_true",
                    help="verification only: render a camera or emitter inside a dielectric instead of refusing")
     return p.parse_args(argv)
+
+
+def subpixels(width, height, spp):
+    """Blender renders at least 4 x 4 pixels (a 1 x 1 request came back 4 x 4). A smaller image is
+    rendered with each pixel split into f x f sub-pixels of the same camera (the image plane is
+    unchanged) at spp / f^2 samples each, and the sub-pixels are averaged: with a one-pixel box
+    filter that is the same estimate of the same pixel. Returns f (1 for images of 4 px or more)."""
+    f = 1 if min(width, height) >= 4 else -(-4 // min(width, height))
+    if spp % (f * f):
+        raise Unsupported(f"a {width}x{height} image: Blender renders at least 4x4 px, so each pixel is "
+                          f"{f}x{f} sub-pixels, and {spp} spp is not a multiple of {f * f}")
+    return f
+
+
+def read_exr_uncompressed(path):
+    """(width, height, {channel: [float] row-major from the top}) of a scanline OpenEXR file with
+    NO compression and FLOAT channels, as Blender writes with exr_codec NONE (OpenEXR file
+    layout: magic, version, header attributes name/type/size/value, offset table, then per
+    scanline block y, size and each channel's row in name order)."""
+    import struct
+    data = open(path, "rb").read()
+    if data[:4] != b"\x76\x2f\x31\x01":
+        raise ValueError(f"{path}: not an OpenEXR file")
+    flags = struct.unpack_from("<I", data, 4)[0]
+    if flags & 0x200 or flags & 0x1000:
+        raise ValueError(f"{path}: tiled or multi-part EXR")
+    pos, attrs = 8, {}
+    while data[pos] != 0:
+        end = data.index(b"\0", pos)
+        name = data[pos:end].decode()
+        tend = data.index(b"\0", end + 1)
+        size = struct.unpack_from("<i", data, tend + 1)[0]
+        attrs[name] = data[tend + 5:tend + 5 + size]
+        pos = tend + 5 + size
+    pos += 1
+    if attrs["compression"][0] != 0:
+        raise ValueError(f"{path}: compressed EXR (need exr_codec NONE)")
+    chans, q, cl = [], 0, attrs["channels"]
+    while cl[q] != 0:
+        end = cl.index(b"\0", q)
+        ptype = struct.unpack_from("<i", cl, end + 1)[0]
+        if ptype != 2:
+            raise ValueError(f"{path}: channel pixel type {ptype}, need FLOAT (2)")
+        chans.append(cl[q:end].decode())
+        q = end + 1 + 16
+    x0, y0, x1, y1 = struct.unpack("<4i", attrs["dataWindow"])
+    w, h = x1 - x0 + 1, y1 - y0 + 1
+    offsets = struct.unpack_from(f"<{h}Q", data, pos)
+    planes = {c: [0.0] * (w * h) for c in chans}
+    for off in offsets:
+        y, _size = struct.unpack_from("<2i", data, off)
+        row = y - y0
+        at = off + 8
+        for c in chans:
+            planes[c][row * w:(row + 1) * w] = struct.unpack_from(f"<{w}f", data, at)
+            at += 4 * w
+    return w, h, planes
+
+
+def box_average(plane, big_w, f):
+    """The mean of each f x f block of a row-major image `big_w` wide."""
+    w, h = big_w // f, len(plane) // big_w // f
+    return [math.fsum(plane[(y * f + j) * big_w + x * f + i] for j in range(f) for i in range(f)) / (f * f)
+            for y in range(h) for x in range(w)]
+
+
+def write_exr_float_rgb(path, width, height, planes):
+    """Writes R, G, B (row-major from the top) as an uncompressed scanline OpenEXR of FLOAT
+    channels (the layout read_exr_uncompressed reads)."""
+    import struct
+
+    def attr(name, typ, value):
+        return name.encode() + b"\0" + typ.encode() + b"\0" + struct.pack("<i", len(value)) + value
+    chlist = b"".join(c.encode() + b"\0" + struct.pack("<iB3xii", 2, 0, 1, 1) for c in "BGR") + b"\0"
+    box = struct.pack("<4i", 0, 0, width - 1, height - 1)
+    header = (b"\x76\x2f\x31\x01" + struct.pack("<I", 2) + attr("channels", "chlist", chlist)
+              + attr("compression", "compression", b"\0") + attr("dataWindow", "box2i", box)
+              + attr("displayWindow", "box2i", box) + attr("lineOrder", "lineOrder", b"\0")
+              + attr("pixelAspectRatio", "float", struct.pack("<f", 1.0))
+              + attr("screenWindowCenter", "v2f", struct.pack("<2f", 0.0, 0.0))
+              + attr("screenWindowWidth", "float", struct.pack("<f", 1.0)) + b"\0")
+    block = 8 + 3 * 4 * width
+    start = len(header) + 8 * height
+    body = struct.pack(f"<{height}Q", *(start + y * block for y in range(height)))
+    for y in range(height):
+        body += struct.pack("<2i", y, 3 * 4 * width)
+        for c in "BGR":
+            body += struct.pack(f"<{width}f", *planes["RGB".index(c)][y * width:(y + 1) * width])
+    tmp = path + ".part"
+    with open(tmp, "wb") as f:
+        f.write(header + body)
+    os.replace(tmp, path)
 
 
 def check_supported(s, allow_eta_mismatch=False):
@@ -191,6 +287,9 @@ def check_supported(s, allow_eta_mismatch=False):
 
 def cycles_bounces(depth):
     """furnace bounces D (-1 = unlimited) -> (Cycles max_bounces, depth-zero mode)."""
+    if depth > UNLIMITED_BOUNCES + 1:
+        raise Unsupported(f"max_depth {depth}: Cycles' max_bounces is at most {UNLIMITED_BOUNCES} "
+                          f"(furnace depth {UNLIMITED_BOUNCES + 1}); Blender would clamp it silently")
     if depth < 0:
         return UNLIMITED_BOUNCES, False
     if depth == 0:
@@ -533,19 +632,33 @@ def main(argv=None):
         s = sj.load_scene(args.scene)
         width, height, spp, depth = sj.resolve_render(args, s)
         world_medium = check_supported(s, args.allow_eta_mismatch)
+        bounces, depth_zero = cycles_bounces(depth)
+        sub = subpixels(width, height, spp)
     except Unsupported as e:
         return sj.unsupported(e)
     except (Invalid, KeyError, TypeError, ValueError) as e:
         return sj.invalid(f"{type(e).__name__}: {e}" if not isinstance(e, Invalid) else e)
-    bounces, depth_zero = cycles_bounces(depth)
     if args.cycles_max_bounces is not None:
         bounces, depth_zero = args.cycles_max_bounces, False
+    truncation = None
+    if depth < 0 and args.cycles_max_bounces is None:
+        # Cycles' 1024 bounces are furnace's 1025 (cycles_bounces); measured: the furnace sphere
+        # at albedo 0.999 reads 641.0 +- 4.5 where E(1 - a^1026)/(1 - a) = 641.7 and E/(1 - a) = 1000
+        truncation = sj.truncation(s, UNLIMITED_BOUNCES + 1)
+        a, bound = truncation["max_albedo"], truncation["tail_bound_relative"]
+        if bound is not None and bound > args.max_truncation:
+            return sj.unsupported(
+                f"an unlimited depth: Cycles ends every path after {UNLIMITED_BOUNCES} bounces (its largest "
+                f"max_bounces), and the bound a^(K+1)/(1-a) on the share of the radiance that misses is "
+                f"{bound:.2g} at albedo a = {a:g} (above --max-truncation {args.max_truncation:g})")
 
     t0 = time.perf_counter()
     import bpy
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc = bpy.context.scene
-    used = settings(bpy, sc, spp, args.seed, width, height, bounces, args.threads)
+    used = settings(bpy, sc, spp // (sub * sub), args.seed, width * sub, height * sub, bounces, args.threads)
+    if sub > 1:
+        sc.render.image_settings.exr_codec = "NONE"  # read back below to average the sub-pixels
     b = Builder(bpy, s, args, depth_zero)
     try:
         b.shapes()
@@ -554,6 +667,9 @@ def main(argv=None):
     except (Invalid, KeyError, TypeError, ValueError) as e:
         return sj.invalid(e)
     out, stem = sj.out_paths(args.out)
+    final = out
+    if sub > 1:
+        out = out + ".subpixels.exr"
     sc.render.filepath = out
     sc.render.use_file_extension = False
     t_load = time.perf_counter() - t0
@@ -563,6 +679,11 @@ def main(argv=None):
     if not os.path.exists(out):
         print(f"error: Blender wrote no {out}", file=sys.stderr)
         return 1
+    if sub > 1:
+        big_w, big_h, planes = read_exr_uncompressed(out)
+        write_exr_float_rgb(final, width, height, [box_average(planes[c], big_w, sub) for c in "RGB"])
+        os.remove(out)
+        out = final
 
     build = bpy.app.build_hash
     sj.write_sidecar(stem, {
@@ -578,6 +699,9 @@ def main(argv=None):
                          "keep only their emission); unlimited = 1024 with Russian roulette",
         "depth_zero_mode": "BSDFs dropped, emission only" if depth_zero else None,
         "depth_override": args.cycles_max_bounces is not None,
+        "unlimited_truncation": truncation,
+        "subpixels": None if sub == 1 else
+        f"{sub}x{sub} sub-pixels at {spp // (sub * sub)} spp each, averaged (Blender renders at least 4x4 px)",
         "eta_mismatch_allowed": args.allow_eta_mismatch,
         "settings": used,
         "camera": cam,

@@ -308,6 +308,32 @@ def emitter_points(s):
 
 # --- sidecar ------------------------------------------------------------------------------------
 
+def max_albedo(s):
+    """Largest single-scattering albedo in the scene (1 where a mirror or glass is present): the
+    radiance of paths longer than K bounces is at most a^(K+1)/(1-a) x the largest radiance a
+    path can pick up after one bounce, for energy-conserving scattering."""
+    a = 0.0
+    for m in s["materials"]:
+        if m["type"] == "diffuse":
+            a = max(a, *m["rgb"])
+        elif m["type"] in ("conductor", "dielectric"):
+            a = 1.0
+    for md in s["media"]:
+        for sa, ss in zip(md["sigma_a_rgb"], md["sigma_s_rgb"]):
+            if sa + ss > 0:
+                a = max(a, ss / (sa + ss))
+    return a
+
+
+def truncation(s, bounces):
+    """What ending every path after `bounces` bounces can lose: the scene's largest albedo a and
+    the bound a^(K+1)/(1-a) on the missing tail relative to the radiance a path picks up after
+    one bounce (None when a = 1: a mirror, glass or white surface has no such bound)."""
+    a = max_albedo(s)
+    return {"bounces": bounces, "max_albedo": a,
+            "tail_bound_relative": (a ** (bounces + 1) / (1 - a)) if a < 1 else None}
+
+
 def write_sidecar(stem, data):
     data = dict(data)
     data.setdefault("python", platform.python_version())

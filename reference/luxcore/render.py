@@ -115,6 +115,9 @@ def parse_args(argv=None):
                    help="verification only: set path.pathdepth.total directly, bypassing the depth mapping")
     p.add_argument("--luxcore-rr-depth", type=int, default=None,
                    help="verification only: set path.russianroulette.depth directly")
+    p.add_argument("--render-lossless-media", action="store_true",
+                   help="verification only: render an unlimited depth in a lossless scattering medium instead of "
+                        "refusing it")
     p.add_argument("--luxcore-epsilon-min", type=float, default=None,
                    help="verification only: set LuxCore's minimum ray epsilon (scene.epsilon.min) directly")
     return p.parse_args(argv)
@@ -178,23 +181,6 @@ def luxcore_depth(depth, unlimited):
     if depth == 0:
         return 1, True
     return depth + 1, False
-
-
-def max_albedo(s):
-    """Largest single-scattering albedo in the scene (1 where a mirror or glass is present): the
-    radiance of paths longer than K bounces is at most a^(K+1)/(1-a) x the largest radiance a
-    path can pick up after one bounce, for energy-conserving scattering."""
-    a = 0.0
-    for m in s["materials"]:
-        if m["type"] == "diffuse":
-            a = max(a, *m["rgb"])
-        elif m["type"] in ("conductor", "dielectric"):
-            a = 1.0
-    for md in s["media"]:
-        for sa, ss in zip(md["sigma_a_rgb"], md["sigma_s_rgb"]):
-            if sa + ss > 0:
-                a = max(a, ss / (sa + ss))
-    return a
 
 
 def fmt(v):
@@ -383,16 +369,22 @@ def main(argv=None):
         pathdepth, depth_zero = args.luxcore_pathdepth, False
     truncation = None
     if depth < 0 and args.luxcore_pathdepth is None:
-        a = max_albedo(s)
-        truncation = {"bounces": args.unlimited_depth, "max_albedo": a,
-                      "tail_bound_relative": (a ** (args.unlimited_depth + 1) / (1 - a)) if a < 1 else None}
-        bound = truncation["tail_bound_relative"]
+        truncation = sj.truncation(s, args.unlimited_depth)
+        a, bound = truncation["max_albedo"], truncation["tail_bound_relative"]
         if bound is not None and bound > args.max_truncation:
             return sj.unsupported(
                 f"an unlimited depth: with roulette off (LuxCore 2.11.2's roulette biases its MIS) paths end "
                 f"at {args.unlimited_depth} bounces, and the bound a^(K+1)/(1-a) on the share of the radiance "
                 f"that misses is {bound:.2g} at albedo a = {a:g} (above --max-truncation "
                 f"{args.max_truncation:g}); give a finite --max-depth or a larger --unlimited-depth")
+        lossless = [i for i, md in enumerate(s["media"])
+                    if any(ss > 0 and sa == 0 for sa, ss in zip(md["sigma_a_rgb"], md["sigma_s_rgb"]))]
+        if lossless and not args.render_lossless_media:
+            return sj.unsupported(
+                f"an unlimited depth in a lossless scattering medium (medium {lossless[0]}): paths scatter about "
+                f"(optical radius)^2 times and the loss to the {args.unlimited_depth}-bounce truncation has no "
+                f"bound; and LuxCore 2.11.2 gains energy along long paths in such a medium (null-bounded "
+                f"sphere, sigma_s 4, 2048 bounces: 2.86 +- 0.13 for 1; reports/renderers/four/FINDINGS.md)")
 
     # numpy and OpenEXR must be imported before pyluxcore: its wheel preloads TBB's malloc proxy, and
     # an extension loaded after it aborts with "free(): invalid pointer" (pyluxcore 2.11.2).
@@ -413,6 +405,13 @@ def main(argv=None):
     scene.Parse(b.properties("scene."))
     rr_depth = RR_OFF if args.luxcore_rr_depth is None else args.luxcore_rr_depth
     cfg_list = config_props(width, height, spp, args.seed, pathdepth, args.threads, rr_depth)
+    # LuxCore's ray epsilons are absolute lengths (defaults 1e-5 and 0.1, for scenes metres
+    # across); a scene smaller than 1 unit gets both scaled by its extent, as a user modelling
+    # at that scale would set them (measured: at scale 1e-4 the default 1e-5 reads the
+    # concave furnace -3 % and the area light -13 %; reports/renderers/four/FINDINGS.md)
+    extent = sj.scene_extent(s)
+    if extent < 1.0:
+        cfg_list += [("scene.epsilon.min", repr(1e-5 * extent)), ("scene.epsilon.max", repr(0.1 * extent))]
     if args.luxcore_epsilon_min is not None:
         cfg_list.append(("scene.epsilon.min", repr(args.luxcore_epsilon_min)))
     cfg = pyluxcore.Properties()
