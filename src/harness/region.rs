@@ -29,6 +29,8 @@ pub struct RegionStats {
     pub se_between: f64,
     /// Pixels in the region.
     pub pixels: usize,
+    /// Pixels whose variance holds Monte Carlo noise beyond rounding ([`has_noise`]).
+    pub noisy_pixels: usize,
     /// Camera paths traced for the whole image.
     pub samples: u64,
     /// Whether the variance settled (stats::stability on the pixel residuals).
@@ -244,6 +246,7 @@ pub fn region_stats_of(
             se_within,
             se_between: 0.0,
             pixels: px.len(),
+            noisy_pixels: px.len(),
             samples,
             stable: false,
             stability: why,
@@ -283,6 +286,7 @@ pub fn region_stats_of(
         se_within,
         se_between,
         pixels: px.len(),
+        noisy_pixels: vars.iter().filter(|v| has_noise(**v, allowance)).count(),
         samples,
         stable,
         stability,
@@ -376,6 +380,12 @@ pub fn residual_stability(
     )
 }
 
+/// Whether a region's variance rests on few pixels: some pixels read their value exactly and
+/// fewer than 160 (the smallest sample the tail diagnosis judges) hold Monte Carlo noise.
+fn few_noisy(r: &RegionStats) -> bool {
+    (2..r.pixels.min(stability::MIN_HILL_K * stability::HILL_MAX_FRACTION)).contains(&r.noisy_pixels)
+}
+
 /// A measurement from one region test against a closed form.
 pub fn region_measurement(
     r: &RegionStats,
@@ -406,6 +416,19 @@ pub fn region_measurement(
                 super::measurement::fmt_sig(p)
             );
             (rt.se, s, p, text, tests)
+        }
+        _ if few_noisy(r) => {
+            // The variance rests on the few pixels with noise (the others read their value
+            // exactly): Student's t on their count less one, as a sample variance of m values
+            // (a furnace of glass and mirror, where a pixel's samples are 0, 1 or η² and 31 of
+            // 192 pixels hold any noise, read z = -3.99 at seed 1237: t on 30 dof, p 3.9e-4)
+            let dof = (r.noisy_pixels - 1) as f64;
+            let (t, p) = t_with_tolerance(r.mean, r.se, expected, rel_tolerance, dof);
+            let text = format!(
+                "; t on {dof} dof: the variance rests on the {} of {} pixels with Monte Carlo noise",
+                r.noisy_pixels, r.pixels
+            );
+            (r.se, super::outcome::Statistic::T { t, dof }, p, text, 1)
         }
         _ => {
             let (z, p) = z_with_tolerance(r.mean, r.se, expected, rel_tolerance);
@@ -580,5 +603,38 @@ mod tests {
             .collect();
         let (_, why, _, _) = residual_stability(&noisy, &vec![1e-6; 192], 1e-12, 1e-12, 1e-4);
         assert!(!why.contains("too few"), "{why}");
+    }
+
+    /// A region whose variance rests on few pixels (the others exact) is judged with
+    /// Student's t on their count less one; a region where every pixel is noisy keeps z.
+    #[test]
+    fn a_variance_on_few_noisy_pixels_is_judged_with_t() {
+        let stats = |noisy_pixels| RegionStats {
+            mean: 0.99976,
+            se: 6.0e-5,
+            se_within: 5.4e-5,
+            se_between: 6.0e-5,
+            pixels: 192,
+            noisy_pixels,
+            samples: 524_288,
+            stable: true,
+            stability: "stable".into(),
+            retest: None,
+        };
+        let few = region_measurement(&stats(31), 1.0, 0.0, String::new());
+        assert!(
+            matches!(few.statistic, Some(super::super::outcome::Statistic::T { dof, .. }) if dof == 30.0),
+            "{:?}",
+            few.statistic
+        );
+        let p = few.p_value.unwrap();
+        assert!((3e-4..5e-4).contains(&p), "{p}");
+        assert!(few.message.contains("31 of 192 pixels"), "{}", few.message);
+        let all = region_measurement(&stats(192), 1.0, 0.0, String::new());
+        assert!(matches!(
+            all.statistic,
+            Some(super::super::outcome::Statistic::Z { .. })
+        ));
+        assert!(all.p_value.unwrap() < 1e-4);
     }
 }
