@@ -675,8 +675,6 @@ impl External {
             .channels
             .clone()
             .unwrap_or(["R".into(), "G".into(), "B".into()]);
-        // Y of a flat spectrum: furnace's normalisation over the renderer's.
-        let y_scale = Observer::Cie1931.white()[1] / native.white()[1];
         let threads = if s.threads == 0 {
             std::thread::available_parallelism().map_or(1, |n| n.get())
         } else {
@@ -757,12 +755,7 @@ impl External {
             let mut batch = vec![Pixel::default(); s.width * s.height];
             for (i, px) in batch.iter_mut().enumerate() {
                 let native_rgb = [rgb[0][i] as f64, rgb[1][i] as f64, rgb[2][i] as f64];
-                let xyz = native.rgb_to_xyz(native_rgb).map(|v| v * y_scale);
-                let out_rgb = if s.observer == native {
-                    native_rgb
-                } else {
-                    s.observer.xyz_to_rgb(xyz)
-                };
+                let (xyz, out_rgb) = observed(&native, &s.observer, native_rgb);
                 px.add(xyz, out_rgb);
             }
             fold.push(batch, &|a: &mut Vec<Pixel>, b: &Vec<Pixel>| {
@@ -773,9 +766,47 @@ impl External {
     }
 }
 
+/// A renderer's linear RGB in its own colour pipeline `native` as (XYZ in furnace's units, RGB
+/// in the check's pipeline `check`). Each pipeline normalises a flat spectrum of 1 its own way
+/// (Mitsuba's Y of it is 1.00100, furnace's 1), so XYZ is scaled channel by channel by the
+/// ratio of the two pipelines' whites: exact for grey scenes, the only ones RGB renderers are
+/// judged on (without it, Cycles and LuxCore read Mitsuba's grey furnace box 0.05–0.1 % low).
+pub fn observed(native: &Observer, check: &Observer, native_rgb: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+    let xyz = native.rgb_to_xyz(native_rgb);
+    let (own, furnace, theirs) = (native.white(), Observer::Cie1931.white(), check.white());
+    let in_furnace = std::array::from_fn(|k| xyz[k] * furnace[k] / own[k]);
+    let out_rgb = if check == native {
+        native_rgb
+    } else {
+        check.xyz_to_rgb(std::array::from_fn(|k| xyz[k] * theirs[k] / own[k]))
+    };
+    (in_furnace, out_rgb)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A renderer that writes furnace's film RGB of a flat spectrum (as the JSON exporter gives
+    /// Cycles and LuxCore) reads, in Mitsuba's pipeline, what Mitsuba's film gives a flat
+    /// spectrum; in furnace's own units its Y is 1.
+    #[test]
+    fn a_grey_pixel_reads_the_same_in_every_pipeline() {
+        let white = Observer::Cie1931.xyz_to_rgb(Observer::Cie1931.white());
+        let (xyz, rgb) = observed(&Observer::Cie1931, &Observer::Mitsuba3, white);
+        let want = Observer::Mitsuba3.xyz_to_rgb(Observer::Mitsuba3.white());
+        for k in 0..3 {
+            assert!((rgb[k] - want[k]).abs() < 1e-12, "{rgb:?} vs {want:?}");
+            assert!((xyz[k] - Observer::Cie1931.white()[k]).abs() < 1e-12);
+        }
+        // and back: Mitsuba's RGB of a flat spectrum is furnace's Y = 1
+        let (xyz, rgb) = observed(&Observer::Mitsuba3, &Observer::Mitsuba3, want);
+        assert_eq!(rgb, want);
+        assert!((xyz[1] - 1.0).abs() < 1e-12, "{xyz:?}");
+        // the old conversion (XYZ in furnace's units straight into Mitsuba's matrix) is 0.1 % low
+        let old = Observer::Mitsuba3.xyz_to_rgb(Observer::Cie1931.white());
+        assert!((old[1] / want[1] - 1.0).abs() > 5e-4, "{old:?} {want:?}");
+    }
 
     #[test]
     fn shell_words_survive_quotes_and_spaces() {
@@ -813,7 +844,7 @@ mod tests {
                 "renderer.x.observer",
             ),
             (format!("{ok}batches = 1\n"), "renderer.x.batches: 1"),
-            (format!("{ok}colour = 1\n"), "unknown field `colour`"),
+            (format!("{ok}gamma = 1\n"), "unknown field `gamma`"),
         ] {
             let e = load_renderers(&write(&text)).unwrap_err();
             assert!(e.contains(want), "{e}");
