@@ -383,7 +383,10 @@ pub fn residual_stability(
 /// Whether a region's variance rests on few pixels: some pixels read their value exactly and
 /// fewer than 160 (the smallest sample the tail diagnosis judges) hold Monte Carlo noise.
 fn few_noisy(r: &RegionStats) -> bool {
-    (2..r.pixels.min(stability::MIN_HILL_K * stability::HILL_MAX_FRACTION)).contains(&r.noisy_pixels)
+    (2..r
+        .pixels
+        .min(stability::MIN_HILL_K * stability::HILL_MAX_FRACTION))
+        .contains(&r.noisy_pixels)
 }
 
 /// A measurement from one region test against a closed form.
