@@ -384,7 +384,7 @@ def main(argv=None):
                 f"an unlimited depth in a lossless scattering medium (medium {lossless[0]}): paths scatter about "
                 f"(optical radius)^2 times and the loss to the {args.unlimited_depth}-bounce truncation has no "
                 f"bound; and LuxCore 2.11.2 gains energy along long paths in such a medium (null-bounded "
-                f"sphere, sigma_s 4, 2048 bounces: 2.86 +- 0.13 for 1; reports/renderers/four/FINDINGS.md)")
+                f"sphere, sigma_s 4, 2048 bounces: 2.93 +- 0.14 for 1; reports/renderers/four/FINDINGS.md)")
 
     # numpy and OpenEXR must be imported before pyluxcore: its wheel preloads TBB's malloc proxy, and
     # an extension loaded after it aborts with "free(): invalid pointer" (pyluxcore 2.11.2).

@@ -13,7 +13,8 @@ for scene in "$here"/*.json; do
     name=$(basename "$scene" .json)
     "$py" "$here/../../../../reference/luxcore/render.py" --scene "$scene" --out "$out/$name-$k.exr" \
       --spp 256 --seed 1 --width 16 --height 16 --max-depth -1 --threads 2 \
-      --unlimited-depth "$k" --render-lossless-media > /dev/null
+      --unlimited-depth "$k" --render-lossless-media > /dev/null 2> "$out/stderr" \
+      || { cat "$out/stderr" >&2; exit 1; }
     "$py" - "$out/$name-$k.exr" "$scene" "$name" "$k" <<'PY'
 import json, sys, numpy as np, OpenEXR
 c = OpenEXR.File(sys.argv[1]).channels()
