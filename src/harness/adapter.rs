@@ -680,6 +680,7 @@ impl External {
         } else {
             s.threads
         };
+        let pipelines = Pipelines::new(&native, &s.observer);
         let mut fold = BlockFold::new(batches.start);
         for b in batches {
             let out = dir.join(format!("batch-{b}.exr"));
@@ -755,7 +756,7 @@ impl External {
             let mut batch = vec![Pixel::default(); s.width * s.height];
             for (i, px) in batch.iter_mut().enumerate() {
                 let native_rgb = [rgb[0][i] as f64, rgb[1][i] as f64, rgb[2][i] as f64];
-                let (xyz, out_rgb) = observed(&native, &s.observer, native_rgb);
+                let (xyz, out_rgb) = pipelines.convert(native_rgb);
                 px.add(xyz, out_rgb);
             }
             fold.push(batch, &|a: &mut Vec<Pixel>, b: &Vec<Pixel>| {
@@ -766,21 +767,45 @@ impl External {
     }
 }
 
-/// A renderer's linear RGB in its own colour pipeline `native` as (XYZ in furnace's units, RGB
-/// in the check's pipeline `check`). Each pipeline normalises a flat spectrum of 1 its own way
-/// (Mitsuba's Y of it is 1.00100, furnace's 1), so XYZ is scaled channel by channel by the
-/// ratio of the two pipelines' whites: exact for grey scenes, the only ones RGB renderers are
-/// judged on (without it, Cycles and LuxCore read Mitsuba's grey furnace box 0.05–0.1 % low).
-pub fn observed(native: &Observer, check: &Observer, native_rgb: [f64; 3]) -> ([f64; 3], [f64; 3]) {
-    let xyz = native.rgb_to_xyz(native_rgb);
-    let (own, furnace, theirs) = (native.white(), Observer::Cie1931.white(), check.white());
-    let in_furnace = std::array::from_fn(|k| xyz[k] * furnace[k] / own[k]);
-    let out_rgb = if check == native {
-        native_rgb
-    } else {
-        check.xyz_to_rgb(std::array::from_fn(|k| xyz[k] * theirs[k] / own[k]))
-    };
-    (in_furnace, out_rgb)
+/// Carries a renderer's linear RGB from its own colour pipeline into furnace's XYZ and the
+/// check's RGB. Each pipeline normalises a flat spectrum of 1 its own way (Mitsuba's Y of it is
+/// 1.00100, furnace's 1), so XYZ is scaled channel by channel by the ratio of the two
+/// pipelines' whites: exact for grey scenes, the only ones RGB renderers are judged on (without
+/// it, Cycles and LuxCore read Mitsuba's grey furnace box 0.05–0.1 % low).
+#[derive(Debug, Clone)]
+pub struct Pipelines {
+    native: Observer,
+    check: Observer,
+    to_furnace: [f64; 3],
+    to_check: [f64; 3],
+}
+
+impl Pipelines {
+    /// From the renderer's pipeline `native` to furnace's units and the check's `check`.
+    pub fn new(native: &Observer, check: &Observer) -> Pipelines {
+        let (own, furnace, theirs) = (native.white(), Observer::Cie1931.white(), check.white());
+        Pipelines {
+            native: native.clone(),
+            check: check.clone(),
+            to_furnace: std::array::from_fn(|k| furnace[k] / own[k]),
+            to_check: std::array::from_fn(|k| theirs[k] / own[k]),
+        }
+    }
+
+    /// (XYZ in furnace's units, RGB in the check's pipeline) of the renderer's `native_rgb`.
+    pub fn convert(&self, native_rgb: [f64; 3]) -> ([f64; 3], [f64; 3]) {
+        let xyz = self.native.rgb_to_xyz(native_rgb);
+        let out_rgb = if self.check == self.native {
+            native_rgb
+        } else {
+            self.check
+                .xyz_to_rgb(std::array::from_fn(|k| xyz[k] * self.to_check[k]))
+        };
+        (
+            std::array::from_fn(|k| xyz[k] * self.to_furnace[k]),
+            out_rgb,
+        )
+    }
 }
 
 #[cfg(test)]
@@ -793,14 +818,14 @@ mod tests {
     #[test]
     fn a_grey_pixel_reads_the_same_in_every_pipeline() {
         let white = Observer::Cie1931.xyz_to_rgb(Observer::Cie1931.white());
-        let (xyz, rgb) = observed(&Observer::Cie1931, &Observer::Mitsuba3, white);
+        let (xyz, rgb) = Pipelines::new(&Observer::Cie1931, &Observer::Mitsuba3).convert(white);
         let want = Observer::Mitsuba3.xyz_to_rgb(Observer::Mitsuba3.white());
         for k in 0..3 {
             assert!((rgb[k] - want[k]).abs() < 1e-12, "{rgb:?} vs {want:?}");
             assert!((xyz[k] - Observer::Cie1931.white()[k]).abs() < 1e-12);
         }
         // and back: Mitsuba's RGB of a flat spectrum is furnace's Y = 1
-        let (xyz, rgb) = observed(&Observer::Mitsuba3, &Observer::Mitsuba3, want);
+        let (xyz, rgb) = Pipelines::new(&Observer::Mitsuba3, &Observer::Mitsuba3).convert(want);
         assert_eq!(rgb, want);
         assert!((xyz[1] - 1.0).abs() < 1e-12, "{xyz:?}");
         // the old conversion (XYZ in furnace's units straight into Mitsuba's matrix) is 0.1 % low
