@@ -47,17 +47,11 @@ pub fn emission_rgb_in_gamut(
     what: impl Fn() -> String,
     s: &Spectrum,
 ) -> Result<[f64; 3], ExportError> {
-    let rgb = emission_rgb(s);
-    if rgb.iter().all(|c| *c >= 0.0 && c.is_finite()) {
-        return Ok(rgb);
-    }
-    Err(ExportError::Unsupported {
-        format: FORMAT,
-        what: what(),
-        why: format!(
-            "an emission spectrum whose linear sRGB is ({:.4e}, {:.4e}, {:.4e}): outside the sRGB gamut, and an RGB renderer clamps a negative channel to 0",
-            rgb[0], rgb[1], rgb[2]
-        ),
+    in_gamut(what, emission_rgb(s), |rgb| {
+        format!(
+        "an emission spectrum whose linear sRGB is ({:.4e}, {:.4e}, {:.4e}): outside the sRGB gamut, and an RGB renderer clamps a negative channel to 0",
+        rgb[0], rgb[1], rgb[2]
+    )
     })
 }
 
@@ -65,17 +59,28 @@ pub fn emission_rgb_in_gamut(
 /// coefficient): a spectrum outside the sRGB gamut can map to a negative channel, which no
 /// renderer can take; it is refused by name rather than clamped.
 fn nonnegative_rgb(what: impl Fn() -> String, s: &Spectrum) -> Result<[f64; 3], ExportError> {
-    let rgb = reflectance_rgb(s);
+    in_gamut(what, reflectance_rgb(s), |rgb| {
+        format!(
+        "a spectrum whose per-channel RGB is ({:.4}, {:.4}, {:.4}): outside the sRGB gamut, and a negative value is not physical",
+        rgb[0], rgb[1], rgb[2]
+    )
+    })
+}
+
+/// `rgb` when every channel is finite and non-negative; else the export of `what` is refused,
+/// `why` saying why from the channels.
+fn in_gamut(
+    what: impl Fn() -> String,
+    rgb: [f64; 3],
+    why: impl Fn([f64; 3]) -> String,
+) -> Result<[f64; 3], ExportError> {
     if rgb.iter().all(|c| *c >= 0.0 && c.is_finite()) {
         return Ok(rgb);
     }
     Err(ExportError::Unsupported {
         format: FORMAT,
         what: what(),
-        why: format!(
-            "a spectrum whose per-channel RGB is ({:.4}, {:.4}, {:.4}): outside the sRGB gamut, and a negative value is not physical",
-            rgb[0], rgb[1], rgb[2]
-        ),
+        why: why(rgb),
     })
 }
 

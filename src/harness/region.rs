@@ -424,7 +424,7 @@ pub fn region_measurement(
             // The variance rests on the few pixels with noise (the others read their value
             // exactly): Student's t on their count less one, as a sample variance of m values
             // (a furnace of glass and mirror, where a pixel's samples are 0, 1 or η² and 31 of
-            // 192 pixels hold any noise, read z = -3.99 at seed 1237: t on 30 dof, p 3.9e-4)
+            // 192 pixels hold any noise, read z = -3.99 at seed 1237: t on 30 dof, p 4.0e-4)
             let dof = (r.noisy_pixels - 1) as f64;
             let (t, p) = t_with_tolerance(r.mean, r.se, expected, rel_tolerance, dof);
             let text = format!(

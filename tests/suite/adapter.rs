@@ -27,6 +27,16 @@ fn renderers(scene: &str, probe: &str) -> std::path::PathBuf {
     p
 }
 
+/// [`renderers`] with `keys` (TOML lines) added to the stand-in's table.
+fn renderers_with(scene: &str, keys: &str) -> std::path::PathBuf {
+    let path = renderers(scene, "\"true\"");
+    let text = std::fs::read_to_string(&path)
+        .unwrap()
+        .replace("batches = 4\n", &format!("batches = 4\n{keys}"));
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
 fn verdict(scene: &str) -> (Verdict, String) {
     let r = load_renderers(&renderers(scene, "\"true\"")).unwrap();
     let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
@@ -179,12 +189,10 @@ fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
             &["convergence/sobol-smooth", "convergence/sobol-edge"][..],
         ),
     ] {
-        let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
-        let text = std::fs::read_to_string(&path).unwrap().replace(
-            "batches = 4\n",
-            &format!("batches = 4\nsampler = {pattern:?}\n"),
+        let path = renderers_with(
+            "scenes/furnace-sphere.toml",
+            &format!("sampler = {pattern:?}\n"),
         );
-        std::fs::write(&path, text).unwrap();
         let r = load_renderers(&path).unwrap();
         let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
         let subject = harness::Subject {
@@ -201,11 +209,7 @@ fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
         }
     }
     // a pattern is one word
-    let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("batches = 4\n", "batches = 4\nsampler = \"\"\n");
-    std::fs::write(&path, text).unwrap();
+    let path = renderers_with("scenes/furnace-sphere.toml", "sampler = \"\"\n");
     let e = load_renderers(&path).unwrap_err();
     assert!(e.contains("renderer.stand-in.sampler"), "{e}");
 }
@@ -436,11 +440,10 @@ fn rgb_renderers_are_not_judged_against_spectral_products() {
         family_alpha: 1e-4,
         ..RunOptions::default()
     };
-    let path = renderers("tests/manifests/scenes/furnace-sphere-0.5.toml", "\"true\"");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("batches = 4\n", "batches = 4\ncolour = \"rgb\"\n");
-    std::fs::write(&path, text).unwrap();
+    let path = renderers_with(
+        "tests/manifests/scenes/furnace-sphere-0.5.toml",
+        "colour = \"rgb\"\n",
+    );
     let r = load_renderers(&path).unwrap();
     let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
     assert!(ext.renders_rgb());
@@ -466,11 +469,7 @@ fn rgb_renderers_are_not_judged_against_spectral_products() {
             .renders_rgb()
     );
     // an unknown pipeline is refused when the table is read
-    let path = renderers("scenes/furnace-sphere.toml", "\"true\"");
-    let text = std::fs::read_to_string(&path)
-        .unwrap()
-        .replace("batches = 4\n", "batches = 4\ncolour = \"cmyk\"\n");
-    std::fs::write(&path, text).unwrap();
+    let path = renderers_with("scenes/furnace-sphere.toml", "colour = \"cmyk\"\n");
     let e = load_renderers(&path).unwrap_err();
     assert!(e.contains("renderer.stand-in.colour"), "{e}");
 }
