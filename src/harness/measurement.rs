@@ -27,6 +27,11 @@ pub struct Measurement {
     /// so a rejection at the check's level is a FAIL, not UNSTABLE: a bias too large for even
     /// that is a bias, whatever the variance does.
     pub retested: bool,
+    /// Evidence that the variance is infinite (harness::region::heavy_tail), weighed only when
+    /// the mean test rejects: the verdict is then UNSTABLE with this text, not FAIL (the test
+    /// assumes a finite variance). A relabelling of a rejection, so it never turns a PASS into
+    /// anything else.
+    pub heavy_tail: Option<String>,
     /// Samples used.
     pub samples: u64,
     /// Explanation: estimator, what was compared, sub-results.
@@ -83,6 +88,11 @@ pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {
     m.deterministic_pass = det;
     m.regression = parts.iter().any(|(_, p)| p.regression);
     m.unstable = (!unstable.is_empty()).then(|| unstable.join("; "));
+    let heavy: Vec<String> = parts
+        .iter()
+        .filter_map(|(n, m)| m.heavy_tail.as_ref().map(|u| format!("{n}: {u}")))
+        .collect();
+    m.heavy_tail = (!heavy.is_empty()).then(|| heavy.join("; "));
     // A FAIL through the re-test needs every unstable part re-tested.
     m.retested = parts
         .iter()
@@ -169,9 +179,41 @@ pub fn judge(ms: &Measurement, alpha: f64) -> Verdict {
     if ms.unstable.is_some() && (stoch || !ms.retested) {
         return Verdict::Unstable;
     }
+    // A rejection resting on an infinite-variance tail is no evidence of a bias.
+    if !stoch && det && ms.heavy_tail.is_some() {
+        return Verdict::Unstable;
+    }
     if det && stoch {
         Verdict::Pass
     } else {
         Verdict::Fail
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_heavy_tail_relabels_a_rejection_and_nothing_else() {
+        let m = |p: f64, det: Option<bool>| Measurement {
+            estimate: Some(85.9),
+            std_error: Some(1.9),
+            expected: Some(100.0),
+            p_value: Some(p),
+            deterministic_pass: det,
+            heavy_tail: Some("UNSTABLE: variance likely infinite".into()),
+            ..Default::default()
+        };
+        assert_eq!(judge(&m(1e-14, None), 1e-4), Verdict::Unstable);
+        // a passing mean test stays PASS: the relabelling adds no false alarm
+        assert_eq!(judge(&m(0.04, None), 1e-4), Verdict::Pass);
+        // a failed deterministic part is a FAIL whatever the tail
+        assert_eq!(judge(&m(1e-14, Some(false)), 1e-4), Verdict::Fail);
+        let plain = Measurement {
+            heavy_tail: None,
+            ..m(1e-14, None)
+        };
+        assert_eq!(judge(&plain, 1e-4), Verdict::Fail);
     }
 }

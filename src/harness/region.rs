@@ -40,6 +40,43 @@ pub struct RegionStats {
     /// When the diagnosis failed on batch means only (structure across pixels, not an
     /// infinite-variance tail): the re-test that decides between FAIL and UNSTABLE.
     pub retest: Option<Retest>,
+    /// Hill's tail index of the noisy pixels' standard deviations, bounded at confidence
+    /// 1 − [`HEAVY_TAIL_P`] ([`stability::sd_tail`]); None below 40 noisy pixels.
+    pub sd_tail: Option<stability::SdTail>,
+    /// Sign of the third central moment of the noisy pixels' means (+1: a right tail, the
+    /// side of a radiance estimator's rare large samples; 0 when not evaluated).
+    pub tail_side: f64,
+}
+
+/// One minus the confidence of the per-pixel sd tail bound that turns a rejected mean test
+/// into UNSTABLE ([`heavy_tail`]). It only relabels a rejection, so it cannot add a
+/// non-PASS verdict and needs no share of the family-wise rate; 5 % is the rate at which a
+/// finite-variance tail of index 2 would be relabelled (docs/statistics.md, "Infinite
+/// variance").
+pub const HEAVY_TAIL_P: f64 = 0.05;
+
+/// Evidence that a region's variance is infinite, stated for a mean test that rejects: the
+/// per-pixel sds' tail index is below 2 at confidence 1 − [`HEAVY_TAIL_P`], and the estimate
+/// errs to the side opposite its tail, as an unbiased mean with a heavy tail usually does
+/// (it misses the rare large samples). A z or t test assumes a finite variance, so such a
+/// rejection is no evidence of a bias: the verdict is UNSTABLE.
+pub fn heavy_tail(r: &RegionStats, expected: f64) -> Option<String> {
+    let t = r.sd_tail.filter(|t| t.infinite())?;
+    ((r.mean - expected) * r.tail_side < 0.0).then(|| {
+        format!(
+            "UNSTABLE: variance likely infinite, so the mean test's rejection is no evidence of a bias: \
+             the per-pixel standard deviations have Hill tail index {:.3} (k = {} of {} px), upper \
+             bound {:.3} < 2 at {:.0} % confidence, and the estimate reads {} its expected value, \
+             as an unbiased mean with a {} tail usually does",
+            t.alpha,
+            t.k,
+            t.n,
+            t.upper,
+            100.0 * (1.0 - t.p),
+            if r.mean < expected { "below" } else { "above" },
+            if r.tail_side > 0.0 { "right" } else { "left" },
+        )
+    })
 }
 
 /// The re-test of a region whose residuals have structure. Pixels are independent estimates
@@ -251,6 +288,8 @@ pub fn region_stats_of(
             stable: false,
             stability: why,
             retest: None,
+            sd_tail: None,
+            tail_side: 0.0,
         };
     }
     let allowance = rounding * scale;
@@ -280,6 +319,7 @@ pub fn region_stats_of(
                 })
         })
         .flatten();
+    let (sd_tail, tail_side) = tail_of(&px, &vars, allowance);
     RegionStats {
         mean,
         se,
@@ -291,7 +331,53 @@ pub fn region_stats_of(
         stable,
         stability,
         retest,
+        sd_tail,
+        tail_side,
     }
+}
+
+/// "; per-pixel sd tail index …" for a message, or nothing where it was not evaluated.
+fn sd_tail_text(r: &RegionStats) -> String {
+    r.sd_tail.map_or(String::new(), |t| {
+        format!(
+            "; per-pixel sd tail index {:.3} (k = {} of {} px), upper bound {:.3} at {:.0} %, pixel means' tail {}",
+            t.alpha,
+            t.k,
+            t.n,
+            t.upper,
+            100.0 * (1.0 - t.p),
+            if r.tail_side > 0.0 { "right" } else if r.tail_side < 0.0 { "left" } else { "none" }
+        )
+    })
+}
+
+/// The per-pixel sd tail ([`stability::sd_tail`]) and the side of the pixel means' tail
+/// (sign of their third central moment), over the pixels with Monte Carlo noise.
+fn tail_of(px: &[f64], vars: &[f64], allowance: f64) -> (Option<stability::SdTail>, f64) {
+    let noisy: Vec<(f64, f64)> = px
+        .iter()
+        .zip(vars)
+        .filter(|(_, v)| has_noise(**v, allowance))
+        .map(|(m, v)| (*m, *v))
+        .collect();
+    let sds: Vec<f64> = noisy.iter().map(|(_, v)| v.sqrt()).collect();
+    let tail = stability::sd_tail(&sds, HEAVY_TAIL_P);
+    if tail.is_none() {
+        return (None, 0.0);
+    }
+    let n = noisy.len() as f64;
+    let m = noisy.iter().map(|(x, _)| x).sum::<f64>() / n;
+    let m3: f64 = noisy.iter().map(|(x, _)| (x - m).powi(3)).sum();
+    (
+        tail,
+        if m3 > 0.0 {
+            1.0
+        } else if m3 < 0.0 {
+            -1.0
+        } else {
+            0.0
+        },
+    )
 }
 
 /// Variance diagnosis of per-pixel residuals rᵢ (zero mean under the null hypothesis) whose
@@ -452,6 +538,7 @@ pub fn region_measurement(
         p_value: Some(p),
         deterministic_pass: None,
         retested: unstable.is_some() && r.retest.is_some(),
+        heavy_tail: unstable.is_none().then(|| heavy_tail(r, expected)).flatten(),
         unstable,
         variants: tests,
         one_sided: false,
@@ -459,8 +546,12 @@ pub fn region_measurement(
         rel_tolerance: Some(rel_tolerance),
         samples: r.samples,
         message: format!(
-            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{retest_text}",
-            r.pixels, r.se_within, r.se_between, r.stability
+            "{message}; Y over {} px; se = max(within-pixel {:.3e}, between-pixel batch means {:.3e}); stability: {}{}{retest_text}",
+            r.pixels,
+            r.se_within,
+            r.se_between,
+            r.stability,
+            sd_tail_text(r)
         ),
     }
 }
@@ -608,6 +699,52 @@ mod tests {
         assert!(!why.contains("too few"), "{why}");
     }
 
+    /// The heavy-tail relabelling needs both an sd tail below 2 and an estimate on the side
+    /// opposite the tail.
+    #[test]
+    fn heavy_tail_needs_the_tail_and_its_side() {
+        let tail = |upper: f64| stability::SdTail {
+            alpha: upper / 1.2,
+            upper,
+            k: 64,
+            n: 256,
+            p: HEAVY_TAIL_P,
+        };
+        let r = |mean: f64, upper: f64, side: f64| RegionStats {
+            mean,
+            se: 1.9,
+            se_within: 1.9,
+            se_between: 0.0,
+            pixels: 256,
+            noisy_pixels: 256,
+            samples: 262_144,
+            stable: true,
+            stability: "stable".into(),
+            retest: None,
+            sd_tail: Some(tail(upper)),
+            tail_side: side,
+        };
+        let text = heavy_tail(&r(85.9, 1.6, 1.0), 100.0).unwrap();
+        assert!(
+            text.contains("upper bound 1.600 < 2") && text.contains("below"),
+            "{text}"
+        );
+        // reads high with a right tail: a rare large sample cannot explain that
+        assert!(heavy_tail(&r(114.0, 1.6, 1.0), 100.0).is_none());
+        // a tail that may be finite, or no tail evaluated
+        assert!(heavy_tail(&r(85.9, 2.05, 1.0), 100.0).is_none());
+        assert!(heavy_tail(
+            &RegionStats {
+                sd_tail: None,
+                ..r(85.9, 1.6, 1.0)
+            },
+            100.0
+        )
+        .is_none());
+        // a left tail with the estimate high is the mirror case
+        assert!(heavy_tail(&r(114.0, 1.6, -1.0), 100.0).is_some());
+    }
+
     /// A region whose variance rests on few pixels (the others exact) is judged with
     /// Student's t on their count less one; a region where every pixel is noisy keeps z.
     #[test]
@@ -623,6 +760,8 @@ mod tests {
             stable: true,
             stability: "stable".into(),
             retest: None,
+            sd_tail: None,
+            tail_side: 0.0,
         };
         let few = region_measurement(&stats(31), 1.0, 0.0, String::new());
         assert!(

@@ -53,6 +53,14 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
             o.message = format!("{}; {}", ms.unstable.as_deref().unwrap_or(""), o.message);
         }
         Verdict::Unstable
+    } else if let (true, true, Some(heavy)) = (
+        rejected,
+        ms.deterministic_pass.unwrap_or(true),
+        ms.heavy_tail.as_deref(),
+    ) {
+        // the rejection rests on a tail the mean test cannot allow for
+        o.message = format!("{heavy}; {}", o.message);
+        Verdict::Unstable
     } else if pass {
         Verdict::Pass
     } else {

@@ -147,6 +147,7 @@ pub fn measure(
         deterministic_pass: Some(a_max <= 1.0 + abs_tol && exact_pass),
         unstable: None,
         retested: false,
+        heavy_tail: None,
         variants: 1,
         one_sided: true,
         regression: false,

@@ -163,6 +163,7 @@ impl Kind for EstimatorAgreement {
             rel_tolerance: None,
             deterministic_pass: None,
             retested: !unstable.is_empty() && retested,
+        heavy_tail: None,
             unstable: (!unstable.is_empty()).then(|| format!("UNSTABLE: {}", unstable.join("; "))),
             samples: stats.iter().map(|(_, r)| r.samples).sum(),
             message: format!(

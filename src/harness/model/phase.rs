@@ -243,6 +243,7 @@ pub fn measure_phase_at(
         deterministic_pass: Some(det_err <= abs_tol),
         unstable: None,
         retested: false,
+        heavy_tail: None,
         variants: 3,
         one_sided: false,
         regression: false,
