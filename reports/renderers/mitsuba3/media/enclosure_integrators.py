@@ -8,6 +8,8 @@ luminance over K independent seeds with its standard error and its deviation fro
 
     python enclosure_integrators.py EXPECTED scene.xml [scene.xml ...]
 
+The variant is llvm_ad_spectral unless MITSUBA_VARIANT names another (e.g. scalar_spectral).
+
 Run from the folder holding each scene.xml's meshes (the XML names them relatively).
 """
 import os
@@ -16,7 +18,7 @@ import sys
 import mitsuba as mi
 import numpy as np
 
-mi.set_variant("llvm_ad_spectral")
+mi.set_variant(os.environ.get("MITSUBA_VARIANT", "llvm_ad_spectral"))
 K, SPP, SIZE = 16, 256, 16
 
 

@@ -1,0 +1,8 @@
+#!/bin/sh
+# mitsuba3:llvm_ad_spectral as furnace ran it: 4 independent runs of 64 spp, 16x16 px; each writes batch-B.exr here.
+here=$(cd "$(dirname "$0")" && pwd)
+cd /work/main || exit 1
+env -i PATH="$PATH" HOME="$HOME" LANG="$LANG" TMPDIR="$TMPDIR" DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 python3 reference/mitsuba/render.py --xml "$here"/scene.xml --out "$here"/batch-0.exr --spp 64 --seed 1965443475 --width 16 --height 16 --max-depth -1 --variant llvm_ad_spectral --threads 2
+env -i PATH="$PATH" HOME="$HOME" LANG="$LANG" TMPDIR="$TMPDIR" DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 python3 reference/mitsuba/render.py --xml "$here"/scene.xml --out "$here"/batch-1.exr --spp 64 --seed 847132358 --width 16 --height 16 --max-depth -1 --variant llvm_ad_spectral --threads 2
+env -i PATH="$PATH" HOME="$HOME" LANG="$LANG" TMPDIR="$TMPDIR" DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 python3 reference/mitsuba/render.py --xml "$here"/scene.xml --out "$here"/batch-2.exr --spp 64 --seed 1124915266 --width 16 --height 16 --max-depth -1 --variant llvm_ad_spectral --threads 2
+env -i PATH="$PATH" HOME="$HOME" LANG="$LANG" TMPDIR="$TMPDIR" DRJIT_LIBLLVM_PATH=/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1 python3 reference/mitsuba/render.py --xml "$here"/scene.xml --out "$here"/batch-3.exr --spp 64 --seed 913407721 --width 16 --height 16 --max-depth -1 --variant llvm_ad_spectral --threads 2
