@@ -59,6 +59,12 @@ pub trait Renderer: Sync {
     fn sampler(&self) -> String {
         "independent".into()
     }
+    /// Whether its images hold exactly the samples per pixel they were asked for (false: at
+    /// least that many, as a renderer that halts at a periodic check): a convergence ladder
+    /// judges only renderers whose N is N.
+    fn exact_spp(&self) -> bool {
+        true
+    }
     /// False for a renderer that serves only models (no image command).
     fn renders_images(&self) -> bool {
         true

@@ -214,6 +214,44 @@ fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
     assert!(e.contains("renderer.stand-in.sampler"), "{e}");
 }
 
+/// A renderer that renders at least the samples asked for (LuxCore's periodic batch.haltspp)
+/// is not judged by convergence ladders, whose N would not be N; a bad value is refused.
+#[test]
+fn convergence_checks_skip_a_renderer_whose_spp_is_a_lower_bound() {
+    let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
+    let path = renderers_with("scenes/furnace-sphere.toml", "spp = \"at-least\"\n");
+    let r = load_renderers(&path).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let subject = harness::Subject {
+        renderer: &ext,
+        models: None,
+    };
+    for s in &specs {
+        let why = s.kind.not_applicable(s, &subject);
+        assert!(
+            why.as_deref().is_some_and(|w| w.contains("at-least")),
+            "{}: {why:?}",
+            s.name
+        );
+    }
+    // the default, exact, leaves the independent ladders to judge it
+    let path = renderers_with("scenes/furnace-sphere.toml", "spp = \"exact\"\n");
+    let r = load_renderers(&path).unwrap();
+    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let subject = harness::Subject {
+        renderer: &ext,
+        models: None,
+    };
+    let smooth = specs
+        .iter()
+        .find(|s| s.name == "convergence/independent-smooth")
+        .unwrap();
+    assert_eq!(smooth.kind.not_applicable(smooth, &subject), None);
+    let path = renderers_with("scenes/furnace-sphere.toml", "spp = \"roughly\"\n");
+    let e = load_renderers(&path).unwrap_err();
+    assert!(e.contains("renderer.stand-in.spp"), "{e}");
+}
+
 /// A check that fails against an external renderer leaves a reproducer bundle beside the
 /// report: README.md with the numbers and the re-run command, outcome.json, and the exported
 /// scene with a command.sh that re-runs the renderer alone; the report links it. A passing

@@ -251,6 +251,12 @@ impl Kind for Convergence {
         if renderer.is_reference() {
             return None;
         }
+        if !renderer.exact_spp() {
+            return Some(format!(
+                "{} renders at least the samples per pixel it is asked for, not exactly (renderers.toml spp = \"at-least\"), so a ladder's N would not be N",
+                renderer.name()
+            ));
+        }
         // another renderer runs its own estimator (MIS in every one judged so far) with the
         // pattern its table states
         let pattern = renderer.sampler();
