@@ -65,13 +65,9 @@ pub fn heavy_tail(r: &RegionStats, expected: f64) -> Option<String> {
     ((r.mean - expected) * r.tail_side < 0.0).then(|| {
         format!(
             "UNSTABLE: variance likely infinite, so the mean test's rejection is no evidence of a bias: \
-             the per-pixel standard deviations have Hill tail index {:.3} (k = {} of {} px), upper \
-             bound {:.3} < 2 at {:.0} % confidence, and the estimate reads {} its expected value, \
-             as an unbiased mean with a {} tail usually does",
-            t.alpha,
-            t.k,
-            t.n,
-            t.upper,
+             the per-pixel standard deviations have Hill {} < 2 at {:.0} % confidence, and the \
+             estimate reads {} its expected value, as an unbiased mean with a {} tail usually does",
+            tail_numbers(&t),
             100.0 * (1.0 - t.p),
             if r.mean < expected { "below" } else { "above" },
             if r.tail_side > 0.0 { "right" } else { "left" },
@@ -336,17 +332,26 @@ pub fn region_stats_of(
     }
 }
 
-/// "; per-pixel sd tail index …" for a message, or nothing where it was not evaluated.
+/// "tail index … (k = … of … px), upper bound …", the numbers both messages give.
+fn tail_numbers(t: &stability::SdTail) -> String {
+    format!(
+        "tail index {:.3} (k = {} of {} px), upper bound {:.3}",
+        t.alpha, t.k, t.n, t.upper
+    )
+}
+
+/// "; per-pixel sd …" for a message, or nothing where it was not evaluated.
 fn sd_tail_text(r: &RegionStats) -> String {
     r.sd_tail.map_or(String::new(), |t| {
+        let side = match r.tail_side {
+            s if s > 0.0 => "right",
+            s if s < 0.0 => "left",
+            _ => "none",
+        };
         format!(
-            "; per-pixel sd tail index {:.3} (k = {} of {} px), upper bound {:.3} at {:.0} %, pixel means' tail {}",
-            t.alpha,
-            t.k,
-            t.n,
-            t.upper,
-            100.0 * (1.0 - t.p),
-            if r.tail_side > 0.0 { "right" } else if r.tail_side < 0.0 { "left" } else { "none" }
+            "; per-pixel sd {} at {:.0} %, pixel means' tail {side}",
+            tail_numbers(&t),
+            100.0 * (1.0 - t.p)
         )
     })
 }
@@ -368,16 +373,8 @@ fn tail_of(px: &[f64], vars: &[f64], allowance: f64) -> (Option<stability::SdTai
     let n = noisy.len() as f64;
     let m = noisy.iter().map(|(x, _)| x).sum::<f64>() / n;
     let m3: f64 = noisy.iter().map(|(x, _)| (x - m).powi(3)).sum();
-    (
-        tail,
-        if m3 > 0.0 {
-            1.0
-        } else if m3 < 0.0 {
-            -1.0
-        } else {
-            0.0
-        },
-    )
+    // the sign of m3, 0 for none (f64::signum gives ±1 for ±0)
+    (tail, if m3 == 0.0 { 0.0 } else { m3.signum() })
 }
 
 /// Variance diagnosis of per-pixel residuals rᵢ (zero mean under the null hypothesis) whose

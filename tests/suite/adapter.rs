@@ -37,6 +37,12 @@ fn renderers_with(scene: &str, keys: &str) -> std::path::PathBuf {
     path
 }
 
+/// The stand-in renderer of [`renderers_with`]`(scene, keys)`, loaded.
+fn stand_in_with(scene: &str, keys: &str) -> External {
+    let r = load_renderers(&renderers_with(scene, keys)).unwrap();
+    External::from_spec("stand-in", &r, &root("")).unwrap()
+}
+
 fn verdict(scene: &str) -> (Verdict, String) {
     let r = load_renderers(&renderers(scene, "\"true\"")).unwrap();
     let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
@@ -189,12 +195,10 @@ fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
             &["convergence/sobol-smooth", "convergence/sobol-edge"][..],
         ),
     ] {
-        let path = renderers_with(
+        let ext = stand_in_with(
             "scenes/furnace-sphere.toml",
             &format!("sampler = {pattern:?}\n"),
         );
-        let r = load_renderers(&path).unwrap();
-        let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
         let subject = harness::Subject {
             renderer: &ext,
             models: None,
@@ -219,9 +223,7 @@ fn convergence_checks_judge_only_renderers_with_their_sample_pattern() {
 #[test]
 fn convergence_checks_skip_a_renderer_whose_spp_is_a_lower_bound() {
     let specs = manifest::load(&root("tests/manifests/convergence.toml")).unwrap();
-    let path = renderers_with("scenes/furnace-sphere.toml", "spp = \"at-least\"\n");
-    let r = load_renderers(&path).unwrap();
-    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let ext = stand_in_with("scenes/furnace-sphere.toml", "spp = \"at-least\"\n");
     let subject = harness::Subject {
         renderer: &ext,
         models: None,
@@ -235,9 +237,7 @@ fn convergence_checks_skip_a_renderer_whose_spp_is_a_lower_bound() {
         );
     }
     // the default, exact, leaves the independent ladders to judge it
-    let path = renderers_with("scenes/furnace-sphere.toml", "spp = \"exact\"\n");
-    let r = load_renderers(&path).unwrap();
-    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
+    let ext = stand_in_with("scenes/furnace-sphere.toml", "spp = \"exact\"\n");
     let subject = harness::Subject {
         renderer: &ext,
         models: None,
@@ -478,12 +478,10 @@ fn rgb_renderers_are_not_judged_against_spectral_products() {
         family_alpha: 1e-4,
         ..RunOptions::default()
     };
-    let path = renderers_with(
+    let ext = stand_in_with(
         "tests/manifests/scenes/furnace-sphere-0.5.toml",
         "colour = \"rgb\"\n",
     );
-    let r = load_renderers(&path).unwrap();
-    let ext = External::from_spec("stand-in", &r, &root("")).unwrap();
     assert!(ext.renders_rgb());
     let report = harness::run(&specs, &opts, &ext, vec![], &mut |_| {});
     let by_name = |n: &str| report.outcomes.iter().find(|o| o.name == n).unwrap();
