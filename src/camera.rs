@@ -101,6 +101,11 @@ impl Camera {
         })
     }
 
+    /// Unit view direction (the axis the film plane is normal to).
+    pub fn forward(&self) -> Vec3 {
+        self.forward
+    }
+
     /// Area of one pixel on the film plane at distance 1 from the eye, in units of that
     /// distance squared: A_pix = (2 tan_half_x)(2 tan_half_y)/(width·height).
     pub fn pixel_area(&self, width: usize, height: usize) -> f64 {

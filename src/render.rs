@@ -4,9 +4,11 @@
 //! image is bit-identical for any thread count and for any split into parts
 //! ([`render_part`], merged by film::partial).
 
+pub mod bdpt;
 pub mod light;
 pub mod sppm;
 
+pub use bdpt::{render_bdpt, render_bdpt_runs};
 pub use light::{render_light_part, render_light_paths, LightImage};
 pub use sppm::{render_sppm, render_sppm_runs};
 

@@ -38,8 +38,8 @@ pub struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) or radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint).
-    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm"])]
+    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping) or bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media, dispersion and environment lights).
+    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt"])]
     integrator: String,
     /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each).
     #[arg(long, default_value_t = 64)]
@@ -50,9 +50,12 @@ pub struct RenderArgs {
     /// Initial gather radius of SPPM, scene units [default: 1/50 of the scene's bounding radius].
     #[arg(long)]
     radius: Option<f64>,
-    /// Independent SPPM runs: each pixel's mean and variance come from their spread (one run's pixels are correlated across iterations).
+    /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them.
     #[arg(long, default_value_t = 4)]
     runs: u64,
+    /// One BDPT strategy alone and unweighted, as "S,T" (S light-subpath vertices, T >= 1 camera-subpath vertices): the debug image of the paths of S+T-2 bounces that strategy samples.
+    #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
+    bdpt_only: Option<(u32, u32)>,
     /// Longest patch edge of --integrator radiosity, scene units [default: the smallest that gives at most 1024 patches]. The solve is also run at twice this size, and the images' difference reported as the discretisation error estimate.
     #[arg(long, value_name = "LENGTH")]
     patch_size: Option<f64>,
@@ -235,7 +238,10 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    if a.integrator == "sppm" || a.integrator == "radiosity" {
+    if a.bdpt_only.is_some() && a.integrator != "bdpt" {
+        return Err(anyhow::anyhow!("--bdpt-only is only used by --integrator bdpt").into());
+    }
+    if a.integrator == "sppm" || a.integrator == "radiosity" || a.integrator == "bdpt" {
         if a.renderer.is_some() || shard.is_some() {
             return Err(anyhow::anyhow!(
                 "--integrator {} renders in one process with furnace's own solver: no --renderer, no --shard",
@@ -245,6 +251,8 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         }
         return if a.integrator == "sppm" {
             render_sppm_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
+        } else if a.integrator == "bdpt" {
+            render_bdpt_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
         } else {
             render_radiosity_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
         };
@@ -371,6 +379,89 @@ fn render_radiosity_image(
         settings.height,
         settings.spp,
         secs
+    );
+    Ok(code)
+}
+
+/// Parses --bdpt-only "S,T".
+fn parse_strategy(v: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("expected S,T (two integers, T >= 1, S + T >= 2), got {v:?}");
+    let (s, t) = v.split_once(',').ok_or_else(bad)?;
+    let (s, t) = (
+        s.trim().parse::<u32>().map_err(|_| bad())?,
+        t.trim().parse::<u32>().map_err(|_| bad())?,
+    );
+    if t == 0 || s + t < 2 || s > 1000 || t > 1000 {
+        return Err(bad());
+    }
+    Ok((s, t))
+}
+
+/// `furnace render --integrator bdpt`.
+fn render_bdpt_image(
+    a: &RenderArgs,
+    scene: &Scene,
+    settings: &RenderSettings,
+    mut attrs: Vec<(String, String)>,
+    exr_path: &Path,
+    png_path: &Path,
+) -> Result<i32, Failure> {
+    use furnace::integrators::bdpt::{Bdpt, Weighting};
+    if a.runs < 2 || settings.spp % a.runs != 0 {
+        return Err(anyhow::anyhow!(
+            "--integrator bdpt divides --spp ({}) among --runs ({}) independent runs: give at least 2 runs and an spp that is a multiple of them",
+            settings.spp,
+            a.runs
+        )
+        .into());
+    }
+    let mut bdpt = Bdpt::from(&settings.integrator);
+    if let Some((s, t)) = a.bdpt_only {
+        bdpt.weighting = Weighting::Only { s, t };
+    }
+    let per_run = RenderSettings {
+        spp: settings.spp / a.runs,
+        ..settings.clone()
+    };
+    let total = (settings.width as u64)
+        .saturating_mul(settings.height as u64)
+        .saturating_mul(settings.spp);
+    let bar = progress_bar(super::quiet(), total)?;
+    let start = Instant::now();
+    let film =
+        furnace::render::render_bdpt(scene, &per_run, &bdpt, a.runs, &|n| bar.set_position(n))
+            .context("cannot render")?;
+    let secs = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    for (k, v) in [
+        ("furnace.bdpt_runs", a.runs.to_string()),
+        (
+            "furnace.bdpt_strategies",
+            a.bdpt_only
+                .map_or("all (power heuristic)".into(), |(s, t)| {
+                    format!("only s={s}, t={t}")
+                }),
+        ),
+        ("furnace.variance_dof", (a.runs - 1).to_string()),
+    ] {
+        attrs.retain(|(name, _)| name != k);
+        attrs.push((k.into(), v));
+    }
+    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    super::say!(
+        "bdpt: {}x{} px, {} spp in {} runs, {:.2} s wall, {:.3} M samples/s",
+        settings.width,
+        settings.height,
+        settings.spp,
+        a.runs,
+        secs,
+        total as f64 / secs / 1e6
+    );
+    let rel_var = relative_variance(&film);
+    super::say!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e} (from {} runs); efficiency 1/(relative variance x time) {:.4e} /s",
+        a.runs,
+        1.0 / (rel_var * secs)
     );
     Ok(code)
 }

@@ -3,6 +3,7 @@
 //! [`super::adapter::External`].
 
 use crate::film::Film;
+use crate::integrators::bdpt::Bdpt;
 use crate::integrators::radiosity::{
     point_to_polygon, solve_with, PointFactor, RadiositySettings, SolveStats,
 };
@@ -102,6 +103,23 @@ pub trait Renderer: Sync {
         )))
     }
 
+    /// Renders `scene` by bidirectional path tracing: `runs` independent images of
+    /// `settings.spp` samples per pixel each (their spread is the standard error; one run's
+    /// pixels are correlated through its light-tracing splats). Only furnace's own renderer
+    /// has one: the default is an error naming the renderer.
+    fn render_bdpt(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _bdpt: &Bdpt,
+        _runs: u64,
+    ) -> Result<Vec<Film>, RendererError> {
+        Err(RendererError(format!(
+            "{} has no bidirectional path tracer furnace can drive",
+            self.name()
+        )))
+    }
+
     /// Solves `scene` by radiosity (`radiosity`) and renders the solution with `settings`'
     /// camera samples, returning the image and the solve's statistics. Only furnace's own
     /// renderer has a radiosity solver: the default is an error naming the renderer.
@@ -129,6 +147,26 @@ pub fn sppm_images(
 ) -> Result<Vec<Film>, RendererError> {
     crate::render::render_sppm_runs(scene, settings, sppm, runs, estimate, &|_| {})
         .map_err(|e| RendererError(e.to_string()))
+}
+
+/// The `runs` independent BDPT images of `scene` with `bdpt` (furnace's own is
+/// [`Bdpt::from`] the path tracer's settings; a negative control passes a wrong heuristic or
+/// geometry term), refused when the path-length guard cut a subpath.
+pub fn bdpt_images(
+    scene: &Scene,
+    settings: &RenderSettings,
+    bdpt: &Bdpt,
+    runs: u64,
+) -> Result<Vec<Film>, RendererError> {
+    let films = crate::render::render_bdpt_runs(scene, settings, bdpt, runs, &|_| {})
+        .map_err(|e| RendererError(e.to_string()))?;
+    for f in &films {
+        guarded(
+            f.truncated_paths,
+            (f.width * f.height) as u64 * settings.spp,
+        )?;
+    }
+    Ok(films)
 }
 
 /// The radiosity image of `scene` solved with the point form factor `factor` (furnace's own
@@ -182,6 +220,16 @@ impl Renderer for BuiltIn {
         runs: u64,
     ) -> Result<Vec<Film>, RendererError> {
         sppm_images(scene, settings, sppm, runs, crate::render::sppm::density)
+    }
+
+    fn render_bdpt(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        bdpt: &Bdpt,
+        runs: u64,
+    ) -> Result<Vec<Film>, RendererError> {
+        bdpt_images(scene, settings, bdpt, runs)
     }
 
     fn render_light_paths(

@@ -2,6 +2,7 @@
 //! arriving at the camera along a ray, at the path's wavelengths; the light tracer returns a
 //! light path's contributions to pixel measurements (the same units, per pixel).
 
+pub mod bdpt;
 pub mod light;
 pub mod path;
 pub mod radiosity;
@@ -10,6 +11,9 @@ pub mod sppm;
 pub use light::LightTracer;
 pub use path::{power_heuristic, shadow_transmittance, PathTracer, Strategy};
 
+use crate::lights::Light;
+use crate::scattering::Bsdf;
+use crate::scene::Scene;
 use crate::spectrum::SampledSpectrum;
 
 /// The path-length guard: events (surface hits, boundary crossings, medium scatterings) after
@@ -30,4 +34,30 @@ pub fn roulette(beta: &mut SampledSpectrum, u: f64) -> bool {
     }
     *beta *= 1.0 / q;
     true
+}
+
+/// Why an estimator that scatters at surfaces only, with one set of wavelengths shared by
+/// several paths and emission from the scene's own lights, cannot render `scene` (SPPM and
+/// BDPT): media, a dispersive dielectric (its reason follows `dispersion`), a null boundary or
+/// an environment light; None otherwise.
+pub fn surfaces_only(scene: &Scene, dispersion: &str) -> Option<String> {
+    if scene.has_media() {
+        return Some(
+            "the scene has participating media (paths here scatter only at surfaces)".into(),
+        );
+    }
+    if let Some(i) = scene.bsdfs.iter().position(Bsdf::separates_wavelengths) {
+        return Some(format!("shape {i} is dispersive ({dispersion})"));
+    }
+    if scene.bsdfs.iter().any(Bsdf::is_null) {
+        return Some("the scene has an index-matched (null) boundary".into());
+    }
+    if scene
+        .lights
+        .iter()
+        .any(|l| matches!(l, Light::Environment { .. }))
+    {
+        return Some("the scene has an environment light (light paths would have to start on a disk beyond the scene; not modelled here)".into());
+    }
+    None
 }

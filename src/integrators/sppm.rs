@@ -48,25 +48,11 @@ impl Default for Sppm {
 
 /// Why a scene cannot be rendered by SPPM here.
 pub fn unsupported(scene: &Scene) -> Option<String> {
-    if scene.has_media() {
-        return Some(
-            "the scene has participating media (photons here scatter only at surfaces)".into(),
-        );
-    }
-    if let Some(i) = scene.bsdfs.iter().position(Bsdf::separates_wavelengths) {
-        return Some(format!(
-            "shape {i} is dispersive (one iteration's photons and visible points share one set of wavelengths)"
-        ));
-    }
-    if scene.bsdfs.iter().any(Bsdf::is_null) {
-        return Some("the scene has an index-matched (null) boundary".into());
-    }
-    if scene
-        .lights
-        .iter()
-        .any(|l| matches!(l, Light::Environment { .. }))
-    {
-        return Some("the scene has an environment light (photons would have to start on a disk beyond the scene; not modelled here)".into());
+    if let Some(why) = super::surfaces_only(
+        scene,
+        "one iteration's photons and visible points share one set of wavelengths",
+    ) {
+        return Some(why);
     }
     if scene.render.max_depth.is_some() {
         return Some("the scene caps the path depth; SPPM here renders every bounce".into());

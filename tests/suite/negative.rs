@@ -1757,6 +1757,73 @@ fn reference_convergence_rejects_a_photon_mapper_whose_radius_never_shrinks() {
     }
 }
 
+// ---------------------------------------------------------------- bidirectional path tracing
+
+/// BDPT with a wrong MIS heuristic or connection geometry term (the rest is furnace's).
+struct BrokenBdpt {
+    heuristic: Option<furnace::integrators::bdpt::Heuristic>,
+    geometry: Option<furnace::integrators::bdpt::GeometryTerm>,
+}
+impl Renderer for BrokenBdpt {
+    fn name(&self) -> String {
+        "BDPT with a wrong MIS weight or connection Jacobian".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(scene, s)
+    }
+    fn render_bdpt(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        bdpt: &furnace::integrators::bdpt::Bdpt,
+        runs: u64,
+    ) -> Result<Vec<Film>, furnace::harness::RendererError> {
+        let bdpt = furnace::integrators::bdpt::Bdpt {
+            heuristic: self.heuristic.unwrap_or(bdpt.heuristic),
+            geometry: self.geometry.unwrap_or(bdpt.geometry),
+            ..*bdpt
+        };
+        furnace::harness::renderer::bdpt_images(scene, s, &bdpt, runs)
+    }
+}
+
+/// Every strategy at full weight: 1/(1 + Σ 0) = 1, so a path that k strategies sample is
+/// counted k times (the weights no longer sum to 1).
+fn no_heuristic(_ratio: f64) -> f64 {
+    0.0
+}
+
+/// The connection's Jacobian without the cosine at the far end: |cos θa|/d².
+fn one_cosine(cos_a: f64, _cos_b: f64, d2: f64) -> f64 {
+    cos_a.abs() / d2
+}
+
+#[test]
+fn algorithm_agreement_rejects_a_bdpt_whose_mis_weights_do_not_sum_to_one() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "bdpt/cornell-box", &BuiltIn, Verdict::Pass);
+    let broken = BrokenBdpt {
+        heuristic: Some(no_heuristic),
+        geometry: None,
+    };
+    assert_all(manifest, "bdpt/cornell-box", &broken, Verdict::Fail);
+}
+
+#[test]
+fn algorithm_agreement_rejects_a_bdpt_with_a_wrong_connection_jacobian() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "bdpt/delta-vertices", &BuiltIn, Verdict::Pass);
+    let broken = BrokenBdpt {
+        heuristic: None,
+        geometry: Some(one_cosine),
+    };
+    assert_all(manifest, "bdpt/delta-vertices", &broken, Verdict::Fail);
+}
+
 // ---------------------------------------------------------------- infinite variance
 
 /// A path tracer without next-event estimation (emitter hits only) whose Russian roulette,

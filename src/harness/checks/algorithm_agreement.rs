@@ -1,15 +1,16 @@
 //! `algorithm_agreement`: two rendering algorithms that share nothing but the scene and the
 //! camera must give the same image: furnace's path tracer (Monte Carlo, NEE + MIS, all bounces
 //! by unbiased roulette) against its radiosity solver (deterministic finite elements, Goral et
-//! al. 1984) or its photon mapper (SPPM, Hachisuka & Jensen 2009). Each region × channel mean
+//! al. 1984), its photon mapper (SPPM, Hachisuka & Jensen 2009) or its bidirectional path
+//! tracer (BDPT, Veach 1997 ch. 10; unbiased, so no allowance). Each region × channel mean
 //! is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
 //! own bias is estimated by refinement and allowed per region as a tolerance: radiosity at the
 //! patch size h against 2h (the same camera samples; the difference estimates the first-order
 //! error of the finer one, Cohen & Wallace 1993, §6.2), SPPM at the initial radius r/2 against r
 //! (its bias shrinks at least linearly with the radius; the runs paired by seed, the mean paired
 //! difference less one standard error). The check's p is the Šidák combination
-//! over regions. Radiosity takes diffuse scenes lit by area emitters, SPPM surface scenes
-//! without environment lights; each refuses the rest by name.
+//! over regions. Radiosity takes diffuse scenes lit by area emitters, SPPM and BDPT surface
+//! scenes without environment lights; each refuses the rest by name.
 
 use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
@@ -32,6 +33,11 @@ pub enum Algorithm {
     Radiosity {
         /// Longest patch edge, scene units.
         patch_size: Option<f64>,
+    },
+    /// Bidirectional path tracing (unbiased: no refinement), in independent runs.
+    Bdpt {
+        /// Independent runs (the standard error's sample), each of the check's spp.
+        runs: u64,
     },
     /// SPPM with its settings and independent runs.
     Sppm {
@@ -67,7 +73,7 @@ impl Kind for AlgorithmAgreement {
         common::HEIGHT,
         Key {
             name: "integrator",
-            ty: "\"radiosity\" or \"sppm\"",
+            ty: "\"radiosity\", \"sppm\" or \"bdpt\"",
             default: "(required)",
             doc: "the algorithm compared with the path tracer",
         },
@@ -89,7 +95,7 @@ impl Kind for AlgorithmAgreement {
             name: "runs",
             ty: "integer 2..=1000",
             default: "4",
-            doc: "independent SPPM runs (their spread is the standard error)",
+            doc: "independent SPPM or BDPT runs (their spread is the standard error; BDPT divides spp among them)",
         },
         common::SPPM_RADIUS,
         common::GRID,
@@ -118,12 +124,15 @@ impl Kind for AlgorithmAgreement {
                     runs: k.int("runs", 2, 1000)?.unwrap_or(4),
                 }
             }
+            Some(i) if i.get_ref() == "bdpt" => Algorithm::Bdpt {
+                runs: k.int("runs", 2, 1000)?.unwrap_or(4),
+            },
             Some(i) => {
                 return Err(k.error(
                     i.span(),
                     "integrator",
                     format!(
-                        "unknown integrator {:?}; known: \"radiosity\", \"sppm\"",
+                        "unknown integrator {:?}; known: \"radiosity\", \"sppm\", \"bdpt\"",
                         i.get_ref()
                     ),
                 ))
@@ -131,7 +140,7 @@ impl Kind for AlgorithmAgreement {
             None => {
                 return Err(k.error_at(
                     "integrator",
-                    "give `integrator = \"radiosity\"` or `\"sppm\"`: the algorithm compared with the path tracer".into(),
+                    "give `integrator = \"radiosity\"`, `\"sppm\"` or `\"bdpt\"`: the algorithm compared with the path tracer".into(),
                 ))
             }
         };
@@ -145,7 +154,7 @@ impl Kind for AlgorithmAgreement {
     /// Renders the scene by path tracing and by the algorithm (twice with `refine`) and compares.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let scene = check.scene()?;
-        if scene.render.max_depth.is_some() {
+        if scene.render.max_depth.is_some() && !matches!(p.algorithm, Algorithm::Bdpt { .. }) {
             return Err("radiosity and SPPM render every bounce: the scene's render.max_depth must be absent (unlimited) for the path tracer to estimate the same image".into());
         }
         let s = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
@@ -181,20 +190,23 @@ impl Kind for AlgorithmAgreement {
                 ));
             }
         }
-        let allowance = if p.refine {
+        let allowance = if coarse.is_some() {
             format!(
                 "; bias allowance per region from refinement, up to {} relative",
                 fmt_sig(widest)
             )
         } else {
-            "; no bias allowance (refine = false)".into()
+            "; no bias allowance".into()
         };
         regions_measurement(
             &results,
             2 * (w * h) as u64 * s.spp,
             &format!(
-                "{what}{allowance} = test, path tracer ({} spp, unlimited depth) = reference, {w}x{h}",
-                s.spp
+                "{what}{allowance} = test, path tracer ({} spp, {}) = reference, {w}x{h}",
+                s.spp,
+                s.integrator
+                    .max_depth
+                    .map_or("unlimited depth".into(), |d| format!("at most {d} bounces"))
             ),
         )
     }
@@ -279,6 +291,29 @@ fn render_pair(
                     st.patches,
                     fmt_sig(st.patch_size),
                     fmt_sig(st.error_bound)
+                ),
+            ))
+        }
+        Algorithm::Bdpt { runs } => {
+            // the check's spp divided among the runs: BDPT gets the path tracer's budget
+            let per_run = crate::render::RenderSettings {
+                spp: (s.spp / runs).max(1),
+                ..s.clone()
+            };
+            let bdpt = crate::integrators::bdpt::Bdpt::from(&s.integrator);
+            let films = ctx.renderer.render_bdpt(scene, &per_run, &bdpt, *runs)?;
+            if films.len() as u64 != *runs {
+                return Err(CheckError::Renderer(format!(
+                    "the bidirectional path tracer returned {} runs for {runs}",
+                    films.len()
+                )));
+            }
+            Ok((
+                Images::Runs(films.iter().map(RgbImage::from_film).collect()),
+                None,
+                format!(
+                    "BDPT ({runs} runs x {} spp, all strategies by the power heuristic)",
+                    per_run.spp
                 ),
             ))
         }

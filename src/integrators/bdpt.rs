@@ -1,0 +1,726 @@
+//! Bidirectional path tracing (Veach 1997, PhD thesis, ch. 10; Pharr, Jakob & Humphreys, PBR
+//! 3rd ed., §16.3): a camera subpath z₀…z_{t−1} and a light subpath y₀…y_{s−1} per sample,
+//! every connection (s, t) an estimator of the paths of s + t − 2 bounces, combined by the
+//! power heuristic over all strategies (Veach eq. 9.13, β = 2; the ratio walk of PBR §16.3.4).
+//! s = 0 is an emitter hit by the camera subpath, t = 1 the light tracer's connection to the
+//! pinhole (a splat on another pixel). Surfaces only: media, dispersion, null boundaries and
+//! environment lights are refused by name ([`unsupported`]). Details: docs/rendering.md,
+//! "`integrators::bdpt`".
+
+use crate::camera::Camera;
+use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::integrators::light::{emitted_ray, Emission, PinholeSensor, Sensor};
+use crate::lights::{area_radiance, Light};
+use crate::math::frame::Frame;
+use crate::math::rng::SampleStream;
+use crate::math::Vec3;
+use crate::scattering::Bxdf;
+use crate::scene::Scene;
+use crate::spectrum::{SampledSpectrum, Wavelengths};
+use std::f64::consts::PI;
+
+/// The MIS heuristic as a map of a ratio of strategy densities p_k/p_s to its term; the
+/// weight of strategy s is 1/(1 + Σ_k h(p_k/p_s)). Only h(r) = r^β keeps Σ w = 1.
+pub type Heuristic = fn(f64) -> f64;
+
+/// The geometry term of a connection from |cos θ| at both ends and the squared distance.
+pub type GeometryTerm = fn(cos_a: f64, cos_b: f64, d2: f64) -> f64;
+
+/// The power heuristic with β = 2 (Veach 1997, eq. 9.13).
+pub fn power_heuristic(r: f64) -> f64 {
+    r * r
+}
+
+/// G = |cos θa||cos θb|/d² (Veach 1997, eq. 8.3; visibility is tested separately).
+pub fn geometry_term(cos_a: f64, cos_b: f64, d2: f64) -> f64 {
+    cos_a.abs() * cos_b.abs() / d2
+}
+
+/// Which strategies an image adds up.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Weighting {
+    /// Every strategy, weighted by the heuristic: the BDPT estimator.
+    Mis,
+    /// One strategy (s light vertices, t camera vertices) alone and unweighted: by itself an
+    /// estimator of the paths of s + t − 2 bounces that it can sample (a debug image).
+    Only {
+        /// Light-subpath vertices.
+        s: u32,
+        /// Camera-subpath vertices (≥ 1).
+        t: u32,
+    },
+}
+
+/// BDPT settings.
+#[derive(Debug, Clone, Copy)]
+pub struct Bdpt {
+    /// Maximum number of bounces; None = unlimited.
+    pub max_depth: Option<u32>,
+    /// Subpath vertex index from which Russian roulette runs; None disables roulette.
+    pub rr_depth: Option<u32>,
+    /// All strategies by MIS, or one alone.
+    pub weighting: Weighting,
+    /// The MIS heuristic ([`power_heuristic`]; negative controls pass wrong ones).
+    pub heuristic: Heuristic,
+    /// The connection's geometry term ([`geometry_term`]; negative controls pass wrong ones).
+    pub geometry: GeometryTerm,
+}
+
+impl From<&crate::integrators::PathTracer> for Bdpt {
+    fn from(p: &crate::integrators::PathTracer) -> Self {
+        Bdpt {
+            max_depth: p.max_depth,
+            rr_depth: p.rr_depth,
+            weighting: Weighting::Mis,
+            heuristic: power_heuristic,
+            geometry: geometry_term,
+        }
+    }
+}
+
+/// Why BDPT cannot render `scene`, or None.
+pub fn unsupported(scene: &Scene) -> Option<String> {
+    if let Some(why) = super::surfaces_only(
+        scene,
+        "the two subpaths share one set of wavelengths; the dispersion rule is not carried across a connection here",
+    ) {
+        return Some(why);
+    }
+    if scene.lights.is_empty() {
+        return Some("the scene has no lights".into());
+    }
+    None
+}
+
+/// What a subpath vertex is.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum On {
+    /// The pinhole (z₀).
+    Camera,
+    /// A light's origin (y₀).
+    Light {
+        /// Index in `scene.lights`.
+        light: u32,
+        /// A point light (its position cannot be hit).
+        point: bool,
+    },
+    /// A surface point of shape `shape`.
+    Surface { shape: u32 },
+}
+
+/// One subpath vertex: its throughput and its area densities in both directions.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    on: On,
+    sp: SurfacePoint,
+    /// Throughput up to and including this vertex's arrival (camera: importance over pdf;
+    /// light: emitted over pdf), at the path's wavelengths.
+    beta: SampledSpectrum,
+    /// Area density of this vertex from its own subpath's previous vertex (scene units⁻²).
+    pdf_fwd: f64,
+    /// Area density of this vertex from the other direction (scene units⁻²).
+    pdf_rev: f64,
+    /// The vertex scattered into a delta lobe (no connection can end on it).
+    delta: bool,
+}
+
+impl Vertex {
+    fn is_surface(&self) -> bool {
+        matches!(self.on, On::Surface { .. })
+    }
+    /// |cos| at this vertex towards unit direction `w` (1 at the pinhole and a point light).
+    fn cos(&self, w: Vec3) -> f64 {
+        match self.on {
+            On::Camera | On::Light { point: true, .. } => 1.0,
+            _ => self.sp.n.dot(w).abs(),
+        }
+    }
+}
+
+/// The scene as BDPT sees it for one image: the pinhole, emitter lookup by shape.
+pub struct Setup<'a> {
+    scene: &'a Scene,
+    sensor: PinholeSensor,
+    forward: Vec3,
+    /// Area of the whole film at distance 1 (the camera's direction density is per film).
+    film_area: f64,
+    light_of_shape: Vec<Option<u32>>,
+}
+
+impl<'a> Setup<'a> {
+    /// BDPT's view of `scene` through its camera for a `width`×`height` image.
+    pub fn new(scene: &'a Scene, camera: Camera, width: usize, height: usize) -> Self {
+        let mut light_of_shape = vec![None; scene.aggregate.shapes().len()];
+        for (i, l) in scene.lights.iter().enumerate() {
+            if let Light::Area { shape, .. } = l {
+                light_of_shape[*shape as usize] = Some(i as u32);
+            }
+        }
+        let forward = camera.forward();
+        let film_area = camera.pixel_area(width, height) * (width * height) as f64;
+        Setup {
+            scene,
+            sensor: PinholeSensor {
+                camera,
+                width,
+                height,
+            },
+            forward,
+            film_area,
+            light_of_shape,
+        }
+    }
+
+    /// The camera ray through film position (x, y), pixels.
+    pub fn camera_ray(&self, x: f64, y: f64) -> Ray {
+        let s = &self.sensor;
+        s.camera.ray(x, y, s.width, s.height)
+    }
+
+    /// The camera's solid-angle density of direction `d` per film sample: 1/(A_film cos³θ)
+    /// (the film plane at distance 1, dA = dω/cos³θ; camera module doc).
+    fn camera_pdf(&self, d: Vec3) -> f64 {
+        let c = d.dot(self.forward);
+        if c <= 0.0 {
+            return 0.0;
+        }
+        1.0 / (self.film_area * c * c * c)
+    }
+}
+
+/// Solid-angle density `pdf` at `from` towards `to` as an area density at `to`.
+fn to_area(pdf: f64, from: Vec3, to: &Vertex) -> f64 {
+    let v = to.sp.p - from;
+    let d2 = v.length_squared();
+    if d2 == 0.0 {
+        return 0.0;
+    }
+    pdf * to.cos(v / d2.sqrt()) / d2
+}
+
+/// 0 → 1: a density that does not exist (a delta vertex) does not change a ratio.
+fn remap0(p: f64) -> f64 {
+    if p == 0.0 {
+        1.0
+    } else {
+        p
+    }
+}
+
+/// The solid-angle density with which light `l` emits from `sp` towards `w`
+/// ([`Light::sample_emission`]: cos θ/π about the emitting side, halved when two-sided; 1/(4π)
+/// for a point light).
+fn emission_pdf_dir(l: &Light, sp: &SurfacePoint, w: Vec3) -> f64 {
+    match l {
+        Light::Area { two_sided, .. } => {
+            let c = sp.n.dot(w);
+            if *two_sided {
+                0.5 * c.abs() / PI
+            } else {
+                c.max(0.0) / PI
+            }
+        }
+        Light::Point { .. } => 1.0 / (4.0 * PI),
+        Light::Environment { .. } => 0.0,
+    }
+}
+
+/// The area density with which a light subpath starts at the emitter point of shape `shape`:
+/// p_select · 1/area.
+fn origin_pdf(setup: &Setup, light: u32) -> f64 {
+    let scene = setup.scene;
+    let sel = 1.0 / scene.lights.len() as f64;
+    match &scene.lights[light as usize] {
+        Light::Area { shape, .. } => sel / scene.aggregate.shapes()[*shape as usize].area(),
+        _ => sel,
+    }
+}
+
+/// A splat of a t = 1 connection: pixel index and value at the path's wavelengths (the
+/// pixel's measurement estimate from this light path, before division by the light paths).
+pub type Splat = crate::integrators::light::Splat;
+
+impl Bdpt {
+    /// Random walk from `ray` appending vertices to `path` (whose last vertex is where `ray`
+    /// starts) until `max_vertices`; `adjoint` for a light subpath (importance transport: the
+    /// η² of refraction, Veach §5.2). True when the path-length guard cut it.
+    #[allow(clippy::too_many_arguments)]
+    fn walk(
+        &self,
+        scene: &Scene,
+        mut ray: Ray,
+        mut beta: SampledSpectrum,
+        mut pdf_dir: f64,
+        adjoint: bool,
+        max_vertices: usize,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+        path: &mut Vec<Vertex>,
+    ) -> bool {
+        loop {
+            if path.len() >= max_vertices {
+                return false;
+            }
+            if path.len() > super::MAX_PATH_EVENTS as usize {
+                return true;
+            }
+            let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) else {
+                return false;
+            };
+            let prev_p = path.last().expect("a subpath starts with its origin").sp.p;
+            let mut v = Vertex {
+                on: On::Surface { shape: hit.shape },
+                sp: hit.point,
+                beta,
+                pdf_fwd: 0.0,
+                pdf_rev: 0.0,
+                delta: false,
+            };
+            v.pdf_fwd = to_area(pdf_dir, prev_p, &v);
+            path.push(v);
+            let cur = path.len() - 1;
+            if cur + 1 >= max_vertices {
+                return false;
+            }
+            let bsdf = &scene.bsdfs[hit.shape as usize];
+            let frame = Frame::from_normal(hit.point.n);
+            let wo = frame.to_local(-ray.d);
+            let u_lobe = rng.next_f64();
+            let u = rng.next_2d();
+            let u_rr = rng.next_f64();
+            let Some(bs) = bsdf.sample(wo, u, u_lobe, wl) else {
+                return false;
+            };
+            let mut weight = bs.weight;
+            if adjoint {
+                // the adjoint BSDF f*(wo, wi) = f(wo, wi)·η(wi)²/η(wo)² (see `Bxdf::eta`)
+                let (en, ep) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
+                let r = SampledSpectrum(std::array::from_fn(|i| en.0[i] / ep.0[i]));
+                weight *= r * r;
+            }
+            let (pdf_next, pdf_back) = if bs.delta {
+                (0.0, 0.0)
+            } else {
+                (bs.pdf, bsdf.pdf(bs.wi, wo, wl))
+            };
+            path[cur].delta = bs.delta;
+            let here = path[cur].sp.p;
+            path[cur - 1].pdf_rev = to_area(pdf_back, here, &path[cur - 1]);
+            beta *= weight;
+            if beta.is_black() || !beta.is_finite() {
+                return false;
+            }
+            ray = ray::spawn(&hit.point, frame.to_world(bs.wi));
+            pdf_dir = pdf_next;
+            if self.rr_depth.is_some_and(|d| cur as u32 >= d) && !super::roulette(&mut beta, u_rr) {
+                return false;
+            }
+        }
+    }
+
+    /// The camera subpath through `ray` (z₀ the pinhole, β = 1 there: W_e cos θ over the
+    /// per-pixel direction pdf is 1).
+    fn camera_subpath(
+        &self,
+        setup: &Setup,
+        ray: Ray,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+        path: &mut Vec<Vertex>,
+    ) -> bool {
+        path.clear();
+        path.push(Vertex {
+            on: On::Camera,
+            sp: SurfacePoint {
+                p: ray.o,
+                p_error: Vec3::ZERO,
+                n: setup.forward,
+            },
+            beta: SampledSpectrum::ONE,
+            pdf_fwd: 1.0,
+            pdf_rev: 0.0,
+            delta: false,
+        });
+        let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
+        let pdf = setup.camera_pdf(ray.d);
+        self.walk(
+            setup.scene,
+            ray,
+            SampledSpectrum::ONE,
+            pdf,
+            false,
+            max,
+            wl,
+            rng,
+            path,
+        )
+    }
+
+    /// The light subpath: y₀ on a uniformly chosen light with β = L_e/(p_sel p_A) (its
+    /// emitted radiance or intensity, gated by side at each use), then the walk.
+    fn light_subpath(
+        &self,
+        setup: &Setup,
+        wl: &Wavelengths,
+        rng: &mut SampleStream,
+        path: &mut Vec<Vertex>,
+    ) -> bool {
+        path.clear();
+        let scene = setup.scene;
+        let Some(Emission {
+            light,
+            sample: es,
+            select_pdf,
+        }) = Emission::sample(scene, wl, rng)
+        else {
+            return false;
+        };
+        let index = scene
+            .lights
+            .iter()
+            .position(|l| std::ptr::eq(l, light))
+            .expect("the light is the scene's") as u32;
+        let le = light.spectrum().sample(wl);
+        path.push(Vertex {
+            on: On::Light {
+                light: index,
+                point: es.delta_position,
+            },
+            sp: es.point,
+            beta: le * (1.0 / (select_pdf * es.pdf_pos)),
+            pdf_fwd: select_pdf * es.pdf_pos,
+            pdf_rev: 0.0,
+            delta: false,
+        });
+        let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
+        // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
+        let beta = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
+        self.walk(
+            scene,
+            emitted_ray(&es),
+            beta,
+            es.pdf_dir,
+            true,
+            max,
+            wl,
+            rng,
+            path,
+        )
+    }
+
+    /// One BDPT sample through `ray` at wavelengths `wl`: the camera-side estimate of its pixel
+    /// (strategies t ≥ 2), the t = 1 splats appended to `splats`, and whether the path-length
+    /// guard cut a subpath. `camera_rng` and `light_rng` are the two subpaths' streams.
+    #[allow(clippy::too_many_arguments)]
+    pub fn sample(
+        &self,
+        setup: &Setup,
+        ray: Ray,
+        wl: &Wavelengths,
+        camera_rng: &mut SampleStream,
+        light_rng: &mut SampleStream,
+        buffers: &mut Buffers,
+        splats: &mut Vec<Splat>,
+    ) -> (SampledSpectrum, bool) {
+        let Buffers { camera, light } = buffers;
+        let cut_c = self.camera_subpath(setup, ray, wl, camera_rng, camera);
+        let cut_l = self.light_subpath(setup, wl, light_rng, light);
+        let mut l = SampledSpectrum::ZERO;
+        for t in 1..=camera.len() {
+            for s in 0..=light.len() {
+                if s + t < 2 || (t == 1 && s == 0) {
+                    continue;
+                }
+                if self.max_depth.is_some_and(|d| s + t - 2 > d as usize) {
+                    continue;
+                }
+                if let Weighting::Only { s: s0, t: t0 } = self.weighting {
+                    if (s as u32, t as u32) != (s0, t0) {
+                        continue;
+                    }
+                }
+                if let Some((c, pixel)) = self.connect(setup, camera, light, s, t, wl) {
+                    match pixel {
+                        Some(p) => splats.push(Splat { pixel: p, value: c }),
+                        None => l += c,
+                    }
+                }
+            }
+        }
+        (l, cut_c || cut_l)
+    }
+
+    /// The contribution of strategy (s, t), MIS-weighted, and the pixel it lands on for t = 1.
+    fn connect(
+        &self,
+        setup: &Setup,
+        cam: &[Vertex],
+        lig: &[Vertex],
+        s: usize,
+        t: usize,
+        wl: &Wavelengths,
+    ) -> Option<(SampledSpectrum, Option<usize>)> {
+        let scene = setup.scene;
+        let z = &cam[t - 1];
+        // the reverse densities this connection sets: z_{t−1}, z_{t−2}, y_{s−1}, y_{s−2}
+        let mut rev = Overrides::default();
+        let (c, pixel) = if s == 0 {
+            // the camera subpath hit an emitter: C = β_z L_e(z → z_{t−2})
+            let On::Surface { shape } = z.on else {
+                return None;
+            };
+            let li = setup.light_of_shape[shape as usize]?;
+            let Light::Area {
+                radiance,
+                two_sided,
+                ..
+            } = &scene.lights[li as usize]
+            else {
+                return None;
+            };
+            let prev = &cam[t - 2];
+            let w = (prev.sp.p - z.sp.p).normalize();
+            let le = area_radiance(*two_sided, z.sp.n, w, || radiance.sample(wl));
+            if le.is_black() {
+                return None;
+            }
+            rev.z1 = Some(origin_pdf(setup, li));
+            if t >= 3 {
+                let pd = emission_pdf_dir(&scene.lights[li as usize], &z.sp, w);
+                rev.z2 = Some(to_area(pd, z.sp.p, prev));
+            }
+            (z.beta * le, None)
+        } else if t == 1 {
+            // light tracing: connect y_{s−1} to the pinhole
+            let y = &lig[s - 1];
+            if matches!(y.on, On::Light { point: true, .. }) || y.delta {
+                return None;
+            }
+            let c = setup.sensor.connect(y.sp.p)?;
+            let to_eye = -c.direction;
+            let d2 = c.distance * c.distance;
+            let f = self.vertex_f(setup, lig, s - 1, to_eye, false, wl)?;
+            let eye = SurfacePoint {
+                p: c.eye,
+                p_error: Vec3::ZERO,
+                n: c.direction,
+            };
+            let (shadow, t_max) = ray::spawn_to(&y.sp, &eye);
+            if scene.aggregate.occluded(&shadow, t_max) {
+                return None;
+            }
+            let g = (self.geometry)(y.cos(to_eye), 1.0, d2);
+            rev.y1 = Some(setup.camera_pdf(c.direction) * y.cos(to_eye) / d2);
+            if s >= 2 {
+                rev.y2 = Some(self.reverse_pdf(setup, lig, s - 1, to_eye, wl));
+            }
+            (y.beta * f * (g * c.importance_cos), Some(c.pixel))
+        } else {
+            let y = &lig[s - 1];
+            if !z.is_surface() || z.delta || y.delta {
+                return None;
+            }
+            let v = y.sp.p - z.sp.p;
+            let d2 = v.length_squared();
+            if d2 == 0.0 {
+                return None;
+            }
+            let w = v / d2.sqrt(); // z → y
+            let fz = self.vertex_f(setup, cam, t - 1, w, true, wl)?;
+            let fy = self.vertex_f(setup, lig, s - 1, -w, false, wl)?;
+            let (shadow, t_max) = ray::spawn_to(&z.sp, &y.sp);
+            if scene.aggregate.occluded(&shadow, t_max) {
+                return None;
+            }
+            let g = (self.geometry)(z.cos(w), y.cos(w), d2);
+            rev.z1 = Some(to_area(
+                self.emit_or_scatter_pdf(setup, lig, s - 1, -w, wl),
+                y.sp.p,
+                z,
+            ));
+            if t >= 3 {
+                rev.z2 = Some(self.reverse_pdf(setup, cam, t - 1, w, wl));
+            }
+            rev.y1 = Some(to_area(
+                self.emit_or_scatter_pdf(setup, cam, t - 1, w, wl),
+                z.sp.p,
+                y,
+            ));
+            if s >= 2 {
+                rev.y2 = Some(self.reverse_pdf(setup, lig, s - 1, -w, wl));
+            }
+            (y.beta * fy * fz * z.beta * g, None)
+        };
+        if c.is_black() || !c.is_finite() {
+            return None;
+        }
+        let weight = match self.weighting {
+            Weighting::Only { .. } => 1.0,
+            Weighting::Mis => self.mis_weight(cam, lig, s, t, &rev),
+        };
+        Some((c * weight, pixel))
+    }
+
+    /// The factor vertex `i` of `path` contributes when connected along unit direction `w`
+    /// (world, towards the other subpath), per unit of its β: a light origin's emission (its
+    /// radiance or intensity is already in β: 1 on the emitting side, else none); a surface's
+    /// radiance BSDF with wo towards the viewer: f(towards the previous vertex, w) on the
+    /// camera side, f(w, towards the previous vertex) on the light side.
+    #[allow(clippy::too_many_arguments)]
+    fn vertex_f(
+        &self,
+        setup: &Setup,
+        path: &[Vertex],
+        i: usize,
+        w: Vec3,
+        camera_side: bool,
+        wl: &Wavelengths,
+    ) -> Option<SampledSpectrum> {
+        let v = &path[i];
+        let f = match v.on {
+            On::Camera => return None,
+            On::Light { light, point } => {
+                if point {
+                    SampledSpectrum::ONE
+                } else {
+                    let Light::Area { two_sided, .. } = &setup.scene.lights[light as usize] else {
+                        return None;
+                    };
+                    area_radiance(*two_sided, v.sp.n, w, || SampledSpectrum::ONE)
+                }
+            }
+            On::Surface { shape } => {
+                let frame = Frame::from_normal(v.sp.n);
+                let to_prev = frame.to_local((path[i - 1].sp.p - v.sp.p).normalize());
+                let w = frame.to_local(w);
+                let (wo, wi) = if camera_side {
+                    (to_prev, w)
+                } else {
+                    (w, to_prev)
+                };
+                setup.scene.bsdfs[shape as usize].eval(wo, wi, wl)
+            }
+        };
+        (!f.is_black()).then_some(f)
+    }
+
+    /// Solid-angle density with which vertex `i` of `path` continues its own subpath towards
+    /// `w`: a light origin's emission pdf, a surface's BSDF pdf given the previous vertex.
+    fn emit_or_scatter_pdf(
+        &self,
+        setup: &Setup,
+        path: &[Vertex],
+        i: usize,
+        w: Vec3,
+        wl: &Wavelengths,
+    ) -> f64 {
+        let v = &path[i];
+        match v.on {
+            On::Camera => setup.camera_pdf(w),
+            On::Light { light, .. } => {
+                emission_pdf_dir(&setup.scene.lights[light as usize], &v.sp, w)
+            }
+            On::Surface { shape } => {
+                let frame = Frame::from_normal(v.sp.n);
+                let to_prev = (path[i - 1].sp.p - v.sp.p).normalize();
+                setup.scene.bsdfs[shape as usize].pdf(
+                    frame.to_local(to_prev),
+                    frame.to_local(w),
+                    wl,
+                )
+            }
+        }
+    }
+
+    /// Area density at vertex `i − 1` of `path` when the walk comes from the other subpath
+    /// through vertex `i`, arriving along −`w` (`w` from vertex `i` towards the other subpath).
+    fn reverse_pdf(
+        &self,
+        setup: &Setup,
+        path: &[Vertex],
+        i: usize,
+        w: Vec3,
+        wl: &Wavelengths,
+    ) -> f64 {
+        let v = &path[i];
+        let prev = &path[i - 1];
+        let On::Surface { shape } = v.on else {
+            return 0.0;
+        };
+        let frame = Frame::from_normal(v.sp.n);
+        let to_prev = (prev.sp.p - v.sp.p).normalize();
+        let pdf =
+            setup.scene.bsdfs[shape as usize].pdf(frame.to_local(w), frame.to_local(to_prev), wl);
+        to_area(pdf, v.sp.p, prev)
+    }
+
+    /// The MIS weight of strategy (s, t) by the ratio walk (PBR 3rd ed., §16.3.4): the other
+    /// strategies' densities relative to this one's, one vertex moved across at a time.
+    fn mis_weight(
+        &self,
+        cam: &[Vertex],
+        lig: &[Vertex],
+        s: usize,
+        t: usize,
+        rev: &Overrides,
+    ) -> f64 {
+        let h = self.heuristic;
+        let z_rev = |i: usize| {
+            if i + 1 == t {
+                rev.z1.unwrap_or(cam[i].pdf_rev)
+            } else if i + 2 == t {
+                rev.z2.unwrap_or(cam[i].pdf_rev)
+            } else {
+                cam[i].pdf_rev
+            }
+        };
+        let y_rev = |i: usize| {
+            if i + 1 == s {
+                rev.y1.unwrap_or(lig[i].pdf_rev)
+            } else if i + 2 == s {
+                rev.y2.unwrap_or(lig[i].pdf_rev)
+            } else {
+                lig[i].pdf_rev
+            }
+        };
+        // an emitter hit by the camera subpath is an end vertex whatever its own BSDF
+        let z_delta = |i: usize| cam[i].delta && !(s == 0 && i + 1 == t);
+        let mut sum = 0.0;
+        let mut r = 1.0;
+        for i in (1..t).rev() {
+            r *= h(remap0(z_rev(i)) / remap0(cam[i].pdf_fwd));
+            if !z_delta(i) && !z_delta(i - 1) {
+                sum += r;
+            }
+        }
+        let mut r = 1.0;
+        for i in (0..s).rev() {
+            r *= h(remap0(y_rev(i)) / remap0(lig[i].pdf_fwd));
+            let delta_before = if i > 0 {
+                lig[i - 1].delta
+            } else {
+                matches!(lig[0].on, On::Light { point: true, .. })
+            };
+            if !lig[i].delta && !delta_before {
+                sum += r;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+}
+
+/// The reverse densities one connection sets (None: the walk's own).
+#[derive(Debug, Default)]
+struct Overrides {
+    z1: Option<f64>,
+    z2: Option<f64>,
+    y1: Option<f64>,
+    y2: Option<f64>,
+}
+
+/// Reusable subpath storage for [`Bdpt::sample`].
+#[derive(Debug, Default)]
+pub struct Buffers {
+    camera: Vec<Vertex>,
+    light: Vec<Vertex>,
+}
