@@ -6,10 +6,12 @@
 
 pub mod bdpt;
 pub mod light;
+pub mod mlt;
 pub mod sppm;
 
 pub use bdpt::{render_bdpt, render_bdpt_runs};
 pub use light::{render_light_part, render_light_paths, LightImage};
+pub use mlt::{render_mlt, render_mlt_chains};
 pub use sppm::{render_sppm, render_sppm_runs};
 
 use crate::film::blocks::{spans, BlockFold, Piece};

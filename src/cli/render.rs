@@ -38,8 +38,8 @@ pub struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping) or bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media, dispersion and environment lights).
-    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt"])]
+    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media, dispersion and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is not used).
+    #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt", "mlt"])]
     integrator: String,
     /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each).
     #[arg(long, default_value_t = 64)]
@@ -53,6 +53,12 @@ pub struct RenderArgs {
     /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them.
     #[arg(long, default_value_t = 4)]
     runs: u64,
+    /// Mutations per pixel of --integrator mlt, over all chains.
+    #[arg(long, default_value_t = 64)]
+    mutations_per_pixel: u64,
+    /// Independent Markov chains of --integrator mlt, each with its own bootstrap: each pixel's mean and variance come from their spread.
+    #[arg(long, default_value_t = 8)]
+    chains: u64,
     /// One BDPT strategy alone and unweighted, as "S,T" (S light-subpath vertices, T >= 1 camera-subpath vertices): the debug image of the paths of S+T-2 bounces that strategy samples.
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     bdpt_only: Option<(u32, u32)>,
@@ -241,7 +247,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     if a.bdpt_only.is_some() && a.integrator != "bdpt" {
         return Err(anyhow::anyhow!("--bdpt-only is only used by --integrator bdpt").into());
     }
-    if a.integrator == "sppm" || a.integrator == "radiosity" || a.integrator == "bdpt" {
+    if ["sppm", "radiosity", "bdpt", "mlt"].contains(&a.integrator.as_str()) {
         if a.renderer.is_some() || shard.is_some() {
             return Err(anyhow::anyhow!(
                 "--integrator {} renders in one process with furnace's own solver: no --renderer, no --shard",
@@ -253,6 +259,8 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             render_sppm_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
         } else if a.integrator == "bdpt" {
             render_bdpt_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
+        } else if a.integrator == "mlt" {
+            render_mlt_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
         } else {
             render_radiosity_image(&a, &scene, &settings, attrs, &exr_path, &png_path)
         };
@@ -461,6 +469,73 @@ fn render_bdpt_image(
     super::say!(
         "noise: mean relative variance of the Y pixel means {rel_var:.4e} (from {} runs); efficiency 1/(relative variance x time) {:.4e} /s",
         a.runs,
+        1.0 / (rel_var * secs)
+    );
+    Ok(code)
+}
+
+/// `furnace render --integrator mlt`.
+fn render_mlt_image(
+    a: &RenderArgs,
+    scene: &Scene,
+    settings: &RenderSettings,
+    mut attrs: Vec<(String, String)>,
+    exr_path: &Path,
+    png_path: &Path,
+) -> Result<i32, Failure> {
+    use furnace::integrators::bdpt::Bdpt;
+    use furnace::integrators::mlt::Mlt;
+    if a.chains < 2 {
+        return Err(anyhow::anyhow!(
+            "--integrator mlt needs at least 2 --chains: their spread is the standard error"
+        )
+        .into());
+    }
+    let mutations = (settings.width as u64)
+        .saturating_mul(settings.height as u64)
+        .saturating_mul(a.mutations_per_pixel);
+    if mutations > a.max_samples {
+        return Err(anyhow::anyhow!(
+            "the render would make {mutations} mutations (width x height x mutations per pixel); the work budget is {}: raise it with --max-samples",
+            a.max_samples
+        )
+        .into());
+    }
+    let mlt = Mlt {
+        mutations_per_pixel: a.mutations_per_pixel,
+        chains: a.chains,
+        ..Default::default()
+    };
+    let bdpt = Bdpt::from(&settings.integrator);
+    let start = Instant::now();
+    let film =
+        furnace::render::render_mlt(scene, settings, &bdpt, &mlt).context("cannot render")?;
+    let secs = start.elapsed().as_secs_f64();
+    for (k, v) in [
+        ("furnace.mlt_chains", a.chains.to_string()),
+        (
+            "furnace.mlt_mutations_per_pixel",
+            a.mutations_per_pixel.to_string(),
+        ),
+        ("furnace.variance_dof", (a.chains - 1).to_string()),
+    ] {
+        attrs.retain(|(name, _)| name != k);
+        attrs.push((k.into(), v));
+    }
+    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    super::say!(
+        "mlt: {}x{} px, {} mutations per pixel in {} chains, {:.2} s wall, {:.3} M mutations/s",
+        settings.width,
+        settings.height,
+        a.mutations_per_pixel,
+        a.chains,
+        secs,
+        mutations as f64 / secs / 1e6
+    );
+    let rel_var = relative_variance(&film);
+    super::say!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e} (from {} chains); efficiency 1/(relative variance x time) {:.4e} /s",
+        a.chains,
         1.0 / (rel_var * secs)
     );
     Ok(code)

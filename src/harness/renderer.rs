@@ -4,6 +4,7 @@
 
 use crate::film::Film;
 use crate::integrators::bdpt::Bdpt;
+use crate::integrators::mlt::Mlt;
 use crate::integrators::radiosity::{
     point_to_polygon, solve_with, PointFactor, RadiositySettings, SolveStats,
 };
@@ -120,6 +121,22 @@ pub trait Renderer: Sync {
         )))
     }
 
+    /// Renders `scene` by Metropolis light transport over the BDPT: `mlt.chains` independent
+    /// chain images (their spread is the standard error). Only furnace's own renderer has
+    /// one: the default is an error naming the renderer.
+    fn render_mlt(
+        &self,
+        _scene: &Scene,
+        _settings: &RenderSettings,
+        _bdpt: &Bdpt,
+        _mlt: &Mlt,
+    ) -> Result<Vec<Film>, RendererError> {
+        Err(RendererError(format!(
+            "{} has no Metropolis light transport furnace can drive",
+            self.name()
+        )))
+    }
+
     /// Solves `scene` by radiosity (`radiosity`) and renders the solution with `settings`'
     /// camera samples, returning the image and the solve's statistics. Only furnace's own
     /// renderer has a radiosity solver: the default is an error naming the renderer.
@@ -165,6 +182,23 @@ pub fn bdpt_images(
             f.truncated_paths,
             (f.width * f.height) as u64 * settings.spp,
         )?;
+    }
+    Ok(films)
+}
+
+/// The independent MLT chain images of `scene` (furnace's own `mlt` has the bootstrap mean as
+/// its normalisation; a negative control passes a wrong one), refused when the path-length
+/// guard cut a subpath.
+pub fn mlt_images(
+    scene: &Scene,
+    settings: &RenderSettings,
+    bdpt: &Bdpt,
+    mlt: &Mlt,
+) -> Result<Vec<Film>, RendererError> {
+    let films = crate::render::render_mlt_chains(scene, settings, bdpt, mlt)
+        .map_err(|e| RendererError(e.to_string()))?;
+    for f in &films {
+        guarded(f.truncated_paths, (f.width * f.height) as u64)?;
     }
     Ok(films)
 }
@@ -230,6 +264,16 @@ impl Renderer for BuiltIn {
         runs: u64,
     ) -> Result<Vec<Film>, RendererError> {
         bdpt_images(scene, settings, bdpt, runs)
+    }
+
+    fn render_mlt(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        bdpt: &Bdpt,
+        mlt: &Mlt,
+    ) -> Result<Vec<Film>, RendererError> {
+        mlt_images(scene, settings, bdpt, mlt)
     }
 
     fn render_light_paths(

@@ -12,7 +12,7 @@ use crate::geometry::{ray, Ray, SurfacePoint};
 use crate::integrators::light::{emitted_ray, Emission, PinholeSensor, Sensor};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
-use crate::math::rng::SampleStream;
+use crate::math::rng::Uniforms;
 use crate::math::Vec3;
 use crate::scattering::Bxdf;
 use crate::scene::Scene;
@@ -254,7 +254,7 @@ impl Bdpt {
         adjoint: bool,
         max_vertices: usize,
         wl: &Wavelengths,
-        rng: &mut SampleStream,
+        rng: &mut impl Uniforms,
         path: &mut Vec<Vertex>,
     ) -> bool {
         loop {
@@ -325,7 +325,7 @@ impl Bdpt {
         setup: &Setup,
         ray: Ray,
         wl: &Wavelengths,
-        rng: &mut SampleStream,
+        rng: &mut impl Uniforms,
         path: &mut Vec<Vertex>,
     ) -> bool {
         path.clear();
@@ -362,7 +362,7 @@ impl Bdpt {
         &self,
         setup: &Setup,
         wl: &Wavelengths,
-        rng: &mut SampleStream,
+        rng: &mut impl Uniforms,
         path: &mut Vec<Vertex>,
     ) -> bool {
         path.clear();
@@ -417,8 +417,8 @@ impl Bdpt {
         setup: &Setup,
         ray: Ray,
         wl: &Wavelengths,
-        camera_rng: &mut SampleStream,
-        light_rng: &mut SampleStream,
+        camera_rng: &mut impl Uniforms,
+        light_rng: &mut impl Uniforms,
         buffers: &mut Buffers,
         splats: &mut Vec<Splat>,
     ) -> (SampledSpectrum, bool) {

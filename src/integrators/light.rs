@@ -11,7 +11,7 @@ use crate::camera::Camera;
 use crate::geometry::{ray, Ray, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
-use crate::math::rng::SampleStream;
+use crate::math::rng::{SampleStream, Uniforms};
 use crate::math::Vec3;
 use crate::scattering::Bxdf;
 use crate::scene::Scene;
@@ -129,7 +129,7 @@ pub struct Emission<'a> {
 
 impl<'a> Emission<'a> {
     /// Samples a light and its emission at wavelengths `wl`.
-    pub fn sample(scene: &'a Scene, wl: &Wavelengths, rng: &mut SampleStream) -> Option<Self> {
+    pub fn sample(scene: &'a Scene, wl: &Wavelengths, rng: &mut impl Uniforms) -> Option<Self> {
         let n = scene.lights.len();
         if n == 0 {
             return None;

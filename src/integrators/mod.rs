@@ -4,6 +4,7 @@
 
 pub mod bdpt;
 pub mod light;
+pub mod mlt;
 pub mod path;
 pub mod radiosity;
 pub mod sppm;

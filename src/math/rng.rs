@@ -53,6 +53,28 @@ impl Sampler {
 /// Largest sample count for which Sobol points are used (the crate's sequence length).
 pub const SOBOL_MAX_SAMPLES: u64 = 1 << 16;
 
+/// A source of uniform numbers in [0, 1): a sample's stream, or a Markov chain's primary
+/// sample (integrators::mlt) that replays and perturbs earlier numbers.
+pub trait Uniforms {
+    /// Next uniform number in [0, 1).
+    fn next_f64(&mut self) -> f64;
+    /// Next pair of uniform numbers in [0, 1)².
+    fn next_2d(&mut self) -> [f64; 2] {
+        [self.next_f64(), self.next_f64()]
+    }
+}
+
+impl Uniforms for SampleStream {
+    #[inline(always)]
+    fn next_f64(&mut self) -> f64 {
+        SampleStream::next_f64(self)
+    }
+    #[inline(always)]
+    fn next_2d(&mut self) -> [f64; 2] {
+        SampleStream::next_2d(self)
+    }
+}
+
 /// A stream of uniform numbers for one sample: the key fixes (seed, pixel, sample) and
 /// the dimension counter advances by one per draw (by two for a 2D draw).
 #[derive(Debug, Clone)]

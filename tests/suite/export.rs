@@ -164,10 +164,15 @@ fn every_bundled_scene_exports_and_reads_back() {
             }
             // refused by name: Mitsuba 3's area emitter emits on one side only
             Err(e)
-                if scene
-                    .lights
-                    .iter()
-                    .any(|l| matches!(l, Light::Area { two_sided: true, .. })) =>
+                if scene.lights.iter().any(|l| {
+                    matches!(
+                        l,
+                        Light::Area {
+                            two_sided: true,
+                            ..
+                        }
+                    )
+                }) =>
             {
                 assert!(e.to_string().contains("two_sided"), "{what}: {e}");
                 continue;

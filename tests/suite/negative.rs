@@ -1824,6 +1824,51 @@ fn algorithm_agreement_rejects_a_bdpt_with_a_wrong_connection_jacobian() {
     assert_all(manifest, "bdpt/delta-vertices", &broken, Verdict::Fail);
 }
 
+/// MLT over furnace's BDPT with a wrong normalisation.
+struct BrokenMlt(furnace::integrators::mlt::Normalisation);
+impl Renderer for BrokenMlt {
+    fn name(&self) -> String {
+        "MLT without its bootstrap normalisation".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        BuiltIn.render(scene, s)
+    }
+    fn render_mlt(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+        bdpt: &furnace::integrators::bdpt::Bdpt,
+        mlt: &furnace::integrators::mlt::Mlt,
+    ) -> Result<Vec<Film>, furnace::harness::RendererError> {
+        let mlt = furnace::integrators::mlt::Mlt {
+            normalisation: self.0,
+            ..*mlt
+        };
+        furnace::harness::renderer::mlt_images(scene, s, bdpt, &mlt)
+    }
+}
+
+/// No bootstrap: the chain's E_π[F/I] taken as the image, b = 1 whatever ∫ I is.
+fn unnormalised(_b: f64) -> f64 {
+    1.0
+}
+
+#[test]
+fn algorithm_agreement_rejects_an_mlt_without_its_bootstrap_normalisation() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "mlt/cornell-box", &BuiltIn, Verdict::Pass);
+    assert_all(
+        manifest,
+        "mlt/cornell-box",
+        &BrokenMlt(unnormalised),
+        Verdict::Fail,
+    );
+}
+
 // ---------------------------------------------------------------- infinite variance
 
 /// A path tracer without next-event estimation (emitter hits only) whose Russian roulette,

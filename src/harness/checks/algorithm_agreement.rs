@@ -2,7 +2,8 @@
 //! camera must give the same image: furnace's path tracer (Monte Carlo, NEE + MIS, all bounces
 //! by unbiased roulette) against its radiosity solver (deterministic finite elements, Goral et
 //! al. 1984), its photon mapper (SPPM, Hachisuka & Jensen 2009) or its bidirectional path
-//! tracer (BDPT, Veach 1997 ch. 10; unbiased, so no allowance). Each region × channel mean
+//! tracer (BDPT, Veach 1997 ch. 10; unbiased, so no allowance) or Metropolis light transport
+//! over it (Kelemen et al. 2002; consistent, its chains independent). Each region × channel mean
 //! is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
 //! own bias is estimated by refinement and allowed per region as a tolerance: radiosity at the
 //! patch size h against 2h (the same camera samples; the difference estimates the first-order
@@ -39,6 +40,13 @@ pub enum Algorithm {
         /// Independent runs (the standard error's sample), each of the check's spp.
         runs: u64,
     },
+    /// Metropolis light transport over the BDPT, in independent chains.
+    Mlt {
+        /// Independent chains.
+        chains: u64,
+        /// Mutations per pixel over all chains.
+        mutations_per_pixel: u64,
+    },
     /// SPPM with its settings and independent runs.
     Sppm {
         /// Iterations, photons, radius.
@@ -73,7 +81,7 @@ impl Kind for AlgorithmAgreement {
         common::HEIGHT,
         Key {
             name: "integrator",
-            ty: "\"radiosity\", \"sppm\" or \"bdpt\"",
+            ty: "\"radiosity\", \"sppm\", \"bdpt\" or \"mlt\"",
             default: "(required)",
             doc: "the algorithm compared with the path tracer",
         },
@@ -98,6 +106,18 @@ impl Kind for AlgorithmAgreement {
             doc: "independent SPPM or BDPT runs (their spread is the standard error; BDPT divides spp among them)",
         },
         common::SPPM_RADIUS,
+        Key {
+            name: "chains",
+            ty: "integer 2..=1000",
+            default: "8",
+            doc: "independent MLT chains, each with its own bootstrap (their spread is the standard error)",
+        },
+        Key {
+            name: "mutations_per_pixel",
+            ty: "integer 1..=1000000",
+            default: "64",
+            doc: "MLT mutations per pixel over all chains",
+        },
         common::GRID,
         common::REGIONS,
         common::SEED,
@@ -124,6 +144,10 @@ impl Kind for AlgorithmAgreement {
                     runs: k.int("runs", 2, 1000)?.unwrap_or(4),
                 }
             }
+            Some(i) if i.get_ref() == "mlt" => Algorithm::Mlt {
+                chains: k.int("chains", 2, 1000)?.unwrap_or(8),
+                mutations_per_pixel: k.int("mutations_per_pixel", 1, 1_000_000)?.unwrap_or(64),
+            },
             Some(i) if i.get_ref() == "bdpt" => Algorithm::Bdpt {
                 runs: k.int("runs", 2, 1000)?.unwrap_or(4),
             },
@@ -132,7 +156,7 @@ impl Kind for AlgorithmAgreement {
                     i.span(),
                     "integrator",
                     format!(
-                        "unknown integrator {:?}; known: \"radiosity\", \"sppm\", \"bdpt\"",
+                        "unknown integrator {:?}; known: \"radiosity\", \"sppm\", \"bdpt\", \"mlt\"",
                         i.get_ref()
                     ),
                 ))
@@ -140,7 +164,7 @@ impl Kind for AlgorithmAgreement {
             None => {
                 return Err(k.error_at(
                     "integrator",
-                    "give `integrator = \"radiosity\"`, `\"sppm\"` or `\"bdpt\"`: the algorithm compared with the path tracer".into(),
+                    "give `integrator = \"radiosity\"`, `\"sppm\"`, `\"bdpt\"` or `\"mlt\"`: the algorithm compared with the path tracer".into(),
                 ))
             }
         };
@@ -154,7 +178,12 @@ impl Kind for AlgorithmAgreement {
     /// Renders the scene by path tracing and by the algorithm (twice with `refine`) and compares.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
         let scene = check.scene()?;
-        if scene.render.max_depth.is_some() && !matches!(p.algorithm, Algorithm::Bdpt { .. }) {
+        if scene.render.max_depth.is_some()
+            && matches!(
+                p.algorithm,
+                Algorithm::Radiosity { .. } | Algorithm::Sppm { .. }
+            )
+        {
             return Err("radiosity and SPPM render every bounce: the scene's render.max_depth must be absent (unlimited) for the path tracer to estimate the same image".into());
         }
         let s = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
@@ -314,6 +343,33 @@ fn render_pair(
                 format!(
                     "BDPT ({runs} runs x {} spp, all strategies by the power heuristic)",
                     per_run.spp
+                ),
+            ))
+        }
+        Algorithm::Mlt {
+            chains,
+            mutations_per_pixel,
+        } => {
+            let settings = crate::integrators::mlt::Mlt {
+                chains: *chains,
+                mutations_per_pixel: *mutations_per_pixel,
+                ..Default::default()
+            };
+            let bdpt = crate::integrators::bdpt::Bdpt::from(&s.integrator);
+            let films = ctx.renderer.render_mlt(scene, s, &bdpt, &settings)?;
+            if films.len() as u64 != settings.chains {
+                return Err(CheckError::Renderer(format!(
+                    "Metropolis light transport returned {} chains for {}",
+                    films.len(),
+                    settings.chains
+                )));
+            }
+            Ok((
+                Images::Runs(films.iter().map(RgbImage::from_film).collect()),
+                None,
+                format!(
+                    "MLT over the BDPT ({} chains x {} mutations per pixel in all, each chain with its own bootstrap)",
+                    settings.chains, settings.mutations_per_pixel
                 ),
             ))
         }
