@@ -2,9 +2,10 @@
 //! The order is the order error messages list them in.
 
 use super::checks::{
-    albedo, algorithm_agreement, chi2, convergence, energy, estimators, furnace, half_space, hg,
-    image, lambert, measured, phase, radiance, radiosity_furnace, reciprocity, reciprocity_image,
-    reference_convergence, refraction, scale, smooth_limit, transmittance, weights,
+    albedo, algorithm_agreement, bdpt_strategies, chi2, convergence, energy, estimators, furnace,
+    half_space, hg, image, lambert, measured, phase, radiance, radiosity_furnace, reciprocity,
+    reciprocity_image, reference_convergence, refraction, scale, smooth_limit, transmittance,
+    weights,
 };
 use super::kind::{DynKind, Registered};
 use std::marker::PhantomData;
@@ -34,6 +35,7 @@ pub static KINDS: &[&dyn DynKind] = &[
     &Registered::<radiosity_furnace::RadiosityFurnace>(PhantomData),
     &Registered::<algorithm_agreement::AlgorithmAgreement>(PhantomData),
     &Registered::<reference_convergence::ReferenceConvergence>(PhantomData),
+    &Registered::<bdpt_strategies::BdptStrategies>(PhantomData),
 ];
 
 /// The kind named `name`.

@@ -1824,6 +1824,21 @@ fn algorithm_agreement_rejects_a_bdpt_with_a_wrong_connection_jacobian() {
     assert_all(manifest, "bdpt/delta-vertices", &broken, Verdict::Fail);
 }
 
+#[test]
+fn bdpt_strategies_reject_connections_with_a_wrong_jacobian() {
+    let manifest = "tests/manifests/algorithms.toml";
+    assert_all(manifest, "bdpt/strategies-cornell", &BuiltIn, Verdict::Pass);
+    let broken = BrokenBdpt {
+        heuristic: None,
+        geometry: Some(one_cosine),
+    };
+    for (n, v, m) in verdicts(manifest, "bdpt/strategies-cornell", &broken) {
+        assert_eq!(v, Verdict::Fail, "{n}: {m}");
+        // found in a connecting strategy (s >= 1, t >= 2), never in (0, t) or light tracing
+        assert!(m.contains("(1,") || m.contains("(2,2)"), "{n}: {m}");
+    }
+}
+
 /// MLT over furnace's BDPT with a wrong normalisation.
 struct BrokenMlt(furnace::integrators::mlt::Normalisation);
 impl Renderer for BrokenMlt {

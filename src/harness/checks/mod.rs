@@ -4,6 +4,7 @@
 
 pub mod albedo;
 pub mod algorithm_agreement;
+pub mod bdpt_strategies;
 pub mod chi2;
 pub mod convergence;
 pub mod energy;

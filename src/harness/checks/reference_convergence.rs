@@ -1,11 +1,13 @@
 //! `reference_convergence`: the convergence ladder of an estimator against a high-spp image of
 //! the path tracer, for scenes with no closed form. Each rung renders `runs` independent images
-//! at N (SPPM: iterations; path and light tracer: paths per pixel); a run's error is the mean
+//! at N (SPPM: iterations; path and light tracer and BDPT: paths per pixel; MLT: mutations per
+//! pixel of one chain); a run's error is the mean
 //! over the region's pixels of (x − y)² less the reference pixel's own variance of the mean
 //! (E[(x − y)²] = MSE(x) + Var(y) for independent x, y), so the reference's noise is not counted
 //! as the estimator's. The ladder is fitted and tested as `convergence`'s (harness::ladder).
 //!
-//! Rates: the path and light tracers are unbiased, RMSE ∝ N^−1/2. SPPM with radius reduction α
+//! Rates: the path and light tracers and the BDPT are unbiased, RMSE ∝ N^−1/2; MLT's chains
+//! are consistent with RMSE ∝ N^−1/2 once their start-up is forgotten. SPPM with radius reduction α
 //! (Hachisuka & Jensen 2009, eq. 6–9) has variance ∝ N^−α and squared bias ∝ r⁴ ∝ N^−2(1−α)
 //! (Knaus & Zwicker 2011, "Progressive photon mapping: a probabilistic approach", ToG 30(3),
 //! §4.3: r² ∝ N^−(1−α)); at α = 2/3 both give RMSE ∝ N^−1/3, so the rate holds whichever term
@@ -33,6 +35,10 @@ pub enum Estimator {
     Light,
     /// SPPM with these settings (`iterations` is replaced by each rung's N).
     Sppm(Sppm),
+    /// furnace's BDPT, N = samples per pixel of each run.
+    Bdpt,
+    /// MLT over the BDPT, N = mutations per pixel of each chain (one chain per run).
+    Mlt,
 }
 
 impl Estimator {
@@ -41,6 +47,8 @@ impl Estimator {
         match self {
             Estimator::Path => "path".into(),
             Estimator::Light => "light".into(),
+            Estimator::Bdpt => "bdpt".into(),
+            Estimator::Mlt => "mlt".into(),
             Estimator::Sppm(s) => format!(
                 "sppm a={}, {} photons/it",
                 fmt_sig(s.alpha),
@@ -75,7 +83,7 @@ impl Kind for ReferenceConvergence {
         common::SCENE,
         Key {
             name: "integrator",
-            ty: "\"sppm\", \"path\" or \"light\"",
+            ty: "\"sppm\", \"path\", \"light\", \"bdpt\" or \"mlt\"",
             default: "(required)",
             doc: "the estimator whose ladder is measured",
         },
@@ -117,6 +125,8 @@ impl Kind for ReferenceConvergence {
             Some(i) => match i.get_ref().as_str() {
                 "path" => Estimator::Path,
                 "light" => Estimator::Light,
+                "bdpt" => Estimator::Bdpt,
+                "mlt" => Estimator::Mlt,
                 "sppm" => {
                     let d = Sppm::default();
                     Estimator::Sppm(Sppm {
@@ -131,14 +141,14 @@ impl Kind for ReferenceConvergence {
                     return Err(k.error(
                         i.span(),
                         "integrator",
-                        format!("unknown integrator {other:?}; known: \"sppm\", \"path\", \"light\""),
+                        format!("unknown integrator {other:?}; known: \"sppm\", \"path\", \"light\", \"bdpt\", \"mlt\""),
                     ))
                 }
             },
             None => {
                 return Err(k.error_at(
                     "integrator",
-                    "give `integrator = \"sppm\"`, `\"path\"` or `\"light\"`: the estimator whose ladder is measured".into(),
+                    "give `integrator = \"sppm\"`, `\"path\"`, `\"light\"`, `\"bdpt\"` or `\"mlt\"`: the estimator whose ladder is measured".into(),
                 ))
             }
         };
@@ -200,6 +210,30 @@ pub fn ladder(
                 if films.len() as u64 != p.runs {
                     return Err(CheckError::Renderer(format!(
                         "the photon mapper returned {} runs for {}",
+                        films.len(),
+                        p.runs
+                    )));
+                }
+                films.iter().map(|f| f.means(1)).collect()
+            }
+            Estimator::Bdpt | Estimator::Mlt => {
+                let bdpt = crate::integrators::bdpt::Bdpt::from(&s.integrator);
+                let films = if p.estimator == Estimator::Bdpt {
+                    let mut sk = s.clone();
+                    sk.spp = n;
+                    ctx.renderer.render_bdpt(scene, &sk, &bdpt, p.runs)?
+                } else {
+                    let mlt = crate::integrators::mlt::Mlt {
+                        chains: p.runs,
+                        mutations_per_pixel: n.saturating_mul(p.runs),
+                        ..Default::default()
+                    };
+                    ctx.renderer.render_mlt(scene, &s, &bdpt, &mlt)?
+                };
+                if films.len() as u64 != p.runs {
+                    return Err(CheckError::Renderer(format!(
+                        "{} returned {} runs for {}",
+                        p.estimator.label(),
                         films.len(),
                         p.runs
                     )));
