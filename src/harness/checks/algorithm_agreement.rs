@@ -17,6 +17,7 @@ use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
     CHANNELS,
 };
+use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::region::settings_for;
@@ -65,6 +66,8 @@ pub struct Params {
     pub refine: bool,
     /// Where the images are compared (after the whole image).
     pub regions: RegionChoice,
+    /// Compare with the furnace closed form E/(1 − R) instead of the path tracer.
+    pub closed_form: bool,
 }
 
 /// The `algorithm_agreement` kind.
@@ -106,6 +109,12 @@ impl Kind for AlgorithmAgreement {
             doc: "independent SPPM or BDPT runs (their spread is the standard error; BDPT divides spp among them)",
         },
         common::SPPM_RADIUS,
+        Key {
+            name: "reference",
+            ty: "\"path\" or \"closed_form\"",
+            default: "\"path\"",
+            doc: "what the algorithm's image is compared with: the path tracer's image, or (a furnace scene) the closed form E/(1 - R) in every pixel",
+        },
         Key {
             name: "chains",
             ty: "integer 2..=1000",
@@ -172,6 +181,21 @@ impl Kind for AlgorithmAgreement {
             algorithm,
             refine: k.get::<bool>("refine")?.is_none_or(|b| *b.get_ref()),
             regions: RegionChoice::parse(k)?,
+            closed_form: match k.get::<String>("reference")? {
+                None => false,
+                Some(r) if r.get_ref() == "path" => false,
+                Some(r) if r.get_ref() == "closed_form" => true,
+                Some(r) => {
+                    return Err(k.error(
+                        r.span(),
+                        "reference",
+                        format!(
+                            "unknown reference {:?}; known: \"path\", \"closed_form\"",
+                            r.get_ref()
+                        ),
+                    ))
+                }
+            },
         })
     }
 
@@ -193,7 +217,19 @@ impl Kind for AlgorithmAgreement {
             .iter()
             .map(|r| r.pixels(w, h))
             .collect::<Result<Vec<_>, _>>()?;
-        let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
+        // the reference: the path tracer's image, or the closed form in every pixel (its RGB
+        // that of a flat spectrum of that radiance: grey-scene furnaces only)
+        let (path, closed) = if p.closed_form {
+            let (e, what) = expectation(scene, s.integrator.max_depth)?;
+            validate_view(scene, w, h, [0, 0, w, h])?;
+            let white = s.observer.white();
+            let rgb = s
+                .observer
+                .xyz_to_rgb([e * white[0] / white[1], e, e * white[2] / white[1]]);
+            (None, Some((rgb, what)))
+        } else {
+            (Some(RgbImage::from_film(&ctx.renderer.render(scene, &s)?)), None)
+        };
         // independent samples for the algorithm's images (the same for both of its images, so
         // that their difference is the refinement's alone)
         let mut rs = s.clone();
@@ -204,7 +240,11 @@ impl Kind for AlgorithmAgreement {
         for (reg, rect) in regions.iter().zip(&rects) {
             for (c, channel) in CHANNELS.iter().enumerate() {
                 let (t, dof) = test.region(c, *rect);
-                let reference = region_mean(&path, c, *rect);
+                let (reference, ref_dof) = match (&path, &closed) {
+                    (Some(path), _) => (region_mean(path, c, *rect), region_dof(path, c, *rect)),
+                    (None, Some((rgb, _))) => ((rgb[c], 0.0), f64::INFINITY),
+                    (None, None) => unreachable!("one reference"),
+                };
                 let bias = coarse.as_ref().map_or(0.0, |coarse| {
                     test.refinement(coarse, c, *rect) / reference.0.abs().max(f64::MIN_POSITIVE)
                 });
@@ -214,7 +254,7 @@ impl Kind for AlgorithmAgreement {
                     channel,
                     t,
                     reference,
-                    [dof, region_dof(&path, c, *rect)],
+                    [dof, ref_dof],
                     bias + ctx.rel_tolerance(check.rel_tolerance),
                 ));
             }
@@ -227,16 +267,20 @@ impl Kind for AlgorithmAgreement {
         } else {
             "; no bias allowance".into()
         };
-        regions_measurement(
-            &results,
-            2 * (w * h) as u64 * s.spp,
-            &format!(
-                "{what}{allowance} = test, path tracer ({} spp, {}) = reference, {w}x{h}",
+        let reference = match &closed {
+            Some((_, cf)) => format!("the closed form ({cf})"),
+            None => format!(
+                "path tracer ({} spp, {})",
                 s.spp,
                 s.integrator
                     .max_depth
                     .map_or("unlimited depth".into(), |d| format!("at most {d} bounces"))
             ),
+        };
+        regions_measurement(
+            &results,
+            2 * (w * h) as u64 * s.spp,
+            &format!("{what}{allowance} = test, {reference} = reference, {w}x{h}"),
         )
     }
 }
