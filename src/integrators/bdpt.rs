@@ -3,8 +3,8 @@
 //! every connection (s, t) an estimator of the paths of s + t − 2 bounces, combined by the
 //! power heuristic over all strategies (Veach eq. 9.13, β = 2; the ratio walk of PBR §16.3.4).
 //! s = 0 is an emitter hit by the camera subpath, t = 1 the light tracer's connection to the
-//! pinhole (a splat on another pixel). Surfaces only: media, dispersion, null boundaries and
-//! environment lights are refused by name ([`unsupported`]). Details: docs/rendering.md,
+//! pinhole (a splat on another pixel). Surfaces only: media, null boundaries and environment
+//! lights are refused by name ([`unsupported`]); dispersion follows the path tracer's rule. Details: docs/rendering.md,
 //! "`integrators::bdpt`".
 
 use crate::camera::Camera;
@@ -80,10 +80,7 @@ impl From<&crate::integrators::PathTracer> for Bdpt {
 
 /// Why BDPT cannot render `scene`, or None.
 pub fn unsupported(scene: &Scene) -> Option<String> {
-    if let Some(why) = super::surfaces_only(
-        scene,
-        "the two subpaths share one set of wavelengths; the dispersion rule is not carried across a connection here",
-    ) {
+    if let Some(why) = super::surfaces_only(scene, None) {
         return Some(why);
     }
     if scene.lights.is_empty() {
@@ -122,6 +119,8 @@ struct Vertex {
     pdf_rev: f64,
     /// The vertex scattered into a delta lobe (no connection can end on it).
     delta: bool,
+    /// A vertex before this one on its subpath scattered at a dispersive surface.
+    dispersed_before: bool,
 }
 
 impl Vertex {
@@ -186,6 +185,11 @@ impl<'a> Setup<'a> {
         }
         1.0 / (self.film_area * c * c * c)
     }
+}
+
+/// True when vertex `v` is a surface that sends wavelengths different ways.
+fn separates(scene: &Scene, v: &Vertex) -> bool {
+    matches!(v.on, On::Surface { shape } if scene.bsdfs[shape as usize].separates_wavelengths())
 }
 
 /// Solid-angle density `pdf` at `from` towards `to` as an area density at `to`.
@@ -275,8 +279,11 @@ impl Bdpt {
                 pdf_fwd: 0.0,
                 pdf_rev: 0.0,
                 delta: false,
+                dispersed_before: false,
             };
             v.pdf_fwd = to_area(pdf_dir, prev_p, &v);
+            let prev = path.last().expect("a subpath starts with its origin");
+            v.dispersed_before = prev.dispersed_before || separates(scene, prev);
             path.push(v);
             let cur = path.len() - 1;
             if cur + 1 >= max_vertices {
@@ -340,6 +347,7 @@ impl Bdpt {
             pdf_fwd: 1.0,
             pdf_rev: 0.0,
             delta: false,
+            dispersed_before: false,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
         let pdf = setup.camera_pdf(ray.d);
@@ -391,6 +399,7 @@ impl Bdpt {
             pdf_fwd: select_pdf * es.pdf_pos,
             pdf_rev: 0.0,
             delta: false,
+            dispersed_before: false,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
@@ -553,6 +562,16 @@ impl Bdpt {
         };
         if c.is_black() || !c.is_finite() {
             return None;
+        }
+        // the dispersion rule (Wilkie et al. 2014, §4.3, as the path tracer's): a path that
+        // scattered at a dispersive surface anywhere exists at its hero wavelength only
+        let at_z = s > 0 && separates(scene, z);
+        let at_y = s >= 2 && separates(scene, &lig[s - 1]);
+        let dispersed =
+            z.dispersed_before || at_z || (s > 0 && (lig[s - 1].dispersed_before || at_y));
+        let mut c = c;
+        if dispersed {
+            wl.clone().disperse(&mut c, 1.0);
         }
         let weight = match self.weighting {
             Weighting::Only { .. } => 1.0,

@@ -37,18 +37,20 @@ pub fn roulette(beta: &mut SampledSpectrum, u: f64) -> bool {
     true
 }
 
-/// Why an estimator that scatters at surfaces only, with one set of wavelengths shared by
-/// several paths and emission from the scene's own lights, cannot render `scene` (SPPM and
-/// BDPT): media, a dispersive dielectric (its reason follows `dispersion`), a null boundary or
-/// an environment light; None otherwise.
-pub fn surfaces_only(scene: &Scene, dispersion: &str) -> Option<String> {
+/// Why an estimator that scatters at surfaces only, with emission from the scene's own lights,
+/// cannot render `scene` (SPPM and BDPT): media, a dispersive dielectric (refused when
+/// `dispersion` gives the reason), a null boundary or an environment light; None otherwise.
+pub fn surfaces_only(scene: &Scene, dispersion: Option<&str>) -> Option<String> {
     if scene.has_media() {
         return Some(
             "the scene has participating media (paths here scatter only at surfaces)".into(),
         );
     }
-    if let Some(i) = scene.bsdfs.iter().position(Bsdf::separates_wavelengths) {
-        return Some(format!("shape {i} is dispersive ({dispersion})"));
+    if let (Some(why), Some(i)) = (
+        dispersion,
+        scene.bsdfs.iter().position(Bsdf::separates_wavelengths),
+    ) {
+        return Some(format!("shape {i} is dispersive ({why})"));
     }
     if scene.bsdfs.iter().any(Bsdf::is_null) {
         return Some("the scene has an index-matched (null) boundary".into());

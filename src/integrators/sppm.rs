@@ -50,7 +50,7 @@ impl Default for Sppm {
 pub fn unsupported(scene: &Scene) -> Option<String> {
     if let Some(why) = super::surfaces_only(
         scene,
-        "one iteration's photons and visible points share one set of wavelengths",
+        Some("one iteration's photons and visible points share one set of wavelengths"),
     ) {
         return Some(why);
     }

@@ -13,11 +13,11 @@
 //! over regions. Radiosity takes diffuse scenes lit by area emitters, SPPM and BDPT surface
 //! scenes without environment lights; each refuses the rest by name.
 
+use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
     CHANNELS,
 };
-use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
 use crate::harness::region::settings_for;
@@ -228,7 +228,10 @@ impl Kind for AlgorithmAgreement {
                 .xyz_to_rgb([e * white[0] / white[1], e, e * white[2] / white[1]]);
             (None, Some((rgb, what)))
         } else {
-            (Some(RgbImage::from_film(&ctx.renderer.render(scene, &s)?)), None)
+            (
+                Some(RgbImage::from_film(&ctx.renderer.render(scene, &s)?)),
+                None,
+            )
         };
         // independent samples for the algorithm's images (the same for both of its images, so
         // that their difference is the refinement's alone)
