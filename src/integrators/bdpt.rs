@@ -271,7 +271,7 @@ impl Bdpt {
             let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) else {
                 return false;
             };
-            let prev_p = path.last().expect("a subpath starts with its origin").sp.p;
+            let prev = path.last().expect("a subpath starts with its origin");
             let mut v = Vertex {
                 on: On::Surface { shape: hit.shape },
                 sp: hit.point,
@@ -279,11 +279,9 @@ impl Bdpt {
                 pdf_fwd: 0.0,
                 pdf_rev: 0.0,
                 delta: false,
-                dispersed_before: false,
+                dispersed_before: prev.dispersed_before || separates(scene, prev),
             };
-            v.pdf_fwd = to_area(pdf_dir, prev_p, &v);
-            let prev = path.last().expect("a subpath starts with its origin");
-            v.dispersed_before = prev.dispersed_before || separates(scene, prev);
+            v.pdf_fwd = to_area(pdf_dir, prev.sp.p, &v);
             path.push(v);
             let cur = path.len() - 1;
             if cur + 1 >= max_vertices {
