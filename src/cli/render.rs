@@ -425,6 +425,13 @@ fn render_bdpt_image(
     }
     let mut bdpt = Bdpt::from(&settings.integrator);
     if let Some((s, t)) = a.bdpt_only {
+        if let Some(d) = settings.integrator.max_depth.filter(|d| s + t - 2 > *d) {
+            return Err(anyhow::anyhow!(
+                "--bdpt-only {s},{t} samples paths of {} bounces; the render keeps at most {d} (--max-depth or the scene's render.max_depth)",
+                s + t - 2
+            )
+            .into());
+        }
         bdpt.weighting = Weighting::Only { s, t };
     }
     let per_run = RenderSettings {

@@ -513,6 +513,105 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
 }
 
 #[test]
+fn render_bdpt_and_mlt_write_images_and_refuse_what_they_cannot_do() {
+    let dir = std::env::temp_dir().join(format!("furnace-bdpt-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let small = ["--width", "8", "--height", "8", "-o"];
+    for (integrator, extra, says) in [
+        (
+            "bdpt",
+            vec!["--spp", "8", "--runs", "2"],
+            "bdpt: 8x8 px, 8 spp in 2 runs",
+        ),
+        (
+            "mlt",
+            vec!["--mutations-per-pixel", "8", "--chains", "2"],
+            "mlt: 8x8 px, 8 mutations per pixel in 2 chains",
+        ),
+    ] {
+        let exr = dir.join(format!("cbox-{integrator}.exr"));
+        let out = furnace()
+            .args([
+                "render",
+                "scenes/cornell-box.toml",
+                "--integrator",
+                integrator,
+            ])
+            .args(&extra)
+            .args(small)
+            .arg(&exr)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(
+            out.status.success() && text.contains(says) && exr.exists(),
+            "{text}{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    for (args, says) in [
+        (
+            vec!["--integrator", "bdpt", "--spp", "9", "--runs", "2"],
+            "a multiple of them",
+        ),
+        (
+            vec!["--integrator", "mlt", "--chains", "1"],
+            "at least 2 --chains",
+        ),
+        (
+            vec![
+                "--integrator",
+                "bdpt",
+                "--spp",
+                "8",
+                "--bdpt-only",
+                "2,3",
+                "--max-depth",
+                "1",
+            ],
+            "samples paths of 3 bounces",
+        ),
+        (vec!["--bdpt-only", "1,1"], "only used by --integrator bdpt"),
+        (
+            vec!["--integrator", "bdpt", "--bdpt-only", "1,0"],
+            "expected S,T",
+        ),
+    ] {
+        let out = furnace()
+            .args(["render", "scenes/cornell-box.toml"])
+            .args(&args)
+            .args(small)
+            .arg(dir.join("x.exr"))
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !out.status.success() && err.contains(says),
+            "{args:?}: {err}"
+        );
+    }
+    let out = furnace()
+        .args([
+            "render",
+            "scenes/hg-fog.toml",
+            "--integrator",
+            "bdpt",
+            "--spp",
+            "8",
+        ])
+        .args(small)
+        .arg(dir.join("fog.exr"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        !out.status.success() && err.contains("participating media"),
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn converge_measures_reference_ladders_of_every_estimator() {
     let dir = std::env::temp_dir().join(format!("furnace-cli-conv-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
