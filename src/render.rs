@@ -25,6 +25,35 @@ use crate::spectrum::{Observer, SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
+/// Settings for the render modules' unit tests: an 8x8 image, 1 spp, seed 3, `threads`.
+#[cfg(test)]
+pub(crate) fn test_settings(threads: usize) -> RenderSettings {
+    RenderSettings {
+        width: 8,
+        height: 8,
+        spp: 1,
+        seed: 3,
+        threads,
+        integrator: PathTracer::default(),
+        observer: Default::default(),
+        sampler: Sampler::Independent,
+        spectral: Default::default(),
+        deadline: None,
+    }
+}
+
+/// Independent runs' images (one sample per pixel each) merged into one film: each pixel's
+/// mean and variance over the runs (runs − 1 degrees of freedom).
+pub fn merge_runs(films: Vec<Film>) -> Option<Film> {
+    let mut it = films.into_iter();
+    let mut merged = it.next()?;
+    for f in it {
+        crate::film::merge_pixels(&mut merged.pixels, &f.pixels);
+        merged.truncated_paths += f.truncated_paths;
+    }
+    Some(merged)
+}
+
 /// Tile edge, pixels.
 pub const TILE: usize = 16;
 

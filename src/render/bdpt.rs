@@ -195,13 +195,7 @@ pub fn render_bdpt(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
     let films = render_bdpt_runs(scene, settings, bdpt, runs, progress)?;
-    let mut it = films.into_iter();
-    let mut merged = it.next().expect("at least one run");
-    for f in it {
-        crate::film::merge_pixels(&mut merged.pixels, &f.pixels);
-        merged.truncated_paths += f.truncated_paths;
-    }
-    Ok(merged)
+    Ok(super::merge_runs(films).expect("at least one run"))
 }
 
 #[cfg(test)]
@@ -209,21 +203,12 @@ mod tests {
     use super::*;
     use crate::integrators::bdpt::Weighting;
     use crate::integrators::PathTracer;
-    use crate::math::rng::Sampler;
     use std::path::Path;
 
     fn settings(threads: usize) -> RenderSettings {
         RenderSettings {
-            width: 8,
-            height: 8,
             spp: 4,
-            seed: 3,
-            threads,
-            integrator: PathTracer::default(),
-            observer: Default::default(),
-            sampler: Sampler::Independent,
-            spectral: Default::default(),
-            deadline: None,
+            ..crate::render::test_settings(threads)
         }
     }
 

@@ -264,35 +264,17 @@ pub fn render_mlt(
     mlt: &Mlt,
 ) -> Result<Film, RenderError> {
     let films = render_mlt_chains(scene, settings, bdpt, mlt)?;
-    let mut it = films.into_iter();
-    let mut merged = it.next().expect("at least one chain");
-    for f in it {
-        crate::film::merge_pixels(&mut merged.pixels, &f.pixels);
-        merged.truncated_paths += f.truncated_paths;
-    }
-    Ok(merged)
+    Ok(super::merge_runs(films).expect("at least one chain"))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::integrators::PathTracer;
-    use crate::math::rng::Sampler;
     use std::path::Path;
 
     fn settings(threads: usize) -> RenderSettings {
-        RenderSettings {
-            width: 8,
-            height: 8,
-            spp: 1,
-            seed: 3,
-            threads,
-            integrator: PathTracer::default(),
-            observer: Default::default(),
-            sampler: Sampler::Independent,
-            spectral: Default::default(),
-            deadline: None,
-        }
+        crate::render::test_settings(threads)
     }
 
     #[test]

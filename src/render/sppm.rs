@@ -411,23 +411,10 @@ impl Grid {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::integrators::PathTracer;
-    use crate::math::rng::Sampler;
     use std::path::Path;
 
     fn settings(threads: usize) -> RenderSettings {
-        RenderSettings {
-            width: 8,
-            height: 8,
-            spp: 1,
-            seed: 3,
-            threads,
-            integrator: PathTracer::default(),
-            observer: Default::default(),
-            sampler: Sampler::Independent,
-            spectral: Default::default(),
-            deadline: None,
-        }
+        crate::render::test_settings(threads)
     }
 
     #[test]
