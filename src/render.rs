@@ -42,6 +42,28 @@ pub(crate) fn test_settings(threads: usize) -> RenderSettings {
     }
 }
 
+/// One run's image as a film with one sample per pixel: the pixels' XYZ in row-major order,
+/// with their linear sRGB by `settings.observer`.
+pub(crate) fn run_film(
+    settings: &RenderSettings,
+    xyz: impl Iterator<Item = [f64; 3]>,
+    truncated_paths: u64,
+) -> Film {
+    let pixels = xyz
+        .map(|xyz| {
+            let mut p = Pixel::default();
+            p.add(xyz, settings.observer.xyz_to_rgb(xyz));
+            p
+        })
+        .collect();
+    Film {
+        width: settings.width,
+        height: settings.height,
+        pixels,
+        truncated_paths,
+    }
+}
+
 /// Independent runs' images (one sample per pixel each) merged into one film: each pixel's
 /// mean and variance over the runs (runs − 1 degrees of freedom).
 pub fn merge_runs(films: Vec<Film>) -> Option<Film> {

@@ -303,13 +303,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             total as f64 / secs / 1e6
         );
     }
-    // Noise and efficiency: mean over pixels of Var(Y pixel mean) relative to the squared
-    // image mean, and 1/(relative variance × time) — comparable across estimators.
-    let rel_var = relative_variance(&film);
-    super::say!(
-        "noise: mean relative variance of the Y pixel means {rel_var:.4e}; efficiency 1/(relative variance x time) {:.4e} /s",
-        1.0 / (rel_var * secs)
-    );
+    say_noise(&film, secs, "");
     Ok(code)
 }
 
@@ -448,20 +442,20 @@ fn render_bdpt_image(
             .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    for (k, v) in [
-        ("furnace.bdpt_runs", a.runs.to_string()),
-        (
-            "furnace.bdpt_strategies",
-            a.bdpt_only
-                .map_or("all (power heuristic)".into(), |(s, t)| {
-                    format!("only s={s}, t={t}")
-                }),
-        ),
-        ("furnace.variance_dof", (a.runs - 1).to_string()),
-    ] {
-        attrs.retain(|(name, _)| name != k);
-        attrs.push((k.into(), v));
-    }
+    set_attrs(
+        &mut attrs,
+        [
+            ("furnace.bdpt_runs", a.runs.to_string()),
+            (
+                "furnace.bdpt_strategies",
+                a.bdpt_only
+                    .map_or("all (power heuristic)".into(), |(s, t)| {
+                        format!("only s={s}, t={t}")
+                    }),
+            ),
+            ("furnace.variance_dof", (a.runs - 1).to_string()),
+        ],
+    );
     let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
     super::say!(
         "bdpt: {}x{} px, {} spp in {} runs, {:.2} s wall, {:.3} M samples/s",
@@ -472,12 +466,7 @@ fn render_bdpt_image(
         secs,
         total as f64 / secs / 1e6
     );
-    let rel_var = relative_variance(&film);
-    super::say!(
-        "noise: mean relative variance of the Y pixel means {rel_var:.4e} (from {} runs); efficiency 1/(relative variance x time) {:.4e} /s",
-        a.runs,
-        1.0 / (rel_var * secs)
-    );
+    say_noise(&film, secs, &format!(" (from {} runs)", a.runs));
     Ok(code)
 }
 
@@ -518,17 +507,17 @@ fn render_mlt_image(
     let film =
         furnace::render::render_mlt(scene, settings, &bdpt, &mlt).context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
-    for (k, v) in [
-        ("furnace.mlt_chains", a.chains.to_string()),
-        (
-            "furnace.mlt_mutations_per_pixel",
-            a.mutations_per_pixel.to_string(),
-        ),
-        ("furnace.variance_dof", (a.chains - 1).to_string()),
-    ] {
-        attrs.retain(|(name, _)| name != k);
-        attrs.push((k.into(), v));
-    }
+    set_attrs(
+        &mut attrs,
+        [
+            ("furnace.mlt_chains", a.chains.to_string()),
+            (
+                "furnace.mlt_mutations_per_pixel",
+                a.mutations_per_pixel.to_string(),
+            ),
+            ("furnace.variance_dof", (a.chains - 1).to_string()),
+        ],
+    );
     let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
     super::say!(
         "mlt: {}x{} px, {} mutations per pixel in {} chains, {:.2} s wall, {:.3} M mutations/s",
@@ -539,12 +528,7 @@ fn render_mlt_image(
         secs,
         mutations as f64 / secs / 1e6
     );
-    let rel_var = relative_variance(&film);
-    super::say!(
-        "noise: mean relative variance of the Y pixel means {rel_var:.4e} (from {} chains); efficiency 1/(relative variance x time) {:.4e} /s",
-        a.chains,
-        1.0 / (rel_var * secs)
-    );
+    say_noise(&film, secs, &format!(" (from {} chains)", a.chains));
     Ok(code)
 }
 
@@ -583,18 +567,18 @@ fn render_sppm_image(
             .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    for (k, v) in [
-        ("furnace.sppm_iterations", a.iterations.to_string()),
-        (
-            "furnace.sppm_photons_per_iteration",
-            a.photons_per_iteration.to_string(),
-        ),
-        ("furnace.sppm_runs", a.runs.to_string()),
-        ("furnace.variance_dof", a.runs.saturating_sub(1).to_string()),
-    ] {
-        attrs.retain(|(name, _)| name != k);
-        attrs.push((k.into(), v));
-    }
+    set_attrs(
+        &mut attrs,
+        [
+            ("furnace.sppm_iterations", a.iterations.to_string()),
+            (
+                "furnace.sppm_photons_per_iteration",
+                a.photons_per_iteration.to_string(),
+            ),
+            ("furnace.sppm_runs", a.runs.to_string()),
+            ("furnace.variance_dof", a.runs.saturating_sub(1).to_string()),
+        ],
+    );
     let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
     super::say!(
         "sppm: {} runs x {} iterations x {} photons, {}x{} px, {:.2} s wall, {:.3} M photons/s",
@@ -607,6 +591,25 @@ fn render_sppm_image(
         photons as f64 / secs / 1e6
     );
     Ok(code)
+}
+
+/// Sets (replacing) the EXR header attributes `pairs`.
+fn set_attrs<const N: usize>(attrs: &mut Vec<(String, String)>, pairs: [(&str, String); N]) {
+    for (k, v) in pairs {
+        attrs.retain(|(name, _)| name != k);
+        attrs.push((k.into(), v));
+    }
+}
+
+/// Prints the noise and efficiency line: the mean over pixels of Var(Y pixel mean) relative to
+/// the squared image mean (`source` says where the variances come from), and
+/// 1/(relative variance × time), comparable across estimators.
+fn say_noise(film: &furnace::film::Film, secs: f64, source: &str) {
+    let rel_var = relative_variance(film);
+    super::say!(
+        "noise: mean relative variance of the Y pixel means {rel_var:.4e}{source}; efficiency 1/(relative variance x time) {:.4e} /s",
+        1.0 / (rel_var * secs)
+    );
 }
 
 /// Mean over pixels of Var(Y pixel mean) over the squared image mean.

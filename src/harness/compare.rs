@@ -377,6 +377,17 @@ pub struct Comparison {
 /// ε of relMSE.
 pub const REL_MSE_EPS: f64 = 1e-2;
 
+/// Region `r`'s mean of channel `c` over independent runs whose pixels are correlated within a
+/// run (SPPM, BDPT, MLT): the mean of the runs' region means with its standard error, and that
+/// error's degrees of freedom (runs − 1).
+pub fn runs_region_mean(runs: &[RgbImage], c: usize, r: [usize; 4]) -> ((f64, f64), f64) {
+    let means: Vec<f64> = runs.iter().map(|img| region_mean(img, c, r).0).collect();
+    let k = means.len() as f64;
+    let mean = means.iter().sum::<f64>() / k;
+    let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
+    ((mean, (var / k).sqrt()), k - 1.0)
+}
+
 /// Mean of channel `c` over the pixel rectangle `r` [x0, y0, x1, y1) and its standard error
 /// √(Σ var)/n, which treats the pixels as independent estimates (true for camera-path renders;
 /// not for light-traced images, whose region statistics come from the light tracer itself).

@@ -187,6 +187,17 @@ impl<'a> Setup<'a> {
     }
 }
 
+/// In the shading frame of vertex `i` of `path`: the unit direction towards vertex `i − 1` and
+/// the world direction `w`.
+fn local_dirs(path: &[Vertex], i: usize, w: Vec3) -> (Vec3, Vec3) {
+    let v = &path[i];
+    let frame = Frame::from_normal(v.sp.n);
+    (
+        frame.to_local((path[i - 1].sp.p - v.sp.p).normalize()),
+        frame.to_local(w),
+    )
+}
+
 /// True when vertex `v` is a surface that sends wavelengths different ways.
 fn separates(scene: &Scene, v: &Vertex) -> bool {
     matches!(v.on, On::Surface { shape } if scene.bsdfs[shape as usize].separates_wavelengths())
@@ -607,9 +618,7 @@ impl Bdpt {
                 }
             }
             On::Surface { shape } => {
-                let frame = Frame::from_normal(v.sp.n);
-                let to_prev = frame.to_local((path[i - 1].sp.p - v.sp.p).normalize());
-                let w = frame.to_local(w);
+                let (to_prev, w) = local_dirs(path, i, w);
                 let (wo, wi) = if camera_side {
                     (to_prev, w)
                 } else {
@@ -638,13 +647,8 @@ impl Bdpt {
                 emission_pdf_dir(&setup.scene.lights[light as usize], &v.sp, w)
             }
             On::Surface { shape } => {
-                let frame = Frame::from_normal(v.sp.n);
-                let to_prev = (path[i - 1].sp.p - v.sp.p).normalize();
-                setup.scene.bsdfs[shape as usize].pdf(
-                    frame.to_local(to_prev),
-                    frame.to_local(w),
-                    wl,
-                )
+                let (to_prev, w) = local_dirs(path, i, w);
+                setup.scene.bsdfs[shape as usize].pdf(to_prev, w, wl)
             }
         }
     }
@@ -664,10 +668,8 @@ impl Bdpt {
         let On::Surface { shape } = v.on else {
             return 0.0;
         };
-        let frame = Frame::from_normal(v.sp.n);
-        let to_prev = (prev.sp.p - v.sp.p).normalize();
-        let pdf =
-            setup.scene.bsdfs[shape as usize].pdf(frame.to_local(w), frame.to_local(to_prev), wl);
+        let (to_prev, w) = local_dirs(path, i, w);
+        let pdf = setup.scene.bsdfs[shape as usize].pdf(w, to_prev, wl);
         to_area(pdf, v.sp.p, prev)
     }
 

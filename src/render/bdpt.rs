@@ -7,7 +7,7 @@
 //! count.
 
 use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
-use crate::film::{Film, Pixel};
+use crate::film::Film;
 use crate::integrators::bdpt::{unsupported, Bdpt, Buffers, Setup};
 use crate::math::rng::{mix64, SampleStream};
 use crate::scene::Scene;
@@ -165,22 +165,15 @@ pub fn render_bdpt_runs(
                 }
             }
         }
-        let pixels = image
+        let xyz = image
             .iter()
             .zip(&splat_total)
-            .map(|(c, s)| {
-                let xyz = std::array::from_fn(|k| c[k] + s[k] / light_paths);
-                let mut p = Pixel::default();
-                p.add(xyz, settings.observer.xyz_to_rgb(xyz));
-                p
-            })
-            .collect();
-        films.push(Film {
-            width: w,
-            height: h,
-            pixels,
-            truncated_paths: cut.swap(0, Ordering::Relaxed),
-        });
+            .map(|(c, s)| std::array::from_fn(|k| c[k] + s[k] / light_paths));
+        films.push(super::run_film(
+            settings,
+            xyz,
+            cut.swap(0, Ordering::Relaxed),
+        ));
     }
     Ok(films)
 }

@@ -10,7 +10,7 @@
 //! count.
 
 use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
-use crate::film::{Film, Pixel};
+use crate::film::Film;
 use crate::integrators::bdpt::{unsupported, Bdpt, Buffers, Setup, Splat};
 use crate::integrators::mlt::{Mlt, PrimarySample};
 use crate::math::rng::{mix64, SampleStream, Uniforms};
@@ -230,21 +230,8 @@ pub fn render_mlt_chains(
             }
         }
         let scale = (mlt.normalisation)(b) / mutations as f64;
-        let pixels = image
-            .iter()
-            .map(|v| {
-                let xyz = v.map(|x| x * scale);
-                let mut p = Pixel::default();
-                p.add(xyz, settings.observer.xyz_to_rgb(xyz));
-                p
-            })
-            .collect();
-        Ok(Film {
-            width: w,
-            height: h,
-            pixels,
-            truncated_paths: cut,
-        })
+        let xyz = image.iter().map(|v| v.map(|x| x * scale));
+        Ok(super::run_film(settings, xyz, cut))
     };
     let work = || {
         (0..mlt.chains)

@@ -6,7 +6,7 @@
 //! correlated across iterations, so a run is one sample).
 
 use super::{FilmResponse, RenderError, RenderSettings};
-use crate::film::{Film, Pixel};
+use crate::film::Film;
 use crate::integrators::sppm::{camera_path, trace_photon, unsupported, Sppm, VisiblePoint};
 use crate::math::rng::{mix64, SampleStream};
 use crate::math::Vec3;
@@ -224,19 +224,12 @@ fn sppm_core(
             }
             let scale = 1.0 / sppm.iterations as f64;
             let emitted = sppm.iterations as f64 * sppm.photons_per_iteration as f64;
-            let mut pixels = vec![Pixel::default(); n];
-            for (px, pixel) in pixels.iter_mut().enumerate() {
-                let xyz: [f64; 3] = std::array::from_fn(|c| {
+            let xyz = (0..n).map(|px| {
+                std::array::from_fn(|c| {
                     state.le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
-                });
-                pixel.add(xyz, settings.observer.xyz_to_rgb(xyz));
-            }
-            on_run(Film {
-                width: w,
-                height: h,
-                pixels,
-                truncated_paths: truncated,
+                })
             });
+            on_run(super::run_film(settings, xyz, truncated));
         }
         Ok(())
     };

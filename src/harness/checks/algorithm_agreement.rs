@@ -15,8 +15,8 @@
 
 use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::compare::{
-    region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
-    CHANNELS,
+    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, whole_image,
+    RegionChoice, RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -301,13 +301,7 @@ impl Images {
     fn region(&self, c: usize, rect: [usize; 4]) -> ((f64, f64), f64) {
         match self {
             Images::Pixels(img) => (region_mean(img, c, rect), region_dof(img, c, rect)),
-            Images::Runs(runs) => {
-                let means: Vec<f64> = runs.iter().map(|r| region_mean(r, c, rect).0).collect();
-                let k = means.len() as f64;
-                let mean = means.iter().sum::<f64>() / k;
-                let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
-                ((mean, (var / k).sqrt()), k - 1.0)
-            }
+            Images::Runs(runs) => runs_region_mean(runs, c, rect),
         }
     }
 

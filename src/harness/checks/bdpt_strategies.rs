@@ -7,8 +7,8 @@
 //! its independent runs); the check's p is the Šidák combination.
 
 use crate::harness::compare::{
-    region_dof, region_mean, region_test, regions_measurement, whole_image, RegionChoice, RgbImage,
-    CHANNELS,
+    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, whole_image,
+    RegionChoice, RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::region::settings_for;
@@ -119,11 +119,7 @@ impl Kind for BdptStrategies {
                 strategies += 1;
                 for (reg, rect) in regions.iter().zip(&rects) {
                     for (c, channel) in CHANNELS.iter().enumerate() {
-                        let means: Vec<f64> =
-                            runs.iter().map(|r| region_mean(r, c, *rect).0).collect();
-                        let k = means.len() as f64;
-                        let mean = means.iter().sum::<f64>() / k;
-                        let var = means.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (k - 1.0);
+                        let (test, test_dof) = runs_region_mean(&runs, c, *rect);
                         let (pm, pse) = region_mean(&path[d as usize], c, *rect);
                         let mut reference = (pm, pse);
                         let mut dof = region_dof(&path[d as usize], c, *rect);
@@ -135,9 +131,9 @@ impl Kind for BdptStrategies {
                         results.push(region_test(
                             &format!("({sv},{t}) {}", reg.name),
                             channel,
-                            (mean, (var / k).sqrt()),
+                            test,
                             reference,
-                            [k - 1.0, dof],
+                            [test_dof, dof],
                             ctx.rel_tolerance(check.rel_tolerance),
                         ));
                     }
