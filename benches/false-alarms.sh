@@ -25,6 +25,11 @@
 #
 #   FILTER=sppm/cornell-convergence ALPHA=1.005e-4 \
 #     OUT=reports/false-alarms/sppm-cornell-convergence.tsv benches/false-alarms.sh 1001 1100
+#
+# ARGS adds options to every run, e.g. the sequential looks or a power target:
+#
+#   FILTER='furnace/*' ALPHA=0.05 ARGS=--sequential \
+#     OUT=reports/false-alarms/sequential-furnace.tsv benches/false-alarms.sh 2001 2100
 set -euo pipefail
 first=${1:?first seed}
 last=${2:?last seed}
@@ -42,7 +47,7 @@ trap 'rm -rf "$tmp"' EXIT
 for seed in $(seq "$first" "$last"); do
   if cut -f1 "$out" | grep -qx "$seed"; then continue; fi
   # Exit code 1 (a check failed) is data here, not an error.
-  "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" ${FILTER:+--filter "$FILTER"} ${ALPHA:+--alpha "$ALPHA"} || [ $? -eq 1 ]
+  "$furnace" check --seed "$seed" --quiet --json "$tmp/run.json" ${FILTER:+--filter "$FILTER"} ${ALPHA:+--alpha "$ALPHA"} ${ARGS:-} || [ $? -eq 1 ]
   # One line per outcome: name, verdict, p-value ("-" when the check has none).
   # With FILTER, only the selected checks (the others are reported as skipped).
   python3 - "$tmp/run.json" "$seed" "$build" "${FILTER:+selected}" >> "$out" <<'EOF'

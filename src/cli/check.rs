@@ -64,6 +64,12 @@ pub struct CheckArgs {
     /// Write no reproducer bundles.
     #[arg(long)]
     no_bundles: bool,
+    /// Give every check whose spp is a sample budget the spp that detects a relative bias of DELTA with 95 % probability (a pilot run at a sixteenth of its spp estimates the variance), overriding the manifests' `power`: e.g. `--power 0.002` for a nightly job.
+    #[arg(long, value_name = "DELTA")]
+    power: Option<f64>,
+    /// Spend budgeted checks' samples in three looks (¼, ½, all of a budget 1.12× the written one) and stop as soon as the verdict is settled; the false-alarm rate and the power at each check's detection limit are held (docs/statistics.md).
+    #[arg(long)]
+    sequential: bool,
     /// Do not re-run a failed check's isolation ladder (simpler variants with known closed forms, e.g. the furnace kind capped at 0–3 bounces, within 4× the check's time).
     #[arg(long)]
     no_isolation: bool,
@@ -90,6 +96,12 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     }
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
+    }
+    if let Some(d) = a.power.filter(|d| !(*d > 0.0 && *d < 1.0)) {
+        return Err(anyhow::anyhow!(
+            "--power {d} must be a relative bias in (0, 1): the smallest bias each check must catch with 95 % probability"
+        )
+        .into());
     }
     let inputs = if a.manifests.is_empty() {
         let default = PathBuf::from("tests/manifests");
@@ -183,6 +195,8 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         threads: a.threads,
         time_limit: a.time_limit,
         isolate: !a.no_isolation,
+        power: a.power,
+        sequential: a.sequential,
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     let externals = if a.renderers.iter().any(|r| r != "furnace") {

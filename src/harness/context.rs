@@ -43,6 +43,11 @@ pub struct RunOptions {
     pub shard: Option<ShardPlan>,
     /// Run the isolation ladder of each failed check (`harness::isolation`).
     pub isolate: bool,
+    /// The detection power every budgeted check must reach (`--power`), overriding the
+    /// manifests' `power`; None: each check's own.
+    pub power: Option<f64>,
+    /// Spend budgeted checks' samples in group-sequential looks (`harness::budget`).
+    pub sequential: bool,
 }
 
 /// A shard and the shard of every check of the suite (`shard::partition`).
@@ -71,6 +76,8 @@ impl Default for RunOptions {
             time_limit: DEFAULT_TIME_LIMIT,
             shard: None,
             isolate: true,
+            power: None,
+            sequential: false,
         }
     }
 }

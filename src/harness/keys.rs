@@ -190,7 +190,7 @@ impl<'a> Keys<'a> {
             table,
         };
         for (key, v) in table {
-            if key == "name" || key == "kind" || key == "time_limit" || key == "regression" {
+            if ["name", "kind", "time_limit", "regression", "power"].contains(&key.as_str()) {
                 continue;
             }
             if !allowed.iter().any(|k| k.name == key) {
@@ -199,7 +199,7 @@ impl<'a> Keys<'a> {
                     v.span(),
                     key,
                     format!(
-                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, {}",
+                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, power, {}",
                         kind,
                         names.join(", ")
                     ),

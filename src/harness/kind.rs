@@ -51,6 +51,13 @@ pub trait Kind: Send + Sync + 'static {
     fn ladder(_check: &Check, _p: &Self::Params) -> Vec<Rung> {
         Vec::new()
     }
+    /// Whether the check's spp is a sample budget the runner may scale: its standard error
+    /// falls as 1/√spp, its expected value does not depend on it, and it carries no noise
+    /// that separate runs would share (a reference image, a measurement). Power targets and
+    /// sequential looks (`budget.rs`) apply only then. False by default.
+    fn budgeted(_check: &Check, _p: &Self::Params) -> bool {
+        false
+    }
 }
 
 /// The default applicability rule of a [`Scope`]: image kinds judge any renderer, model
@@ -91,6 +98,8 @@ pub trait DynKind: Send + Sync {
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError>;
     /// See [`Kind::ladder`].
     fn ladder(&self, check: &Check) -> Vec<Rung>;
+    /// See [`Kind::budgeted`].
+    fn budgeted(&self, check: &Check) -> bool;
 }
 
 /// The registry's handle of kind `K`.
@@ -142,6 +151,9 @@ impl<K: Kind> DynKind for Registered<K> {
     }
     fn ladder(&self, check: &Check) -> Vec<Rung> {
         K::ladder(check, self.params(check))
+    }
+    fn budgeted(&self, check: &Check) -> bool {
+        K::budgeted(check, self.params(check))
     }
 }
 
@@ -197,6 +209,9 @@ pub struct Check {
     /// The manifest says the expected value is furnace's own earlier output (`regression =
     /// true`): the check is a regression baseline, reported apart, not validation.
     pub regression: bool,
+    /// The detection power the check must reach (`power = δ`: the smallest relative bias it
+    /// catches with 95 % probability); its spp then follows from a pilot run (`budget.rs`).
+    pub power: Option<f64>,
 }
 
 impl Check {

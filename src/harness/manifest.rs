@@ -201,6 +201,22 @@ fn expand_check(
     let regression = keys
         .get::<bool>("regression")?
         .is_some_and(|r| *r.get_ref());
+    let power = match keys.get::<f64>("power")? {
+        None => None,
+        Some(d) if d.get_ref().is_finite() && *d.get_ref() > 0.0 && *d.get_ref() < 1.0 => {
+            Some(*d.get_ref())
+        }
+        Some(d) => {
+            return Err(keys.error(
+                d.span(),
+                "power",
+                format!(
+                    "{} must be a relative bias in (0, 1): the smallest bias the check must catch with 95 % probability",
+                    d.get_ref()
+                ),
+            ))
+        }
+    };
     let models = keys
         .get::<Vec<String>>("models")?
         .map(|m| m.into_inner())
@@ -243,7 +259,19 @@ fn expand_check(
         origin: format!("{}:{line}", src.path.display()),
         time_limit,
         regression,
+        power,
     };
+    if let (Some(_), false) = (power, kind.budgeted(&base_check)) {
+        return Err(keys.error_at(
+            "power",
+            format!(
+                "check {:?} has no sample budget the harness can scale (kind {}{}); `power` applies to checks whose spp sets their standard error (docs/statistics.md#power-targets-and-sequential-looks)",
+                base_check.name,
+                kind.name(),
+                if kind.keys().contains(&common::SCENE) { " with these keys" } else { " draws its own samples" }
+            ),
+        ));
+    }
     let Some(scene) = keys.raw("scene") else {
         return Ok(vec![base_check]);
     };

@@ -32,6 +32,9 @@ pub struct Measurement {
     /// assumes a finite variance). A relabelling of a rejection, so it never turns a PASS into
     /// anything else.
     pub heavy_tail: Option<String>,
+    /// The standard error the detection power is computed from, when not `std_error`: a
+    /// sequential test's power is its design's (`budget.rs`), not that of the looks it used.
+    pub power_std_error: Option<f64>,
     /// Samples used.
     pub samples: u64,
     /// Explanation: estimator, what was compared, sub-results.

@@ -5,9 +5,10 @@
 //! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `checks/` (one file per kind) →
-//! `registry` → `manifest` → `isolation` → `runner`.
+//! `registry` → `manifest` → `isolation`, `budget` → `runner`.
 
 pub mod adapter;
+pub mod budget;
 pub mod checks;
 pub mod closed_form;
 pub mod compare;

@@ -528,6 +528,7 @@ pub fn region_measurement(
         }
     };
     Measurement {
+        power_std_error: None,
         estimate: Some(r.mean),
         std_error: Some(se),
         expected: Some(expected),

@@ -1,6 +1,7 @@
 //! The runner: runs checks against a renderer, applies the family-wise correction across the
 //! stochastic ones, and turns measurements into verdicts with their numbers.
 
+use super::budget;
 use super::context::{check_seed, Context, Correction, RunOptions};
 use super::isolation;
 use super::kind::Check;
@@ -37,7 +38,8 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
     // Detection power at the level this test actually ran at: the corrected threshold,
     // split over the sub-tests folded into the p-value, one- or two-sided, plus the
     // stated model tolerance.
-    if let (Some(se), Some(exp), Some(thr)) = (ms.std_error, ms.expected, o.alpha) {
+    let se = ms.power_std_error.or(ms.std_error);
+    if let (Some(se), Some(exp), Some(thr)) = (se, ms.expected, o.alpha) {
         if exp != 0.0 {
             let k = ms.variants.max(1) as f64;
             // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
@@ -105,6 +107,7 @@ pub fn run_with(
         .count()
         .max(1);
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
+    let plan = budget::Plan::new(alpha, opts.power, opts.sequential);
     let mut outcomes = Vec::new();
     let mut measured = Vec::new();
     for (i, check) in checks.iter().enumerate() {
@@ -140,7 +143,10 @@ pub fn run_with(
             alpha,
         };
         let t0 = Instant::now();
-        let result = check.kind.run(check, &ctx);
+        let result = match &plan {
+            Ok(plan) => budget::run(check, &ctx, plan),
+            Err(why) => Err(super::error::CheckError::Setup(why.clone())),
+        };
         let seconds = t0.elapsed().as_secs_f64();
         let mut o = Outcome::new(&check.name, check.kind_name());
         o.seconds = seconds;

@@ -5,6 +5,7 @@ pub mod chi2;
 pub mod multiple;
 pub mod power;
 pub mod regression;
+pub mod sequential;
 pub mod sphere;
 pub mod stability;
 

@@ -146,7 +146,7 @@ const HARNESS_LAYERS: [&[&str]; 12] = [
     &["checks"],
     &["registry"],
     &["manifest"],
-    &["isolation"],
+    &["isolation", "budget"],
     &["runner"],
 ];
 

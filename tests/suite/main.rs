@@ -20,6 +20,7 @@ mod negative;
 mod references;
 mod render;
 mod report_html;
+mod sample_plans;
 mod scene_errors;
 mod scene_parse;
 mod shard;

@@ -94,7 +94,7 @@ fn assert_rejected(manifest_file: &str, name: &str, renderer: &dyn Renderer) {
 // ---------------------------------------------------------------- scene-level renderers
 
 /// Off-by-one depth: renders one bounce fewer than asked.
-struct OffByOneDepth;
+pub(crate) struct OffByOneDepth;
 impl Renderer for OffByOneDepth {
     fn name(&self) -> String {
         "off-by-one depth".into()

@@ -138,6 +138,7 @@ pub fn measure(
         1.0
     };
     Ok(Measurement {
+        power_std_error: None,
         estimate: Some(mean),
         std_error: Some(se),
         expected: Some(1.0),

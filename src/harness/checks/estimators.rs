@@ -34,6 +34,9 @@ impl Kind for EstimatorAgreement {
         common::SEED,
     ];
     const SCOPE: Scope = Scope::Furnace;
+    fn budgeted(_: &Check, _: &Self::Params) -> bool {
+        true // its spp is a sample budget (harness::budget)
+    }
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())
@@ -152,6 +155,7 @@ impl Kind for EstimatorAgreement {
             .collect();
         let mis = &stats[2].1;
         Ok(Measurement {
+        power_std_error: None,
             estimate: Some(worst.3),
             std_error: Some(worst.4),
             expected: Some(0.0),

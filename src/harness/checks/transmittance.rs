@@ -108,6 +108,9 @@ impl Kind for Transmittance {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Image;
+    fn budgeted(_: &Check, _: &Self::Params) -> bool {
+        true // its spp is a sample budget (harness::budget)
+    }
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())

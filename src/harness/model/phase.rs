@@ -235,6 +235,7 @@ pub fn measure_phase_at(
         (ps.len() as f64 * ps.iter().copied().fold(1.0, f64::min)).min(1.0)
     };
     Ok(Measurement {
+        power_std_error: None,
         estimate: Some(mv.mean()),
         std_error: Some(se),
         expected: Some(g),

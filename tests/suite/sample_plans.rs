@@ -1,0 +1,247 @@
+//! Power targets and sequential looks (harness::budget), measured: a synthetic check whose
+//! estimate is exactly normal (so its rates are known) run over thousands of seeds gives the
+//! false-alarm rate, the power at the detection limit and the mean spp of each mode; real
+//! checks show that a biased renderer is still rejected and a correct one passes with fewer
+//! samples; bad `power` values are refused.
+
+use crate::{root, run_furnace};
+use furnace::harness::budget::{self, Plan};
+use furnace::harness::keys::{Key, Keys};
+use furnace::harness::kind::{Registered, RenderOverrides};
+use furnace::harness::outcome::{Statistic, Verdict};
+use furnace::harness::{
+    self, manifest, BuiltIn, Check, CheckError, Context, Kind, Measurement, RunOptions, Scope,
+};
+use furnace::io::LocatedError;
+use furnace::math::rng::SampleStream;
+use furnace::stats::power;
+use std::sync::Arc;
+
+/// A check whose estimate is 10 + bias + N(0, 1/spp): one unit-variance sample per spp.
+struct Gauss;
+
+#[derive(Debug)]
+struct Bias(f64);
+
+impl Kind for Gauss {
+    type Params = Bias;
+    const NAME: &'static str = "gauss";
+    const KEYS: &'static [Key] = &[];
+    const SCOPE: Scope = Scope::Image;
+    fn parse(_: &mut Keys) -> Result<Bias, LocatedError> {
+        Ok(Bias(0.0))
+    }
+    fn run(check: &Check, p: &Bias, ctx: &Context) -> Result<Measurement, CheckError> {
+        let spp = check.render.spp.expect("the test sets spp");
+        let mut rng = SampleStream::new(ctx.seed, 0, 0);
+        let (u, v) = (rng.next_f64().max(1e-300), rng.next_f64());
+        let normal = (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos();
+        let se = 1.0 / (spp as f64).sqrt();
+        let estimate = 10.0 + p.0 + se * normal;
+        let z = (estimate - 10.0) / se;
+        Ok(Measurement {
+            estimate: Some(estimate),
+            std_error: Some(se),
+            expected: Some(10.0),
+            statistic: Some(Statistic::Z { z }),
+            p_value: Some(2.0 * normal_sf(z.abs())),
+            samples: spp,
+            ..Default::default()
+        })
+    }
+    fn budgeted(_: &Check, _: &Bias) -> bool {
+        true
+    }
+}
+
+static GAUSS: Registered<Gauss> = Registered::new();
+
+fn normal_sf(x: f64) -> f64 {
+    0.5 * statrs::function::erf::erfc(x / std::f64::consts::SQRT_2)
+}
+
+fn gauss(bias: f64, spp: u64, power: Option<f64>) -> Check {
+    Check {
+        name: "gauss".into(),
+        kind: &GAUSS,
+        scene: None,
+        render: RenderOverrides {
+            spp: Some(spp),
+            ..Default::default()
+        },
+        seed: None,
+        rel_tolerance: 0.0,
+        models: vec![],
+        params: Arc::new(Bias(bias)),
+        origin: "test".into(),
+        time_limit: None,
+        regression: false,
+        power,
+    }
+}
+
+/// (rejection rate, its standard error, mean samples) of `check` under `plan` over `seeds`.
+fn rates(check: &Check, plan: &Plan, alpha: f64, seeds: u64) -> (f64, f64, f64) {
+    let mut rejected = 0u64;
+    let mut samples = 0u64;
+    for seed in 0..seeds {
+        let ctx = Context {
+            renderer: &BuiltIn,
+            models: None,
+            seed: seed * 7919 + 1,
+            threads: 1,
+            alpha,
+            deadline: None,
+        };
+        let m = budget::run(check, &ctx, plan).unwrap();
+        rejected += u64::from(harness::judge(&m, alpha) == Verdict::Fail);
+        samples += m.samples;
+    }
+    let rate = rejected as f64 / seeds as f64;
+    let se = (rate.max(1e-3) * (1.0 - rate) / seeds as f64).sqrt();
+    let spp = samples as f64 / seeds as f64;
+    // printed for docs/statistics.md (`-- --nocapture`)
+    println!(
+        "bias {:.4}, power target {:?}, plan {:?}/{}: {rejected} of {seeds} rejected ({rate:.4} ± {se:.4}), mean spp {spp:.1}",
+        check.params.downcast_ref::<Bias>().map_or(f64::NAN, |b| b.0),
+        check.power,
+        plan.power,
+        plan.designs.is_some(),
+    );
+    (rate, se, spp)
+}
+
+const ALPHA: f64 = 0.05;
+const SPP: u64 = 400;
+
+/// The bias the fixed test at SPP detects with 95 % probability: (z₁₋α/2 + z₀.₉₅)·σ/√n.
+fn detection_limit() -> f64 {
+    power::min_detectable_bias(1.0 / (SPP as f64).sqrt(), ALPHA, 0.95)
+}
+
+#[test]
+fn sequential_looks_hold_the_false_alarm_rate() {
+    let plan = Plan::new(ALPHA, None, true).unwrap();
+    let (rate, se, _) = rates(&gauss(0.0, SPP, None), &plan, ALPHA, 20000);
+    assert!(
+        (rate - ALPHA).abs() < 4.0 * se,
+        "false-alarm rate {rate} ± {se}, stated {ALPHA}"
+    );
+}
+
+#[test]
+fn sequential_looks_save_samples_at_the_suites_level() {
+    // the default suite's per-test level (1 % over about 100 tests): too small a rate to
+    // count here, so this measures the spend, which the design predicts
+    let alpha = 1e-4;
+    let plan = Plan::new(alpha, None, true).unwrap();
+    let (rate, _, spp) = rates(&gauss(0.0, SPP, None), &plan, alpha, 4000);
+    assert!(rate < 1e-3, "{rate}");
+    let d = &plan.designs.as_ref().unwrap().0;
+    let want = d.expected_samples(0.0) * SPP as f64;
+    assert!(
+        (spp / want - 1.0).abs() < 0.05,
+        "mean spp {spp}, design {want}"
+    );
+    assert!(spp < 0.45 * SPP as f64, "mean spp {spp} of {SPP}");
+}
+
+#[test]
+fn sequential_looks_keep_the_power_at_the_detection_limit() {
+    let plan = Plan::new(ALPHA, None, true).unwrap();
+    let (rate, se, _) = rates(&gauss(detection_limit(), SPP, None), &plan, ALPHA, 4000);
+    assert!(rate > 0.95 - 4.0 * se, "power {rate} ± {se}, stated 0.95");
+    // the fixed test at the same bias, for comparison: the same power
+    let fixed = Plan::new(ALPHA, None, false).unwrap();
+    let (r0, s0, spp) = rates(&gauss(detection_limit(), SPP, None), &fixed, ALPHA, 4000);
+    assert_eq!(spp, SPP as f64);
+    assert!((r0 - 0.95).abs() < 4.0 * s0, "fixed-test power {r0} ± {s0}");
+}
+
+#[test]
+fn a_power_target_buys_the_spp_it_needs() {
+    // δ = 1 % of the expected 10: the fixed test needs n = ((z₁₋α/2 + z₀.₉₅)/0.1)² samples
+    let plan = Plan::new(ALPHA, None, false).unwrap();
+    let k = power::min_detectable_bias(1.0, ALPHA, 0.95);
+    let need = (k / 0.1_f64).powi(2);
+    let (null, null_se, spp) = rates(&gauss(0.0, SPP, Some(0.01)), &plan, ALPHA, 20000);
+    // the pilot's variance is exact here, so the budget is the closed form's (rounded up)
+    assert!((spp / need - 1.0).abs() < 0.01, "spp {spp}, need {need}");
+    assert!(
+        (null - ALPHA).abs() < 4.0 * null_se,
+        "false alarms {null} ± {null_se}"
+    );
+    let (hit, hit_se, _) = rates(&gauss(0.1, SPP, Some(0.01)), &plan, ALPHA, 2000);
+    assert!((hit - 0.95).abs() < 4.0 * hit_se, "power {hit} ± {hit_se}");
+    // --power overrides the check's own target
+    let strict = Plan::new(ALPHA, Some(0.005), false).unwrap();
+    let (_, _, spp4) = rates(&gauss(0.0, SPP, Some(0.01)), &strict, ALPHA, 20);
+    assert!((spp4 / (4.0 * need) - 1.0).abs() < 0.01, "spp {spp4}");
+    // and the two modes combine: the target sets the fixed budget the looks spend from
+    let both = Plan::new(ALPHA, None, true).unwrap();
+    let (hit, hit_se, _) = rates(&gauss(0.1, SPP, Some(0.01)), &both, ALPHA, 2000);
+    assert!(hit > 0.95 - 4.0 * hit_se, "power {hit} ± {hit_se}");
+}
+
+#[test]
+fn sequential_looks_still_reject_a_broken_renderer_and_pass_a_correct_one() {
+    let specs: Vec<_> = manifest::load(&root("tests/manifests/furnace.toml"))
+        .unwrap()
+        .into_iter()
+        .filter(|s| s.name == "furnace/sphere-depth12-roulette[albedo=0.9]")
+        .collect();
+    assert_eq!(specs.len(), 1);
+    let opts = RunOptions {
+        family_alpha: 0.01,
+        sequential: true,
+        isolate: false,
+        ..RunOptions::default()
+    };
+    let run = |r: &dyn furnace::harness::Renderer| {
+        harness::run(&specs, &opts, r, vec![], &mut |_| {})
+            .outcomes
+            .remove(0)
+    };
+    let good = run(&BuiltIn);
+    assert_eq!(good.verdict, Verdict::Pass, "{}", good.message);
+    assert!(
+        good.message.contains("sequential: accepted"),
+        "{}",
+        good.message
+    );
+    let bad = run(&crate::negative::OffByOneDepth);
+    assert_eq!(bad.verdict, Verdict::Fail, "{}", bad.message);
+    assert!(
+        bad.message.contains("sequential: rejected"),
+        "{}",
+        bad.message
+    );
+}
+
+#[test]
+fn power_values_and_kinds_without_a_budget_are_refused() {
+    let dir = std::env::temp_dir().join(format!("furnace-power-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let write = |name: &str, body: &str| {
+        let p = dir.join(name);
+        std::fs::write(&p, body).unwrap();
+        p
+    };
+    let bad_value = write(
+        "bad-value.toml",
+        "[[check]]\nname = \"a\"\nkind = \"chi2\"\nsamples = 1000\npower = 1.5\n",
+    );
+    let e = manifest::load(&bad_value).unwrap_err().to_string();
+    assert!(e.contains("power") && e.contains("(0, 1)"), "{e}");
+    let no_budget = write(
+        "no-budget.toml",
+        "[[check]]\nname = \"a\"\nkind = \"chi2\"\nsamples = 1000\npower = 0.01\n",
+    );
+    let e = manifest::load(&no_budget).unwrap_err().to_string();
+    assert!(e.contains("no sample budget"), "{e}");
+    let out = run_furnace(&["check", "tests/manifests/furnace.toml", "--power", "0"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--power 0 must be a relative bias"), "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}
