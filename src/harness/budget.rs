@@ -10,8 +10,7 @@ use super::measurement::{fmt_sig, Measurement};
 use super::outcome::Statistic;
 use crate::math::rng::mix64;
 use crate::stats::power;
-use crate::stats::sequential::{self, Design};
-use statrs::distribution::{ContinuousCDF, Normal};
+use crate::stats::sequential::{self, upper_quantile, Design};
 
 /// Information fractions of the sequential looks: a quarter, a half and all of the budget.
 pub const LOOKS: [f64; 3] = [0.25, 0.5, 1.0];
@@ -164,16 +163,15 @@ fn stage_z(m: &Measurement) -> Option<(f64, bool)> {
     if !(p.is_finite() && m.deterministic_pass.unwrap_or(true) && m.unstable.is_none()) {
         return None;
     }
-    let n = Normal::standard();
     let p = p.clamp(1e-300, 1.0);
     match (m.estimate, m.expected) {
         (Some(e), Some(x)) if m.variants <= 1 && !m.one_sided => {
             // |z| = Φ⁻¹(1 − p/2): the two-sided test's own statistic, tolerance included
-            let z = -n.inverse_cdf(p / 2.0);
+            let z = upper_quantile(p / 2.0);
             Some((if e < x { -z } else { z }, true))
         }
         // one-sided in p: z = Φ⁻¹(1 − p) is N(0, 1) for a uniform p
-        _ => Some((-n.inverse_cdf(p), false)),
+        _ => Some((upper_quantile(p), false)),
     }
 }
 

@@ -53,8 +53,10 @@ pub trait Kind: Send + Sync + 'static {
     }
     /// Whether the check's spp is a sample budget the runner may scale: its standard error
     /// falls as 1/√spp, its expected value does not depend on it, and it carries no noise
-    /// that separate runs would share (a reference image, a measurement). Power targets and
-    /// sequential looks (`budget.rs`) apply only then. False by default.
+    /// that separate runs would share (a reference image, a measurement); and its test stays
+    /// valid at a quarter of the budget (not so for errors from a handful of independent
+    /// runs, docs/statistics.md). Power targets and sequential looks (`budget.rs`) apply only
+    /// then. False by default.
     fn budgeted(_check: &Check, _p: &Self::Params) -> bool {
         false
     }

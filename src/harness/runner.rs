@@ -77,7 +77,7 @@ pub fn run(
     opts: &RunOptions,
     renderer: &dyn Renderer,
     manifests: Vec<String>,
-    progress: &mut dyn FnMut(Progress),
+    progress: &mut (dyn FnMut(Progress) + Send),
 ) -> RunReport {
     let local = LocalModels;
     let models: Option<&dyn ModelSource> = renderer.is_reference().then_some(&local as _);
@@ -96,7 +96,7 @@ pub fn run_with(
     opts: &RunOptions,
     subject: Subject,
     manifests: Vec<String>,
-    progress: &mut dyn FnMut(Progress),
+    progress: &mut (dyn FnMut(Progress) + Send),
 ) -> RunReport {
     let renderer = subject.renderer;
     let start = Instant::now();
@@ -108,97 +108,29 @@ pub fn run_with(
         .max(1);
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
     let plan = budget::Plan::new(alpha, opts.power, opts.sequential);
-    let mut outcomes = Vec::new();
-    let mut measured = Vec::new();
-    for (i, check) in checks.iter().enumerate() {
-        if let Some(plan) = &opts.shard {
-            if plan.of_check.get(i) != Some(&plan.shard.index) {
-                continue;
-            }
-        }
-        progress(Progress::Started(&check.name));
-        if let Some(why) = check.kind.not_applicable(check, &subject) {
-            let mut o = Outcome::new(&check.name, check.kind_name());
-            o.verdict = Verdict::Skipped;
-            o.message = why;
-            progress(Progress::Finished(&o));
-            outcomes.push(o);
-            measured.push(None);
-            continue;
-        }
-        let filtered = subject.models.map(|inner| Filtered {
-            inner,
-            globs: &check.models,
-        });
-        let limit = check.time_limit.unwrap_or(opts.time_limit);
-        let ctx = Context {
-            deadline: Some(Instant::now() + std::time::Duration::from_secs_f64(limit)),
-            renderer,
-            models: match &filtered {
-                Some(f) if !check.models.is_empty() => Some(f as &dyn ModelSource),
-                _ => subject.models,
-            },
-            seed: check_seed(check.seed, &check.name, opts.seed),
-            threads: opts.threads,
-            alpha,
-        };
-        let t0 = Instant::now();
-        let result = match &plan {
-            Ok(plan) => budget::run(check, &ctx, plan),
-            Err(why) => Err(super::error::CheckError::Setup(why.clone())),
-        };
-        let seconds = t0.elapsed().as_secs_f64();
-        let mut o = Outcome::new(&check.name, check.kind_name());
-        o.seconds = seconds;
-        o.rel_tolerance = check.rel_tolerance;
-        o.regression = check.regression;
-        match result {
-            Err(super::error::CheckError::Unsupported(why)) => {
-                o.verdict = Verdict::Skipped;
-                o.message = format!(
-                    "{} cannot express this check's scene: {why}",
-                    renderer.name()
-                );
-                measured.push(None);
-            }
-            Err(e) => {
-                o.verdict = Verdict::Error;
-                o.message = format!("{e} ({})", check.origin);
-                measured.push(None);
-            }
-            Ok(ms) => {
-                o.estimate = ms.estimate;
-                o.std_error = ms.std_error;
-                o.expected = ms.expected;
-                o.statistic = ms.statistic.clone().unwrap_or(Statistic::None);
-                o.p_value = ms.p_value;
-                o.samples = ms.samples;
-                o.message = ms.message.clone();
-                // what the test allowed: the stated tolerance and a black box's rounding
-                o.rel_tolerance = ms.rel_tolerance.unwrap_or(check.rel_tolerance);
-                o.regression |= ms.regression;
-                let finite = [ms.estimate, ms.std_error, ms.p_value]
-                    .iter()
-                    .flatten()
-                    .all(|v| v.is_finite());
-                if !finite {
-                    o.verdict = Verdict::Error;
-                    o.message = format!(
-                        "non-finite estimate, standard error or p-value; {}",
-                        o.message
-                    );
-                    measured.push(None);
-                } else {
-                    if let (Correction::Sidak, p) = (opts.correction, ms.p_value) {
-                        settle(&mut o, &ms, p.map(|p| (p <= alpha, alpha)));
-                    }
-                    measured.push(Some(ms));
-                }
-            }
-        }
-        progress(Progress::Finished(&o));
-        outcomes.push(o);
-    }
+    let todo: Vec<&Check> = checks
+        .iter()
+        .enumerate()
+        .filter(|(i, _)| {
+            opts.shard
+                .as_ref()
+                .is_none_or(|plan| plan.of_check.get(*i) == Some(&plan.shard.index))
+        })
+        .map(|(_, c)| c)
+        .collect();
+    let progress = std::sync::Mutex::new(progress);
+    let report = |event: Progress| {
+        let mut p = progress.lock().unwrap_or_else(|e| e.into_inner());
+        (*p)(event)
+    };
+    let one = |check: &Check| run_one(check, opts, &subject, alpha, &plan, &report);
+    let done: Vec<(Outcome, Option<Measurement>)> = match concurrent_checks(opts, &subject) {
+        1 => todo.iter().map(|c| one(c)).collect(),
+        n => side_by_side(&todo, n, &one),
+    };
+    let progress = progress.into_inner().unwrap_or_else(|e| e.into_inner());
+    let (mut outcomes, measured): (Vec<Outcome>, Vec<Option<Measurement>>) =
+        done.into_iter().unzip();
     // Verdicts: the deterministic part, then the stochastic part under the correction.
     let p_values: Vec<(usize, f64)> = measured
         .iter()
@@ -247,6 +179,136 @@ pub fn run_with(
     }
 }
 
+/// How many checks run side by side: one per core for furnace's own renderer on every core
+/// (`threads` 0), whose renders share the one thread pool; one at a time otherwise (an
+/// external renderer keeps one check's files apart from the next; `-j N` asks for N threads).
+fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
+    if opts.threads != 0 || !subject.renderer.is_reference() {
+        return 1;
+    }
+    std::thread::available_parallelism().map_or(1, |n| n.get())
+}
+
+/// Runs `todo` on `n` threads that each take the next check not yet started; the outcomes
+/// come back in `todo`'s order. A check's numbers depend only on its seed, so they are those
+/// of a run one check at a time.
+fn side_by_side<T: Send>(todo: &[&Check], n: usize, one: &(dyn Fn(&Check) -> T + Sync)) -> Vec<T> {
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let slots: Vec<std::sync::Mutex<Option<T>>> =
+        todo.iter().map(|_| std::sync::Mutex::new(None)).collect();
+    std::thread::scope(|scope| {
+        for _ in 0..n.min(todo.len()) {
+            scope.spawn(|| loop {
+                let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                let Some(check) = todo.get(i) else { break };
+                let r = one(check);
+                *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
+            });
+        }
+    });
+    slots
+        .into_iter()
+        .map(|s| {
+            s.into_inner()
+                .unwrap_or_else(|e| e.into_inner())
+                .expect("every check ran")
+        })
+        .collect()
+}
+
+/// Runs one check: its applicability, its measurement under the sample plan, and, under
+/// Šidák, its verdict (Holm's waits for every p-value).
+fn run_one(
+    check: &Check,
+    opts: &RunOptions,
+    subject: &Subject,
+    alpha: f64,
+    plan: &Result<budget::Plan, String>,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> (Outcome, Option<Measurement>) {
+    let renderer = subject.renderer;
+    progress(Progress::Started(&check.name));
+    if let Some(why) = check.kind.not_applicable(check, subject) {
+        let mut o = Outcome::new(&check.name, check.kind_name());
+        o.verdict = Verdict::Skipped;
+        o.message = why;
+        progress(Progress::Finished(&o));
+        return (o, None);
+    }
+    let filtered = subject.models.map(|inner| Filtered {
+        inner,
+        globs: &check.models,
+    });
+    let limit = check.time_limit.unwrap_or(opts.time_limit);
+    let ctx = Context {
+        deadline: Some(Instant::now() + std::time::Duration::from_secs_f64(limit)),
+        renderer,
+        models: match &filtered {
+            Some(f) if !check.models.is_empty() => Some(f as &dyn ModelSource),
+            _ => subject.models,
+        },
+        seed: check_seed(check.seed, &check.name, opts.seed),
+        threads: opts.threads,
+        alpha,
+    };
+    let t0 = Instant::now();
+    let result = match plan {
+        Ok(plan) => budget::run(check, &ctx, plan),
+        Err(why) => Err(super::error::CheckError::Setup(why.clone())),
+    };
+    let seconds = t0.elapsed().as_secs_f64();
+    let mut o = Outcome::new(&check.name, check.kind_name());
+    o.seconds = seconds;
+    o.rel_tolerance = check.rel_tolerance;
+    o.regression = check.regression;
+    let measured = match result {
+        Err(super::error::CheckError::Unsupported(why)) => {
+            o.verdict = Verdict::Skipped;
+            o.message = format!(
+                "{} cannot express this check's scene: {why}",
+                renderer.name()
+            );
+            None
+        }
+        Err(e) => {
+            o.verdict = Verdict::Error;
+            o.message = format!("{e} ({})", check.origin);
+            None
+        }
+        Ok(ms) => {
+            o.estimate = ms.estimate;
+            o.std_error = ms.std_error;
+            o.expected = ms.expected;
+            o.statistic = ms.statistic.clone().unwrap_or(Statistic::None);
+            o.p_value = ms.p_value;
+            o.samples = ms.samples;
+            o.message = ms.message.clone();
+            // what the test allowed: the stated tolerance and a black box's rounding
+            o.rel_tolerance = ms.rel_tolerance.unwrap_or(check.rel_tolerance);
+            o.regression |= ms.regression;
+            let finite = [ms.estimate, ms.std_error, ms.p_value]
+                .iter()
+                .flatten()
+                .all(|v| v.is_finite());
+            if !finite {
+                o.verdict = Verdict::Error;
+                o.message = format!(
+                    "non-finite estimate, standard error or p-value; {}",
+                    o.message
+                );
+                None
+            } else {
+                if let (Correction::Sidak, p) = (opts.correction, ms.p_value) {
+                    settle(&mut o, &ms, p.map(|p| (p <= alpha, alpha)));
+                }
+                Some(ms)
+            }
+        }
+    };
+    progress(Progress::Finished(&o));
+    (o, measured)
+}
+
 /// Runs the isolation ladder of every failed or unstable check, each within
 /// [`isolation::BUDGET_FACTOR`] times the check's own time.
 fn isolate_failures(
@@ -255,7 +317,7 @@ fn isolate_failures(
     opts: &RunOptions,
     subject: &Subject,
     alpha: f64,
-    progress: &mut dyn FnMut(Progress),
+    progress: &mut (dyn FnMut(Progress) + Send),
 ) {
     for o in outcomes.iter_mut() {
         if !matches!(o.verdict, Verdict::Fail | Verdict::Unstable) {

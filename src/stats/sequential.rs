@@ -261,8 +261,9 @@ impl Design {
     }
 }
 
-/// Upper quantile z with P(N(0,1) ≥ z) = p.
-fn upper_quantile(p: f64) -> f64 {
+/// The standard normal's upper quantile: z with P(N(0, 1) ≥ z) = p, i.e. Φ⁻¹(1 − p),
+/// accurate for tiny p.
+pub fn upper_quantile(p: f64) -> f64 {
     // bisection on the exact tail, accurate for tiny p
     let (mut lo, mut hi) = (-40.0_f64, 40.0_f64);
     for _ in 0..200 {

@@ -25,7 +25,9 @@ fn default_manifests_pass() {
         vec![],
         &mut |_| {},
     );
-    // Regression baseline (not validation): the suite's numbers at seed 1, bit for bit.
+    // Regression baseline (not validation): the suite's numbers at seed 1, bit for bit. The
+    // runner runs these checks side by side (one per core); the baseline was written when it
+    // ran them one at a time, so this also shows that the order does not touch a number.
     crate::digests::compare_with_baseline(
         "tests/digests/default-suite-seed1.txt",
         &crate::digests::report_digest(&report),

@@ -133,10 +133,6 @@ impl Kind for AlgorithmAgreement {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Furnace;
-    fn budgeted(_: &Check, p: &Params) -> bool {
-        // BDPT runs split the spp; the other algorithms have budgets of their own
-        matches!(p.algorithm, Algorithm::Bdpt { .. })
-    }
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         let algorithm = match k.get::<String>("integrator")? {

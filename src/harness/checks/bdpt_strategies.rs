@@ -62,9 +62,6 @@ impl Kind for BdptStrategies {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Furnace;
-    fn budgeted(_: &Check, _: &Self::Params) -> bool {
-        true // its spp is a sample budget (harness::budget)
-    }
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         Ok(Params {
