@@ -328,7 +328,9 @@ impl Bdpt {
             }
             ray = ray::spawn(&hit.point, frame.to_world(bs.wi));
             pdf_dir = pdf_next;
-            if self.rr_depth.is_some_and(|d| cur as u32 >= d) && !super::roulette(&mut beta, u_rr) {
+            if self.rr_depth.is_some_and(|d| cur as u32 >= d)
+                && !super::roulette(&mut beta, SampledSpectrum::ONE, u_rr)
+            {
                 return false;
             }
         }

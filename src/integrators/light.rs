@@ -278,7 +278,9 @@ impl LightTracer {
 
             // Russian roulette after the k-th bounce, as in PathTracer.
             let u_rr = rng.next_f64();
-            if self.rr_depth.is_some_and(|d| k >= d) && !super::roulette(&mut beta, u_rr) {
+            if self.rr_depth.is_some_and(|d| k >= d)
+                && !super::roulette(&mut beta, SampledSpectrum::ONE, u_rr)
+            {
                 break;
             }
             k += 1;

@@ -24,12 +24,14 @@ use crate::spectrum::SampledSpectrum;
 pub const MAX_PATH_EVENTS: u32 = 100_000;
 
 /// Unbiased Russian roulette (Arvo & Kirk 1990, "Particle transport and image synthesis",
-/// SIGGRAPH) with survival probability q = min(1, max β), never capped below 1, so the
-/// estimator keeps finite variance at albedo near 1. With uniform `u`, returns false when the
-/// path ends; a surviving path's `beta` is divided by q.
+/// SIGGRAPH) with survival probability q = min(1, max β·η²), never capped below 1, so the
+/// estimator keeps finite variance at albedo near 1; `eta_scale` (η² per lane, 1 outside
+/// refractions) takes out the radiance scaling of the interfaces crossed, so a path in glass
+/// is not killed for it. With uniform `u`, returns false when the path ends; a surviving
+/// path's `beta` is divided by q.
 #[inline]
-pub fn roulette(beta: &mut SampledSpectrum, u: f64) -> bool {
-    let q = beta.max_component().min(1.0);
+pub fn roulette(beta: &mut SampledSpectrum, eta_scale: SampledSpectrum, u: f64) -> bool {
+    let q = (*beta * eta_scale).max_component().min(1.0);
     if u >= q {
         return false;
     }
@@ -63,4 +65,32 @@ pub fn surfaces_only(scene: &Scene, dispersion: Option<&str>) -> Option<String> 
         return Some("the scene has an environment light (light paths would have to start on a disk beyond the scene; not modelled here)".into());
     }
     None
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn roulette_undoes_the_radiance_scaling_of_refraction() {
+        // inside glass of index 1.5 a camera path carries 1/η² of its weight outside
+        let inside = SampledSpectrum([1.0 / 2.25; 4]);
+        let eta2 = SampledSpectrum([2.25; 4]);
+        // with the scaling undone it survives for sure, its beta untouched ...
+        let mut beta = inside;
+        assert!(roulette(&mut beta, eta2, 0.99));
+        assert_eq!(beta, inside);
+        // ... without, it would die at u ≥ 1/2.25
+        let mut beta = inside;
+        assert!(!roulette(&mut beta, SampledSpectrum::ONE, 0.5));
+        // and the estimate stays unbiased: E[beta after] = beta before, for q < 1
+        let (mut sum, n) = (0.0, 100_000);
+        for i in 0..n {
+            let mut b = SampledSpectrum([0.1; 4]);
+            if roulette(&mut b, eta2, (i as f64 + 0.5) / n as f64) {
+                sum += b.0[0];
+            }
+        }
+        assert!((sum / n as f64 - 0.1).abs() < 1e-9, "{}", sum / n as f64);
+    }
 }

@@ -12,7 +12,7 @@ use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
 use crate::media::{sample_free_flight, transmittance, Phase};
-use crate::scattering::SampledBsdf;
+use crate::scattering::{Bxdf, SampledBsdf};
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 
@@ -229,6 +229,11 @@ impl PathTracer {
         let select_pdf = 1.0 / n_lights;
         let mut l = SampledSpectrum::ZERO;
         let mut beta = SampledSpectrum::ONE;
+        // The radiance scaling η² that refractions put into beta, undone for roulette only
+        // (Veach 1997, §5.2: radiance across an interface scales with η²; pbrt-v3 §14.3's
+        // etaScale): without it a path inside glass of index 1.5 survives with 1/2.25 of its
+        // probability and doubles the glossy box's noise (docs/performance.md).
+        let mut eta_scale = SampledSpectrum::ONE;
         let mut ray = camera_ray;
         // pdf of the BSDF sample that produced `ray` (solid angle), None after a camera or delta vertex
         let mut prev_bsdf_pdf: Option<f64> = None;
@@ -322,7 +327,7 @@ impl PathTracer {
                             depth += 1;
                             let u_rr = rng.next_f64();
                             if self.rr_depth.is_some_and(|d| depth >= d)
-                                && !super::roulette(&mut beta, u_rr)
+                                && !super::roulette(&mut beta, eta_scale, u_rr)
                             {
                                 break;
                             }
@@ -416,6 +421,13 @@ impl PathTracer {
             if beta.is_black() {
                 break;
             }
+            if bs.wi.z * wo.z < 0.0 {
+                // a transmission: the ratio of the indices on the two sides, squared
+                let (into, from) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
+                for k in 0..eta_scale.0.len() {
+                    eta_scale.0[k] *= (into.0[k] / from.0[k]).powi(2);
+                }
+            }
             prev_bsdf_pdf = if bs.delta { None } else { Some(bs.pdf) };
             prev_p = sp.p;
             let wi_world = frame.to_world(bs.wi);
@@ -428,7 +440,9 @@ impl PathTracer {
 
             // Russian roulette (see super::roulette).
             let u_rr = rng.next_f64();
-            if self.rr_depth.is_some_and(|d| depth >= d) && !super::roulette(&mut beta, u_rr) {
+            if self.rr_depth.is_some_and(|d| depth >= d)
+                && !super::roulette(&mut beta, eta_scale, u_rr)
+            {
                 break;
             }
         }

@@ -202,7 +202,7 @@ pub fn trace_photon(
         bounces += 1;
         // unbiased roulette on the throughput, as the light tracer's
         let u = rng.next_f64();
-        if bounces >= settings.rr_depth && !super::roulette(&mut beta, u) {
+        if bounces >= settings.rr_depth && !super::roulette(&mut beta, SampledSpectrum::ONE, u) {
             break;
         }
     }
