@@ -272,6 +272,8 @@ impl Bdpt {
         rng: &mut impl Uniforms,
         path: &mut Vec<Vertex>,
     ) -> bool {
+        // a camera subpath's η² of refraction, undone for roulette (see super::roulette)
+        let mut eta_scale = SampledSpectrum::ONE;
         loop {
             if path.len() >= max_vertices {
                 return false;
@@ -308,11 +310,14 @@ impl Bdpt {
                 return false;
             };
             let mut weight = bs.weight;
+            let (en, ep) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
+            let r = SampledSpectrum(std::array::from_fn(|i| en.0[i] / ep.0[i]));
             if adjoint {
                 // the adjoint BSDF f*(wo, wi) = f(wo, wi)·η(wi)²/η(wo)² (see `Bxdf::eta`)
-                let (en, ep) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
-                let r = SampledSpectrum(std::array::from_fn(|i| en.0[i] / ep.0[i]));
                 weight *= r * r;
+            } else {
+                // radiance scaled by 1/η² into the denser side: roulette looks past it
+                eta_scale *= r * r;
             }
             let (pdf_next, pdf_back) = if bs.delta {
                 (0.0, 0.0)
@@ -329,7 +334,7 @@ impl Bdpt {
             ray = ray::spawn(&hit.point, frame.to_world(bs.wi));
             pdf_dir = pdf_next;
             if self.rr_depth.is_some_and(|d| cur as u32 >= d)
-                && !super::roulette(&mut beta, SampledSpectrum::ONE, u_rr)
+                && !super::roulette(&mut beta, eta_scale, u_rr)
             {
                 return false;
             }
