@@ -245,3 +245,22 @@ fn power_values_and_kinds_without_a_budget_are_refused() {
     assert!(err.contains("--power 0 must be a relative bias"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn the_command_line_runs_both_modes_and_says_what_they_did() {
+    let out = run_furnace(&[
+        "check",
+        "tests/manifests/lambert.toml",
+        "--filter",
+        "lambert/sky",
+        "--sequential",
+        "--power",
+        "0.01",
+        "--format",
+        "json",
+    ]);
+    assert_eq!(out.status.code(), Some(0), "{out:?}");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.contains("sequential: accepted"), "{text}");
+    assert!(text.contains("power target 1.000 %: pilot"), "{text}");
+}
