@@ -156,22 +156,37 @@ fn fmt_pct(x: f64) -> String {
     format!("{} %", fmt_sig(100.0 * x))
 }
 
+/// What one look's measurement can enter the cumulative test as.
+enum Look {
+    /// Its z: the signed z of a two-sided single test (true) or the z of its p-value (false).
+    Z(f64, bool),
+    /// Its variance did not settle at this budget: the looks stop and a fixed test decides.
+    Unsettled,
+    /// A failed identity or a test that could not be formed: its own verdict stands.
+    Final,
+}
+
 /// The stage statistic of a measurement: its signed z (two-sided single test) or the z of its
-/// p-value (one-sided or combined tests); None when the stage cannot enter the cumulative test.
-fn stage_z(m: &Measurement) -> Option<(f64, bool)> {
-    let p = m.p_value?;
-    if !(p.is_finite() && m.deterministic_pass.unwrap_or(true) && m.unstable.is_none()) {
-        return None;
+/// p-value (one-sided or combined tests).
+fn stage_z(m: &Measurement) -> Look {
+    let Some(p) = m.p_value else {
+        return Look::Final;
+    };
+    if !(p.is_finite() && m.deterministic_pass.unwrap_or(true)) {
+        return Look::Final;
+    }
+    if m.unstable.is_some() {
+        return Look::Unsettled;
     }
     let p = p.clamp(1e-300, 1.0);
     match (m.estimate, m.expected) {
         (Some(e), Some(x)) if m.variants <= 1 && !m.one_sided => {
             // |z| = Φ⁻¹(1 − p/2): the two-sided test's own statistic, tolerance included
             let z = upper_quantile(p / 2.0);
-            Some((if e < x { -z } else { z }, true))
+            Look::Z(if e < x { -z } else { z }, true)
         }
         // one-sided in p: z = Φ⁻¹(1 − p) is N(0, 1) for a uniform p
-        _ => Some((upper_quantile(p), false)),
+        _ => Look::Z(upper_quantile(p), false),
     }
 }
 
@@ -202,17 +217,39 @@ fn looks(
         let m = with_spp(check, stage_spp)
             .kind
             .run(&with_spp(check, stage_spp), &stage_ctx)?;
-        let Some((z, two_sided)) = stage_z(&m) else {
-            // a failed identity, an unsettled variance or a test that could not be formed ends
-            // the looks with that stage's own verdict
-            let mut m = m;
-            m.message = format!(
-                "look {} of {} ({stage_spp} of {n_max} spp): {}",
-                k + 1,
-                LOOKS.len(),
-                m.message
-            );
-            return Ok(m);
+        let (z, two_sided) = match stage_z(&m) {
+            Look::Z(z, two_sided) => (z, two_sided),
+            Look::Final => {
+                let mut m = m;
+                m.message = format!(
+                    "look {} of {} ({stage_spp} of {n_max} spp): {}",
+                    k + 1,
+                    LOOKS.len(),
+                    m.message
+                );
+                return Ok(m);
+            }
+            Look::Unsettled => {
+                // The variance diagnosis (and its re-test) is calibrated at the check's own
+                // budget, not at a fraction of it: no look has rejected, so the fixed test at
+                // the full budget, on fresh samples, decides at the check's level.
+                let fixed_ctx = Context {
+                    seed: mix64(ctx.seed ^ 0x0066_6978_6564), // "fixed"
+                    ..*ctx
+                };
+                let mut f = with_spp(check, spp)
+                    .kind
+                    .run(&with_spp(check, spp), &fixed_ctx)?;
+                f.samples += parts.iter().map(|p| p.1.samples).sum::<u64>() + m.samples;
+                f.message = format!(
+                    "{}; sequential: look {} of {} ({stage_spp} spp) did not settle ({}), so the fixed test at {spp} spp decides",
+                    f.message,
+                    k + 1,
+                    LOOKS.len(),
+                    m.unstable.as_deref().unwrap_or("")
+                );
+                return Ok(f);
+            }
         };
         let d = *design.get_or_insert(if two_sided { &designs.0 } else { &designs.1 });
         weighted += (t - previous).sqrt() * z;

@@ -20,8 +20,10 @@ use std::sync::Arc;
 /// A check whose estimate is 10 + bias + N(0, 1/spp): one unit-variance sample per spp.
 struct Gauss;
 
+/// The bias of the estimate, and the spp below which its variance "does not settle" (the
+/// measurement says UNSTABLE, as the variance diagnosis does).
 #[derive(Debug)]
-struct Bias(f64);
+struct Bias(f64, u64);
 
 impl Kind for Gauss {
     type Params = Bias;
@@ -29,7 +31,7 @@ impl Kind for Gauss {
     const KEYS: &'static [Key] = &[];
     const SCOPE: Scope = Scope::Image;
     fn parse(_: &mut Keys) -> Result<Bias, LocatedError> {
-        Ok(Bias(0.0))
+        Ok(Bias(0.0, 0))
     }
     fn run(check: &Check, p: &Bias, ctx: &Context) -> Result<Measurement, CheckError> {
         let spp = check.render.spp.expect("the test sets spp");
@@ -46,6 +48,7 @@ impl Kind for Gauss {
             statistic: Some(Statistic::Z { z }),
             p_value: Some(2.0 * normal_sf(z.abs())),
             samples: spp,
+            unstable: (spp < p.1).then(|| "UNSTABLE: unsettled below the threshold".to_string()),
             ..Default::default()
         })
     }
@@ -61,6 +64,10 @@ fn normal_sf(x: f64) -> f64 {
 }
 
 fn gauss(bias: f64, spp: u64, power: Option<f64>) -> Check {
+    unsettled_gauss(bias, spp, power, 0)
+}
+
+fn unsettled_gauss(bias: f64, spp: u64, power: Option<f64>, unsettled_below: u64) -> Check {
     Check {
         name: "gauss".into(),
         kind: &GAUSS,
@@ -72,7 +79,7 @@ fn gauss(bias: f64, spp: u64, power: Option<f64>) -> Check {
         seed: None,
         rel_tolerance: 0.0,
         models: vec![],
-        params: Arc::new(Bias(bias)),
+        params: Arc::new(Bias(bias, unsettled_below)),
         origin: "test".into(),
         time_limit: None,
         regression: false,
@@ -263,4 +270,26 @@ fn the_command_line_runs_both_modes_and_says_what_they_did() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("sequential: accepted"), "{text}");
     assert!(text.contains("power target 1.000 %: pilot"), "{text}");
+}
+
+#[test]
+fn a_look_whose_variance_does_not_settle_hands_over_to_the_fixed_test() {
+    // unsettled below the full budget: look 1 is unsettled, the fixed test at SPP decides
+    let plan = Plan::new(ALPHA, None, true).unwrap();
+    let check = unsettled_gauss(0.0, SPP, None, SPP);
+    let (rate, se, spp) = rates(&check, &plan, ALPHA, 4000);
+    assert!(
+        (rate - ALPHA).abs() < 4.0 * se,
+        "false alarms {rate} ± {se}"
+    );
+    let (two, one) = plan.designs.as_ref().unwrap();
+    let quarter = (SPP as f64 * two.inflation.max(one.inflation) / 4.0).ceil();
+    assert_eq!(spp, SPP as f64 + quarter, "look 1 and the fixed test");
+    let (hit, hit_se, _) = rates(
+        &unsettled_gauss(detection_limit(), SPP, None, SPP),
+        &plan,
+        ALPHA,
+        2000,
+    );
+    assert!((hit - 0.95).abs() < 4.0 * hit_se, "power {hit} ± {hit_se}");
 }
