@@ -29,7 +29,7 @@
 # ARGS adds options to every run, e.g. the sequential looks or a power target:
 #
 #   FILTER='furnace/*' ALPHA=0.05 ARGS=--sequential \
-#     OUT=reports/false-alarms/sequential-furnace.tsv benches/false-alarms.sh 2001 2100
+#     OUT=reports/false-alarms/mode-sequential-furnace.tsv benches/false-alarms.sh 2001 2100
 set -euo pipefail
 first=${1:?first seed}
 last=${2:?last seed}

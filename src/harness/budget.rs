@@ -20,7 +20,7 @@ pub const LOOKS: [f64; 3] = [0.25, 0.5, 1.0];
 pub const SHAPES: (f64, f64) = (0.25, 0.5);
 /// The power every budget is planned for (at the check's detection limit).
 pub const POWER: f64 = 0.95;
-/// The pilot run's share of the manifest's spp.
+/// The pilot runs at 1/PILOT_SHARE of the manifest's spp (at least 4).
 pub const PILOT_SHARE: u64 = 16;
 /// The largest factor a power target may scale a check's spp by.
 pub const MAX_SCALE: f64 = 4096.0;
@@ -79,7 +79,7 @@ pub fn run(check: &Check, ctx: &Context, plan: &Plan) -> Result<Measurement, Che
     };
     let mut m = match &plan.designs {
         Some(designs) => looks(check, ctx, designs, spp)?,
-        None => with_spp(check, spp).kind.run(&with_spp(check, spp), ctx)?,
+        None => run_at(check, spp, ctx)?,
     };
     if !notes.is_empty() {
         m.message = format!("{}; {}", m.message, notes.join("; "));
@@ -87,11 +87,11 @@ pub fn run(check: &Check, ctx: &Context, plan: &Plan) -> Result<Measurement, Che
     Ok(m)
 }
 
-/// `check` at `spp` samples per pixel.
-fn with_spp(check: &Check, spp: u64) -> Check {
+/// Runs `check` at `spp` samples per pixel.
+fn run_at(check: &Check, spp: u64, ctx: &Context) -> Result<Measurement, CheckError> {
     let mut c = check.clone();
     c.render.spp = Some(spp.max(1));
-    c
+    c.kind.run(&c, ctx)
 }
 
 /// The per-sub-test level of a measurement at per-test level `alpha`, as the runner's detection
@@ -119,9 +119,7 @@ fn powered_spp(
         seed: mix64(ctx.seed ^ 0x0070_696c_6f74), // "pilot"
         ..*ctx
     };
-    let m = with_spp(check, pilot_spp)
-        .kind
-        .run(&with_spp(check, pilot_spp), &pilot_ctx)?;
+    let m = run_at(check, pilot_spp, &pilot_ctx)?;
     let (Some(se), Some(expected)) = (m.std_error, m.expected) else {
         return Err(CheckError::Setup(format!(
             "power target {delta}: the pilot run gave no standard error or expected value to plan from"
@@ -214,9 +212,7 @@ fn looks(
             seed: mix64(ctx.seed ^ (k as u64 + 1)),
             ..*ctx
         };
-        let m = with_spp(check, stage_spp)
-            .kind
-            .run(&with_spp(check, stage_spp), &stage_ctx)?;
+        let m = run_at(check, stage_spp, &stage_ctx)?;
         let (z, two_sided) = match stage_z(&m) {
             Look::Z(z, two_sided) => (z, two_sided),
             Look::Final => {
@@ -237,9 +233,7 @@ fn looks(
                     seed: mix64(ctx.seed ^ 0x0066_6978_6564), // "fixed"
                     ..*ctx
                 };
-                let mut f = with_spp(check, spp)
-                    .kind
-                    .run(&with_spp(check, spp), &fixed_ctx)?;
+                let mut f = run_at(check, spp, &fixed_ctx)?;
                 f.samples += parts.iter().map(|p| p.1.samples).sum::<u64>() + m.samples;
                 f.message = format!(
                     "{}; sequential: look {} of {} ({stage_spp} spp) did not settle ({}), so the fixed test at {spp} spp decides",

@@ -184,7 +184,7 @@ fn single_check_sweeps_stay_within_their_level() {
         .filter(|p| {
             p.extension().is_some_and(|e| e == "tsv")
                 && p.file_name().is_some_and(|n| {
-                    n != "pvalues.tsv" && !n.to_string_lossy().starts_with("sequential-")
+                    n != "pvalues.tsv" && !n.to_string_lossy().starts_with("mode-")
                 })
         })
         .collect();
@@ -230,46 +230,49 @@ fn single_check_sweeps_stay_within_their_level() {
     }
 }
 
-/// The sequential looks on furnace's renderer (`FILTER='furnace/*=0.?]' ALPHA=0.05
-/// ARGS=--sequential OUT=reports/false-alarms/sequential-furnace.tsv benches/false-alarms.sh`):
-/// the runs with a false alarm must be compatible with the stated family-wise rate (5 % from
-/// the tests plus at most as much again from the variance diagnosis), the stage-wise p-values
-/// not piled up below 0.05, and docs/statistics.md must quote the file as it is.
+/// The run modes on furnace's renderer, swept over seeds: `mode-sequential-furnace.tsv`
+/// (`FILTER='furnace/*=0.?]' ALPHA=0.05 ARGS=--sequential OUT=… benches/false-alarms.sh`) and
+/// `mode-power-furnace.tsv` (the same with `ARGS='--power 0.01'`). The runs with a false alarm
+/// must be compatible with the stated family-wise rate (5 % from the tests plus at most as much
+/// again from the variance diagnosis), the p-values not piled up below 0.05, and
+/// docs/statistics.md must quote each file as it is.
 #[test]
-fn the_sequential_sweep_stays_within_its_family_rate() {
-    let path = root("reports/false-alarms/sequential-furnace.tsv");
-    let text = std::fs::read_to_string(&path).expect("the committed sequential sweep");
-    let mut runs: BTreeMap<u64, (usize, usize)> = BTreeMap::new(); // seed → (checks, alarms)
-    let (mut below, mut ps) = (0usize, 0usize);
-    for line in text.lines().skip(1) {
-        let f: Vec<&str> = line.split('\t').collect();
-        assert_eq!(f.len(), 5, "{line:?}");
-        let e = runs.entry(f[0].parse().unwrap()).or_default();
-        e.0 += 1;
-        e.1 += usize::from(f[3] != "PASS" && f[3] != "SKIPPED");
-        if f[4] != "-" {
-            ps += 1;
-            below += usize::from(f[4].parse::<f64>().unwrap() < 0.05);
-        }
-    }
-    let checks: BTreeSet<usize> = runs.values().map(|r| r.0).collect();
-    assert_eq!(
-        checks.len(),
-        1,
-        "every seed runs the same checks: {checks:?}"
-    );
-    let n = runs.len();
-    assert!(n >= 100, "{n} seeds");
-    let alarms = runs.values().filter(|r| r.1 > 0).count();
-    assert_within("sequential-furnace.tsv", alarms, n, 0.10, below, ps);
-    let quote = format!(
-        "sequential-furnace.tsv: {n} seeds ({}–{}), {alarms} with a false alarm; {below} of {ps} p-values below 0.05",
-        runs.keys().next().unwrap(),
-        runs.keys().last().unwrap(),
-    );
+fn the_mode_sweeps_stay_within_their_family_rate() {
     let doc = std::fs::read_to_string(root("docs/statistics.md")).unwrap();
-    assert!(
-        doc.contains(&quote),
-        "docs/statistics.md does not quote the sequential sweep; it should say: {quote}"
-    );
+    for name in ["mode-sequential-furnace.tsv", "mode-power-furnace.tsv"] {
+        let path = root(&format!("reports/false-alarms/{name}"));
+        let text = std::fs::read_to_string(&path).expect("the committed sweep");
+        let mut runs: BTreeMap<u64, (usize, usize)> = BTreeMap::new(); // seed → (checks, alarms)
+        let (mut below, mut ps) = (0usize, 0usize);
+        for line in text.lines().skip(1) {
+            let f: Vec<&str> = line.split('\t').collect();
+            assert_eq!(f.len(), 5, "{name}: {line:?}");
+            let e = runs.entry(f[0].parse().unwrap()).or_default();
+            e.0 += 1;
+            e.1 += usize::from(f[3] != "PASS" && f[3] != "SKIPPED");
+            if f[4] != "-" {
+                ps += 1;
+                below += usize::from(f[4].parse::<f64>().unwrap() < 0.05);
+            }
+        }
+        let checks: BTreeSet<usize> = runs.values().map(|r| r.0).collect();
+        assert_eq!(
+            checks.len(),
+            1,
+            "{name}: every seed runs the same checks: {checks:?}"
+        );
+        let n = runs.len();
+        assert!(n >= 100, "{name}: {n} seeds");
+        let alarms = runs.values().filter(|r| r.1 > 0).count();
+        assert_within(name, alarms, n, 0.10, below, ps);
+        let quote = format!(
+            "{name}: {n} seeds ({}–{}), {alarms} with a false alarm; {below} of {ps} p-values below 0.05",
+            runs.keys().next().unwrap(),
+            runs.keys().last().unwrap(),
+        );
+        assert!(
+            doc.contains(&quote),
+            "docs/statistics.md does not quote {name}; it should say: {quote}"
+        );
+    }
 }
