@@ -1,7 +1,7 @@
 //! How many samples a check spends: the manifest's spp, or the spp a stated power needs
 //! (`power = δ`, from a pilot run), spent in one go or in group-sequential looks that stop as
 //! soon as the verdict is settled (`furnace check --sequential`). Only checks whose kind says
-//! its spp is a budget (`Kind::budgeted`) are touched; the others run as written.
+//! its spp is a budget (`Kind::BUDGETED`) are touched; the others run as written.
 
 use super::context::Context;
 use super::error::CheckError;
@@ -53,7 +53,7 @@ impl Plan {
     /// Whether the plan changes anything for `check`.
     fn applies(&self, check: &Check) -> bool {
         (self.designs.is_some() || self.power.is_some() || check.power.is_some())
-            && check.kind.budgeted(check)
+            && check.kind.budgeted()
     }
 }
 
@@ -68,21 +68,19 @@ pub fn run(check: &Check, ctx: &Context, plan: &Plan) -> Result<Measurement, Che
         .spp
         .or(check.scene.as_ref().map(|s| s.render.spp))
         .ok_or_else(|| CheckError::Setup("a budgeted check without a scene".into()))?;
-    let mut notes = Vec::new();
-    let spp = match plan.power.or(check.power) {
+    let (spp, note) = match plan.power.or(check.power) {
         Some(delta) => {
             let (spp, note) = powered_spp(check, ctx, delta, written)?;
-            notes.push(note);
-            spp
+            (spp, Some(note))
         }
-        None => written,
+        None => (written, None),
     };
     let mut m = match &plan.designs {
         Some(designs) => looks(check, ctx, designs, spp)?,
         None => run_at(check, spp, ctx)?,
     };
-    if !notes.is_empty() {
-        m.message = format!("{}; {}", m.message, notes.join("; "));
+    if let Some(note) = note {
+        m.message = format!("{}; {note}", m.message);
     }
     Ok(m)
 }
@@ -92,17 +90,6 @@ fn run_at(check: &Check, spp: u64, ctx: &Context) -> Result<Measurement, CheckEr
     let mut c = check.clone();
     c.render.spp = Some(spp.max(1));
     c.kind.run(&c, ctx)
-}
-
-/// The per-sub-test level of a measurement at per-test level `alpha`, as the runner's detection
-/// power uses it: Šidák-split over the sub-tests, doubled for a one-sided test.
-fn sub_level(m: &Measurement, alpha: f64) -> f64 {
-    let per = -((-alpha).ln_1p() / m.variants.max(1) as f64).exp_m1();
-    if m.one_sided {
-        2.0 * per
-    } else {
-        per
-    }
 }
 
 /// The spp at which `check` reaches relative detection limit `delta`, from a pilot run at a
@@ -132,7 +119,7 @@ fn powered_spp(
             "power target {delta} cannot be reached: the check allows a relative tolerance of {tolerance} (expected {expected})"
         )));
     }
-    let limit = power::min_detectable_bias(se, sub_level(&m, ctx.alpha), POWER) / expected.abs();
+    let limit = power::min_detectable_bias(se, m.sub_test_level(ctx.alpha), POWER) / expected.abs();
     let scale = (limit / margin).powi(2) * pilot_spp as f64 / written as f64;
     let capped = scale > MAX_SCALE;
     let spp = ((scale.min(MAX_SCALE) * written as f64).ceil() as u64).max(4);

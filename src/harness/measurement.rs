@@ -52,6 +52,20 @@ pub struct Measurement {
     pub rel_tolerance: Option<f64>,
 }
 
+impl Measurement {
+    /// The two-sided level each folded sub-test ran at when the whole test ran at `alpha`:
+    /// Šidák-split over the sub-tests, 1 − (1 − α)^(1/k), and doubled for a one-sided test, so
+    /// the detection power (runner) and a power target's budget (budget.rs) use one rule.
+    pub fn sub_test_level(&self, alpha: f64) -> f64 {
+        let per = -((-alpha).ln_1p() / self.variants.max(1) as f64).exp_m1();
+        if self.one_sided {
+            2.0 * per
+        } else {
+            per
+        }
+    }
+}
+
 /// Combines several region tests (one per variant) into one measurement: p is the Šidák
 /// combination of the variants' p-values; the reported numbers are the worst variant's.
 pub fn combine(parts: Vec<(String, Measurement)>) -> Measurement {

@@ -41,10 +41,7 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
     let se = ms.power_std_error.or(ms.std_error);
     if let (Some(se), Some(exp), Some(thr)) = (se, ms.expected, o.alpha) {
         if exp != 0.0 {
-            let k = ms.variants.max(1) as f64;
-            // Šidák split over k sub-tests: 1 − (1 − thr)^(1/k)
-            let per = -((-thr).ln_1p() / k).exp_m1();
-            let level = if ms.one_sided { 2.0 * per } else { per };
+            let level = ms.sub_test_level(thr);
             o.detection_power =
                 Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
         }
