@@ -35,6 +35,13 @@ pub trait Kind: Send + Sync + 'static {
     const KEYS: &'static [Key];
     /// Whether the verdict rests on a p-value (and so counts towards the family-wise correction).
     const STOCHASTIC: bool = true;
+    /// Whether a check's spp is a sample budget the runner may scale: its standard error
+    /// falls as 1/√spp, its expected value does not depend on it, and it carries no noise
+    /// that separate runs would share (a reference image, a measurement); and its test stays
+    /// valid at a quarter of the budget (not so for errors from a handful of independent
+    /// runs, docs/statistics.md). Power targets and sequential looks (`budget.rs`) apply only
+    /// then. False by default.
+    const BUDGETED: bool = false;
     /// Which renderers the kind can judge.
     const SCOPE: Scope;
     /// Parses the kind's own keys; the common ones (scene, render settings, seed, tolerance)
@@ -50,15 +57,6 @@ pub trait Kind: Send + Sync + 'static {
     /// already has, simplest first (`isolation.rs` runs them). None by default.
     fn ladder(_check: &Check, _p: &Self::Params) -> Vec<Rung> {
         Vec::new()
-    }
-    /// Whether the check's spp is a sample budget the runner may scale: its standard error
-    /// falls as 1/√spp, its expected value does not depend on it, and it carries no noise
-    /// that separate runs would share (a reference image, a measurement); and its test stays
-    /// valid at a quarter of the budget (not so for errors from a handful of independent
-    /// runs, docs/statistics.md). Power targets and sequential looks (`budget.rs`) apply only
-    /// then. False by default.
-    fn budgeted(_check: &Check, _p: &Self::Params) -> bool {
-        false
     }
 }
 
@@ -100,8 +98,8 @@ pub trait DynKind: Send + Sync {
     fn run(&self, check: &Check, ctx: &Context) -> Result<Measurement, CheckError>;
     /// See [`Kind::ladder`].
     fn ladder(&self, check: &Check) -> Vec<Rung>;
-    /// See [`Kind::budgeted`].
-    fn budgeted(&self, check: &Check) -> bool;
+    /// [`Kind::BUDGETED`].
+    fn budgeted(&self) -> bool;
 }
 
 /// The registry's handle of kind `K`.
@@ -154,8 +152,8 @@ impl<K: Kind> DynKind for Registered<K> {
     fn ladder(&self, check: &Check) -> Vec<Rung> {
         K::ladder(check, self.params(check))
     }
-    fn budgeted(&self, check: &Check) -> bool {
-        K::budgeted(check, self.params(check))
+    fn budgeted(&self) -> bool {
+        K::BUDGETED
     }
 }
 

@@ -203,10 +203,7 @@ fn expand_check(
         .is_some_and(|r| *r.get_ref());
     let power = match keys.get::<f64>("power")? {
         None => None,
-        Some(d) if d.get_ref().is_finite() && *d.get_ref() > 0.0 && *d.get_ref() < 1.0 => {
-            Some(*d.get_ref())
-        }
-        Some(d) => {
+        Some(d) if !(d.get_ref().is_finite() && *d.get_ref() > 0.0 && *d.get_ref() < 1.0) => {
             return Err(keys.error(
                 d.span(),
                 "power",
@@ -216,6 +213,17 @@ fn expand_check(
                 ),
             ))
         }
+        Some(d) if !kind.budgeted() => {
+            return Err(keys.error(
+                d.span(),
+                "power",
+                format!(
+                    "kind {} has no sample budget the harness can scale; `power` applies to checks whose spp sets their standard error (docs/statistics.md#power-targets-and-sequential-looks)",
+                    kind.name()
+                ),
+            ))
+        }
+        Some(d) => Some(*d.get_ref()),
     };
     let models = keys
         .get::<Vec<String>>("models")?
@@ -261,17 +269,6 @@ fn expand_check(
         regression,
         power,
     };
-    if let (Some(_), false) = (power, kind.budgeted(&base_check)) {
-        return Err(keys.error_at(
-            "power",
-            format!(
-                "check {:?} has no sample budget the harness can scale (kind {}{}); `power` applies to checks whose spp sets their standard error (docs/statistics.md#power-targets-and-sequential-looks)",
-                base_check.name,
-                kind.name(),
-                if kind.keys().contains(&common::SCENE) { " with these keys" } else { " draws its own samples" }
-            ),
-        ));
-    }
     let Some(scene) = keys.raw("scene") else {
         return Ok(vec![base_check]);
     };

@@ -30,6 +30,7 @@ impl Kind for Gauss {
     const NAME: &'static str = "gauss";
     const KEYS: &'static [Key] = &[];
     const SCOPE: Scope = Scope::Image;
+    const BUDGETED: bool = true;
     fn parse(_: &mut Keys) -> Result<Bias, LocatedError> {
         Ok(Bias(0.0, 0))
     }
@@ -51,9 +52,6 @@ impl Kind for Gauss {
             unstable: (spp < p.1).then(|| "UNSTABLE: unsettled below the threshold".to_string()),
             ..Default::default()
         })
-    }
-    fn budgeted(_: &Check, _: &Bias) -> bool {
-        true
     }
 }
 

@@ -34,9 +34,7 @@ impl Kind for EstimatorAgreement {
         common::SEED,
     ];
     const SCOPE: Scope = Scope::Furnace;
-    fn budgeted(_: &Check, _: &Self::Params) -> bool {
-        true // its spp is a sample budget (harness::budget)
-    }
+    const BUDGETED: bool = true;
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())

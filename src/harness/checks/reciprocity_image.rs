@@ -68,9 +68,7 @@ impl Kind for ReciprocityImage {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Furnace;
-    fn budgeted(_: &Check, _: &Self::Params) -> bool {
-        true // its spp is a sample budget (harness::budget)
-    }
+    const BUDGETED: bool = true;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         Ok(Params {

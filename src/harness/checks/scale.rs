@@ -69,9 +69,7 @@ impl Kind for ScaleInvariance {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Image;
-    fn budgeted(_: &Check, _: &Self::Params) -> bool {
-        true // its spp is a sample budget (harness::budget)
-    }
+    const BUDGETED: bool = true;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         let of = match k.get::<String>("of")? {

@@ -108,9 +108,7 @@ impl Kind for Transmittance {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Image;
-    fn budgeted(_: &Check, _: &Self::Params) -> bool {
-        true // its spp is a sample budget (harness::budget)
-    }
+    const BUDGETED: bool = true;
 
     fn parse(_: &mut Keys) -> Result<(), LocatedError> {
         Ok(())
