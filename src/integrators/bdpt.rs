@@ -310,14 +310,13 @@ impl Bdpt {
                 return false;
             };
             let mut weight = bs.weight;
-            let (en, ep) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
-            let r = SampledSpectrum(std::array::from_fn(|i| en.0[i] / ep.0[i]));
+            let r2 = bsdf.eta_ratio_squared(wo, bs.wi, wl);
             if adjoint {
                 // the adjoint BSDF f*(wo, wi) = f(wo, wi)·η(wi)²/η(wo)² (see `Bxdf::eta`)
-                weight *= r * r;
+                weight *= r2;
             } else {
                 // radiance scaled by 1/η² into the denser side: roulette looks past it
-                eta_scale *= r * r;
+                eta_scale *= r2;
             }
             let (pdf_next, pdf_back) = if bs.delta {
                 (0.0, 0.0)

@@ -12,7 +12,7 @@ use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
 use crate::media::{sample_free_flight, transmittance, Phase};
-use crate::scattering::{Bxdf, SampledBsdf};
+use crate::scattering::SampledBsdf;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 
@@ -422,11 +422,8 @@ impl PathTracer {
                 break;
             }
             if bs.wi.z * wo.z < 0.0 {
-                // a transmission: the ratio of the indices on the two sides, squared
-                let (into, from) = (bsdf.eta(bs.wi, wl), bsdf.eta(wo, wl));
-                for k in 0..eta_scale.0.len() {
-                    eta_scale.0[k] *= (into.0[k] / from.0[k]).powi(2);
-                }
+                // a transmission (a reflection's factor is 1)
+                eta_scale *= bsdf.eta_ratio_squared(wo, bs.wi, wl);
             }
             prev_bsdf_pdf = if bs.delta { None } else { Some(bs.pdf) };
             prev_p = sp.p;

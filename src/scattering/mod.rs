@@ -91,6 +91,15 @@ macro_rules! each {
 }
 
 impl Bsdf {
+    /// η(wi)²/η(wo)² per wavelength (1 for a reflection): the factor of the adjoint BSDF
+    /// ([`Bxdf::eta`]), and the radiance scaling of a refraction that roulette undoes.
+    pub fn eta_ratio_squared(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> SampledSpectrum {
+        let (to, from) = (self.eta(wi, wl), self.eta(wo, wl));
+        SampledSpectrum(std::array::from_fn(|i| {
+            let r = to.0[i] / from.0[i];
+            r * r
+        }))
+    }
     /// True for a null interface, which integrators step through without a bounce.
     #[inline]
     pub fn is_null(&self) -> bool {
