@@ -342,44 +342,36 @@ pub fn design(
     if !(alpha > 0.0 && alpha < 1.0 && power > alpha && power < 1.0) {
         return Err(DesignError::Levels { alpha, power });
     }
-    // type I error falls as C₁ rises: solve in log space for tiny α
-    let type1 = |c1: f64, c2: f64| {
-        let d = with_constants(t, two_sided, shapes, c1, c2);
-        d.crossing(0.0).rejection()
+    // the boundaries of constants (C₁, C₂); without futility, acceptance only at the last look
+    let make = |c1: f64, c2: f64| {
+        let mut d = with_constants(t, two_sided, shapes, c1, c2);
+        if !futility {
+            d.accept = vec![f64::NEG_INFINITY; t.len()];
+            d.accept[t.len() - 1] = d.reject[t.len() - 1];
+        }
+        d
     };
-    let c1_for = |c2: f64| solve(0.0, 40.0, -alpha.ln(), |c1| -type1(c1, c2).max(1e-300).ln());
+    // type I error falls as C₁ rises: solve in log space for tiny α
+    let c1_for = |c2: f64| {
+        solve(0.0, 40.0, -alpha.ln(), |c1| {
+            -make(c1, c2).crossing(0.0).rejection().max(1e-300).ln()
+        })
+    };
     let (c1, c2) = if futility {
         let pw = |c2: f64| {
             let c1 = c1_for(c2);
-            with_constants(t, two_sided, shapes, c1, c2)
-                .crossing(c1 + c2)
-                .rejection()
+            make(c1, c2).crossing(c1 + c2).rejection()
         };
         let c2 = solve(0.0, 20.0, power, pw);
         (c1_for(c2), c2)
     } else {
-        // efficacy only: no acceptance before the last look; the drift is the one that gives
-        // the power
-        let d = with_constants(t, two_sided, shapes, 1.0, 0.0);
-        let c1 = solve(0.0, 40.0, -alpha.ln(), |c1| {
-            let mut e = d.clone();
-            e.reject = t.iter().map(|&t| c1 * t.powf(shapes.0 - 0.5)).collect();
-            e.accept = vec![f64::NEG_INFINITY; t.len()];
-            e.accept[t.len() - 1] = e.reject[t.len() - 1];
-            -e.crossing(0.0).rejection().max(1e-300).ln()
-        });
-        let mut e = d;
-        e.reject = t.iter().map(|&t| c1 * t.powf(shapes.0 - 0.5)).collect();
-        e.accept = vec![f64::NEG_INFINITY; t.len()];
-        e.accept[t.len() - 1] = e.reject[t.len() - 1];
+        // efficacy only: C₁ alone sets the boundaries; the drift is the one that gives the power
+        let c1 = c1_for(0.0);
+        let e = make(c1, 0.0);
         let eta = solve(0.0, 60.0, power, |eta| e.crossing(eta).rejection());
         (c1, eta - c1)
     };
-    let mut d = with_constants(t, two_sided, shapes, c1, c2);
-    if !futility {
-        d.accept = vec![f64::NEG_INFINITY; t.len()];
-        d.accept[t.len() - 1] = d.reject[t.len() - 1];
-    }
+    let mut d = make(c1, c2);
     let side = if two_sided { alpha / 2.0 } else { alpha };
     let fixed = upper_quantile(side) + upper_quantile(1.0 - power);
     d.alpha = alpha;
