@@ -120,9 +120,11 @@ pub fn run_with(
         let mut p = progress.lock().unwrap_or_else(|e| e.into_inner());
         (*p)(event)
     };
-    let one = |check: &Check| run_one(check, opts, &subject, alpha, &plan, &report);
+    let one = |check: &Check, threads: usize| {
+        run_one(check, opts, threads, &subject, alpha, &plan, &report)
+    };
     let done: Vec<(Outcome, Option<Measurement>)> = match concurrent_checks(opts, &subject) {
-        1 => todo.iter().map(|c| one(c)).collect(),
+        1 => todo.iter().map(|c| one(c, opts.threads)).collect(),
         n => side_by_side(&todo, n, &one),
     };
     let progress = progress.into_inner().unwrap_or_else(|e| e.into_inner());
@@ -162,6 +164,13 @@ pub fn run_with(
         family_alpha: opts.family_alpha,
         correction: opts.correction.name().into(),
         stochastic_tests: m,
+        looks: if opts.sequential {
+            "sequential"
+        } else {
+            "fixed"
+        }
+        .into(),
+        power: opts.power,
         outcomes,
         seconds: start.elapsed().as_secs_f64(),
         shard: opts.shard.as_ref().map(|p| ShardInfo {
@@ -177,7 +186,7 @@ pub fn run_with(
 }
 
 /// How many checks run side by side: one per core for furnace's own renderer on every core
-/// (`threads` 0), whose renders share the one thread pool; one at a time otherwise (an
+/// (`threads` 0); one at a time otherwise (an
 /// external renderer keeps one check's files apart from the next; `-j N` asks for N threads).
 fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
     if opts.threads != 0 || !subject.renderer.is_reference() {
@@ -187,9 +196,17 @@ fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
 }
 
 /// Runs `todo` on `n` threads that each take the next check not yet started; the outcomes
-/// come back in `todo`'s order. A check's numbers depend only on its seed, so they are those
-/// of a run one check at a time.
-fn side_by_side<T: Send>(todo: &[&Check], n: usize, one: &(dyn Fn(&Check) -> T + Sync)) -> Vec<T> {
+/// come back in `todo`'s order. A check renders on one thread of its own while other checks
+/// wait to start, so each core runs one check without waiting on a shared pool (a shared pool
+/// made short parallel renders queue behind long ones: 305 s of CPU for a suite that needs
+/// 220 s one at a time); the checks left when the queue empties render on every core
+/// (`threads` 0). A check's numbers depend only on its seed, so they are those of a run one
+/// check at a time.
+fn side_by_side<T: Send>(
+    todo: &[&Check],
+    n: usize,
+    one: &(dyn Fn(&Check, usize) -> T + Sync),
+) -> Vec<T> {
     let next = std::sync::atomic::AtomicUsize::new(0);
     let slots: Vec<std::sync::Mutex<Option<T>>> =
         todo.iter().map(|_| std::sync::Mutex::new(None)).collect();
@@ -198,7 +215,8 @@ fn side_by_side<T: Send>(todo: &[&Check], n: usize, one: &(dyn Fn(&Check) -> T +
             scope.spawn(|| loop {
                 let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
                 let Some(check) = todo.get(i) else { break };
-                let r = one(check);
+                let waiting = todo.len() - i - 1;
+                let r = one(check, if waiting >= n - 1 { 1 } else { 0 });
                 *slots[i].lock().unwrap_or_else(|e| e.into_inner()) = Some(r);
             });
         }
@@ -213,11 +231,13 @@ fn side_by_side<T: Send>(todo: &[&Check], n: usize, one: &(dyn Fn(&Check) -> T +
         .collect()
 }
 
-/// Runs one check: its applicability, its measurement under the sample plan, and, under
-/// Šidák, its verdict (Holm's waits for every p-value).
+/// Runs one check on `threads` render threads (0: every core): its applicability, its
+/// measurement under the sample plan, and, under Šidák, its verdict (Holm's waits for every
+/// p-value).
 fn run_one(
     check: &Check,
     opts: &RunOptions,
+    threads: usize,
     subject: &Subject,
     alpha: f64,
     plan: &Result<budget::Plan, String>,
@@ -245,7 +265,7 @@ fn run_one(
             _ => subject.models,
         },
         seed: check_seed(check.seed, &check.name, opts.seed),
-        threads: opts.threads,
+        threads,
         alpha,
     };
     let t0 = Instant::now();
