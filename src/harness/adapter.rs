@@ -556,6 +556,10 @@ impl Renderer for External {
     fn exact_spp(&self) -> bool {
         self.desc.spp.as_deref() != Some("at-least")
     }
+
+    fn spp_step(&self) -> u64 {
+        self.batches()
+    }
 }
 
 impl External {

@@ -101,7 +101,8 @@ fn powered_spp(
     delta: f64,
     written: u64,
 ) -> Result<(u64, String), CheckError> {
-    let pilot_spp = (written / PILOT_SHARE).max(4);
+    let step = ctx.renderer.spp_step().max(1);
+    let pilot_spp = (written / PILOT_SHARE).max(4).div_ceil(step) * step;
     let pilot_ctx = Context {
         seed: mix64(ctx.seed ^ 0x0070_696c_6f74), // "pilot"
         ..*ctx
@@ -122,7 +123,10 @@ fn powered_spp(
     let limit = power::min_detectable_bias(se, m.sub_test_level(ctx.alpha), POWER) / expected.abs();
     let scale = (limit / margin).powi(2) * pilot_spp as f64 / written as f64;
     let capped = scale > MAX_SCALE;
-    let spp = ((scale.min(MAX_SCALE) * written as f64).ceil() as u64).max(4);
+    let spp = ((scale.min(MAX_SCALE) * written as f64).ceil() as u64)
+        .max(4)
+        .div_ceil(step)
+        * step;
     let note = format!(
         "power target {}: pilot {pilot_spp} spp detects {} beyond the tolerance, so {spp} spp{}",
         fmt_pct(delta),
@@ -185,9 +189,14 @@ fn looks(
     designs: &(Design, Design),
     spp: u64,
 ) -> Result<Measurement, CheckError> {
-    // the maximum budget: the larger of the two designs' inflations, in whole quarters
+    // the maximum budget: the larger of the two designs' inflations, in whole quarters, each a
+    // multiple of the renderer's spp step so that every look is
     let inflation = designs.0.inflation.max(designs.1.inflation);
-    let quarter = ((spp as f64 * inflation / 4.0).ceil() as u64).max(1);
+    let step = ctx.renderer.spp_step().max(1);
+    let quarter = ((spp as f64 * inflation / 4.0).ceil() as u64)
+        .max(1)
+        .div_ceil(step)
+        * step;
     let n_max = 4 * quarter;
     let mut parts: Vec<(u64, Measurement)> = Vec::new();
     let mut weighted = 0.0;

@@ -67,6 +67,12 @@ pub trait Renderer: Sync {
     fn exact_spp(&self) -> bool {
         true
     }
+    /// The spp its images come in multiples of (an external renderer's `batches`: one run per
+    /// batch). The sample plans (power targets, sequential looks) round the budgets they set up
+    /// to it; a manifest's own spp is refused when it is not one.
+    fn spp_step(&self) -> u64 {
+        1
+    }
     /// False for a renderer that serves only models (no image command).
     fn renders_images(&self) -> bool {
         true
