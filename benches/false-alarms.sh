@@ -26,9 +26,11 @@
 #   FILTER=sppm/cornell-convergence ALPHA=1.005e-4 \
 #     OUT=reports/false-alarms/sppm-cornell-convergence.tsv benches/false-alarms.sh 1001 1100
 #
-# ARGS adds options to every run, e.g. the sequential looks or a power target:
+# ARGS adds options to every run, e.g. a power target, or `--fixed` for the fixed-sample test
+# (the sequential looks are `furnace check`'s default since 2026-12-05, 13:00 UTC; files
+# recorded before then, mode-sequential-furnace.tsv aside, are fixed-sample runs):
 #
-#   FILTER='furnace/*' ALPHA=0.05 ARGS=--sequential \
+#   FILTER='furnace/*=0.?]' ALPHA=0.05 \
 #     OUT=reports/false-alarms/mode-sequential-furnace.tsv benches/false-alarms.sh 2001 2100
 set -euo pipefail
 first=${1:?first seed}

@@ -67,8 +67,11 @@ pub struct CheckArgs {
     /// Give every check whose spp is a sample budget the spp that detects a relative bias of DELTA with 95 % probability (a pilot run at a sixteenth of its spp estimates the variance), overriding the manifests' `power`: e.g. `--power 0.002` for a nightly job.
     #[arg(long, value_name = "DELTA")]
     power: Option<f64>,
-    /// Spend budgeted checks' samples in three looks (¼, ½, all of a budget 1.12× the written one) and stop as soon as the verdict is settled; the false-alarm rate and the power at each check's detection limit are held (docs/statistics.md).
+    /// Spend each budgeted check's written spp in one go, with no sequential looks (by default its samples are spent in three looks, ¼, ½ and all of a budget 1.12× the written one, stopping as soon as the verdict is settled, with the same false-alarm rate and the same power at the check's detection limit; docs/statistics.md).
     #[arg(long)]
+    fixed: bool,
+    /// The sequential looks, which are the default (kept so that scripts written for it still run).
+    #[arg(long, hide = true, conflicts_with = "fixed")]
     sequential: bool,
     /// Do not re-run a failed check's isolation ladder (simpler variants with known closed forms, e.g. the furnace kind capped at 0–3 bounces, within 4× the check's time).
     #[arg(long)]
@@ -196,7 +199,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         time_limit: a.time_limit,
         isolate: !a.no_isolation,
         power: a.power,
-        sequential: a.sequential,
+        sequential: a.sequential || !a.fixed,
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
     let externals = if a.renderers.iter().any(|r| r != "furnace") {
@@ -436,6 +439,13 @@ fn write_bundles(
                 " --renderers {}",
                 adapter::shell_quote(&t.display().to_string())
             ));
+        }
+        // the sample plan decides how many samples each look renders
+        if let Some(d) = a.power {
+            rerun.push_str(&format!(" --power {d}"));
+        }
+        if a.fixed {
+            rerun.push_str(" --fixed");
         }
         let info = bundle::BundleInfo {
             renderer: e.label.clone(),

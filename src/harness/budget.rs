@@ -1,7 +1,8 @@
 //! How many samples a check spends: the manifest's spp, or the spp a stated power needs
-//! (`power = δ`, from a pilot run), spent in one go or in group-sequential looks that stop as
-//! soon as the verdict is settled (`furnace check --sequential`). Only checks whose kind says
-//! its spp is a budget (`Kind::BUDGETED`) are touched; the others run as written.
+//! (`power = δ`, from a pilot run), spent in one go (`furnace check --fixed`) or in
+//! group-sequential looks that stop as soon as the verdict is settled (the default). Only
+//! checks whose kind says its spp is a budget (`Kind::BUDGETED`) are touched; the others run
+//! as written.
 
 use super::context::Context;
 use super::error::CheckError;

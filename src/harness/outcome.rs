@@ -183,6 +183,14 @@ pub struct RunReport {
     pub correction: String,
     /// Number of stochastic tests the correction spans.
     pub stochastic_tests: usize,
+    /// How budgeted checks spent their samples: "sequential" (looks that stop once the verdict
+    /// is settled) or "fixed" (all at once); empty when not recorded (runs before 2026-12-05).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub looks: String,
+    /// The power target δ (relative bias detected with 95 % probability) that set every
+    /// budgeted check's spp, when the run had one (`--power`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub power: Option<f64>,
     /// Outcomes in run order.
     pub outcomes: Vec<Outcome>,
     /// Total wall time, seconds.

@@ -152,6 +152,13 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
                 ),
             );
         }
+        if r.looks != first.looks || r.power.map(f64::to_bits) != first.power.map(f64::to_bits) {
+            let plan = |r: &RunReport| match r.power {
+                Some(d) => format!("{} looks, power {d}", r.looks),
+                None => format!("{} looks", r.looks),
+            };
+            return differs("sample plan", plan(r), plan(first));
+        }
         if s.count != info.count {
             return differs("shard count", s.count.to_string(), info.count.to_string());
         }

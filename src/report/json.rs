@@ -31,6 +31,8 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `family_alpha` | number or null | probability | Family-wise false-alarm rate that the multiple-testing correction holds over all stochastic tests of the run. |
 | `correction` | string | — | Multiple-testing correction: `"sidak"` or `"holm"`. |
 | `stochastic_tests` | integer | count | Number of stochastic tests the correction spans. |
+| `looks` | string (absent in files written before 2026-12-05) | — | How the checks whose spp is a sample budget spent it: `"sequential"` (looks at ¼, ½ and all of the budget, stopping once the verdict is settled; `furnace check`'s default) or `"fixed"` (`--fixed`, all at once). |
+| `power` | number (absent without `--power`) | relative | The power target δ that set every budgeted check's spp: the relative bias each detects with 95 % probability. |
 | `outcomes` | array of outcome | — | One object per check, in run order (below). |
 | `seconds` | number or null | s | Total wall time of the run. |
 | `shard` | object (absent unless sharded) | — | Set by `furnace check --shard K/N`: `index` (K), `count` (N) and `suite` (every check name of the whole suite, in run order), which `furnace merge` uses to check that its inputs make one run. A merged run has no `shard` and its `seconds` is the longest shard's. |

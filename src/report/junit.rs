@@ -459,6 +459,8 @@ mod tests {
             family_alpha: f64::NAN,
             correction: "\u{1b}[2J".into(),
             stochastic_tests: usize::MAX,
+            looks: String::new(),
+            power: None,
             outcomes,
             seconds: f64::NEG_INFINITY,
             shard: None,

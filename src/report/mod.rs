@@ -122,6 +122,8 @@ pub(crate) mod fixture {
             family_alpha: 0.01,
             correction: "sidak".into(),
             stochastic_tests: 37,
+            looks: String::new(),
+            power: None,
             outcomes: vec![
                 pass_z(),
                 fail_chi_square(),

@@ -232,7 +232,7 @@ fn single_check_sweeps_stay_within_their_level() {
 
 /// The run modes on furnace's renderer, swept over seeds: `mode-sequential-furnace.tsv`
 /// (`FILTER='furnace/*=0.?]' ALPHA=0.05 ARGS=--sequential OUT=… benches/false-alarms.sh`) and
-/// `mode-power-furnace.tsv` (the same with `ARGS='--power 0.01'`). The runs with a false alarm
+/// `mode-power-furnace.tsv` (the same with `ARGS='--power 0.01 --fixed'`). The runs with a false alarm
 /// must be compatible with the stated family-wise rate (5 % from the tests plus at most as much
 /// again from the variance diagnosis), the p-values not piled up below 0.05, and
 /// docs/statistics.md must quote each file as it is.

@@ -51,6 +51,8 @@ fn four_shards_merge_into_the_single_runs_numbers() {
     let o = std::process::Command::new("sh")
         .arg(root("docs/ci/shards-locally.sh"))
         .arg("4")
+        // the fixed-sample test, which the committed digest holds
+        .arg("--fixed")
         .env("FURNACE", env!("CARGO_BIN_EXE_furnace"))
         .env("OUT", &dir)
         .output()
@@ -124,6 +126,18 @@ fn merges_that_are_not_one_run_are_refused_by_name() {
     let q = shard_run(&other, &m2, 2, 3);
     let mixed = merge(&[&p[0], &q, &p[2]]);
     assert!(stderr(&mixed).contains("seed 2 vs 1"), "{}", stderr(&mixed));
+    // so is a run that spends its samples another way
+    let fixed = dir.join("fixed");
+    std::fs::create_dir(&fixed).unwrap();
+    let mut m3 = m.to_vec();
+    m3.push("--fixed");
+    let f = shard_run(&fixed, &m3, 2, 3);
+    let mixed = merge(&[&p[0], &f, &p[2]]);
+    assert!(
+        stderr(&mixed).contains("sample plan fixed looks vs sequential looks"),
+        "{}",
+        stderr(&mixed)
+    );
     // a plain run is not a shard
     let plain = dir.join("plain.json");
     let o = furnace(&[
