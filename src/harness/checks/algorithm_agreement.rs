@@ -68,6 +68,8 @@ pub struct Params {
     pub regions: RegionChoice,
     /// Compare with the furnace closed form E/(1 − R) instead of the path tracer.
     pub closed_form: bool,
+    /// Samples per pixel of the path tracer's image (None: the check's spp).
+    pub reference_spp: Option<u64>,
 }
 
 /// The `algorithm_agreement` kind.
@@ -114,6 +116,12 @@ impl Kind for AlgorithmAgreement {
             ty: "\"path\" or \"closed_form\"",
             default: "\"path\"",
             doc: "what the algorithm's image is compared with: the path tracer's image, or (a furnace scene) the closed form E/(1 - R) in every pixel",
+        },
+        Key {
+            name: "reference_spp",
+            ty: "integer 1..=2^20",
+            default: "the check's spp",
+            doc: "samples per pixel of the path tracer's image, where rare paths need more than the algorithm (docs/statistics.md, \"Rare paths\")",
         },
         Key {
             name: "chains",
@@ -196,6 +204,7 @@ impl Kind for AlgorithmAgreement {
                     ))
                 }
             },
+            reference_spp: k.int("reference_spp", 1, 1 << 20)?,
         })
     }
 
@@ -228,8 +237,10 @@ impl Kind for AlgorithmAgreement {
                 .xyz_to_rgb([e * white[0] / white[1], e, e * white[2] / white[1]]);
             (None, Some((rgb, what)))
         } else {
+            let mut ps = s.clone();
+            ps.spp = p.reference_spp.unwrap_or(s.spp);
             (
-                Some(RgbImage::from_film(&ctx.renderer.render(scene, &s)?)),
+                Some(RgbImage::from_film(&ctx.renderer.render(scene, &ps)?)),
                 None,
             )
         };
@@ -274,15 +285,20 @@ impl Kind for AlgorithmAgreement {
             Some((_, cf)) => format!("the closed form ({cf})"),
             None => format!(
                 "path tracer ({} spp, {})",
-                s.spp,
+                p.reference_spp.unwrap_or(s.spp),
                 s.integrator
                     .max_depth
                     .map_or("unlimited depth".into(), |d| format!("at most {d} bounces"))
             ),
         };
+        let reference_spp = if p.closed_form {
+            0
+        } else {
+            p.reference_spp.unwrap_or(s.spp)
+        };
         regions_measurement(
             &results,
-            2 * (w * h) as u64 * s.spp,
+            (w * h) as u64 * (s.spp + reference_spp),
             &format!("{what}{allowance} = test, {reference} = reference, {w}x{h}"),
         )
     }
