@@ -55,6 +55,7 @@ impl Plan {
     fn applies(&self, check: &Check) -> bool {
         (self.designs.is_some() || self.power.is_some() || check.power.is_some())
             && check.kind.budgeted()
+            && !check.fixed_spp
     }
 }
 

@@ -190,7 +190,9 @@ impl<'a> Keys<'a> {
             table,
         };
         for (key, v) in table {
-            if ["name", "kind", "time_limit", "regression", "power"].contains(&key.as_str()) {
+            if ["name", "kind", "time_limit", "regression", "power", "fixed"]
+                .contains(&key.as_str())
+            {
                 continue;
             }
             if !allowed.iter().any(|k| k.name == key) {
@@ -199,7 +201,7 @@ impl<'a> Keys<'a> {
                     v.span(),
                     key,
                     format!(
-                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, power, {}",
+                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, power, fixed, {}",
                         kind,
                         names.join(", ")
                     ),

@@ -212,6 +212,9 @@ pub struct Check {
     /// The detection power the check must reach (`power = δ`: the smallest relative bias it
     /// catches with 95 % probability); its spp then follows from a pilot run (`budget.rs`).
     pub power: Option<f64>,
+    /// The check's spp is what it tests (`fixed = true`, e.g. 2²⁴ samples in one pixel), not a
+    /// budget: neither power targets nor sequential looks change it.
+    pub fixed_spp: bool,
 }
 
 impl Check {

@@ -225,6 +225,26 @@ fn expand_check(
         }
         Some(d) => Some(*d.get_ref()),
     };
+    let fixed_spp = match keys.get::<bool>("fixed")? {
+        Some(f) if *f.get_ref() && power.is_some() => {
+            return Err(keys.error(
+                f.span(),
+                "fixed",
+                "`fixed = true` keeps the check's spp as written, `power` sets it from a pilot run: give one or the other".into(),
+            ))
+        }
+        Some(f) if *f.get_ref() && !kind.budgeted() => {
+            return Err(keys.error(
+                f.span(),
+                "fixed",
+                format!(
+                    "kind {} always runs its spp as written; `fixed` applies to kinds whose spp is a sample budget",
+                    kind.name()
+                ),
+            ))
+        }
+        f => f.is_some_and(|f| *f.get_ref()),
+    };
     let models = keys
         .get::<Vec<String>>("models")?
         .map(|m| m.into_inner())
@@ -268,6 +288,7 @@ fn expand_check(
         time_limit,
         regression,
         power,
+        fixed_spp,
     };
     let Some(scene) = keys.raw("scene") else {
         return Ok(vec![base_check]);

@@ -82,6 +82,7 @@ fn unsettled_gauss(bias: f64, spp: u64, power: Option<f64>, unsettled_below: u64
         time_limit: None,
         regression: false,
         power,
+        fixed_spp: false,
     }
 }
 
@@ -122,6 +123,19 @@ const SPP: u64 = 400;
 /// The bias the fixed test at SPP detects with 95 % probability: (z₁₋α/2 + z₀.₉₅)·σ/√n.
 fn detection_limit() -> f64 {
     power::min_detectable_bias(1.0 / (SPP as f64).sqrt(), ALPHA, 0.95)
+}
+
+#[test]
+fn a_fixed_check_keeps_its_spp_under_looks_and_power_targets() {
+    let mut check = gauss(0.0, SPP, None);
+    check.fixed_spp = true;
+    for plan in [
+        Plan::new(ALPHA, None, true).unwrap(),
+        Plan::new(ALPHA, Some(0.01), false).unwrap(),
+    ] {
+        let (_, _, spp) = rates(&check, &plan, ALPHA, 20);
+        assert_eq!(spp, SPP as f64);
+    }
 }
 
 #[test]
