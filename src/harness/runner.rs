@@ -186,8 +186,8 @@ pub fn run_with(
 }
 
 /// How many checks run side by side: one per core for furnace's own renderer on every core
-/// (`threads` 0); one at a time otherwise (an
-/// external renderer keeps one check's files apart from the next; `-j N` asks for N threads).
+/// (`threads` 0); one at a time otherwise (an external renderer keeps one check's files apart
+/// from the next; `-j N` asks for N threads).
 fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
     if opts.threads != 0 || !subject.renderer.is_reference() {
         return 1;
@@ -197,11 +197,10 @@ fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
 
 /// Runs `todo` on `n` threads that each take the next check not yet started; the outcomes
 /// come back in `todo`'s order. A check renders on one thread of its own while other checks
-/// wait to start, so each core runs one check without waiting on a shared pool (a shared pool
-/// made short parallel renders queue behind long ones: 305 s of CPU for a suite that needs
-/// 220 s one at a time); the checks left when the queue empties render on every core
-/// (`threads` 0). A check's numbers depend only on its seed, so they are those of a run one
-/// check at a time.
+/// wait to start, so each core runs one check without waiting on a shared pool (where short
+/// parallel renders queued behind long ones: docs/performance.md); the checks left when the
+/// queue empties render on every core (`threads` 0). A check's numbers depend only on its
+/// seed, so they are those of a run one check at a time.
 fn side_by_side<T: Send>(
     todo: &[&Check],
     n: usize,
