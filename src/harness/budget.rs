@@ -87,6 +87,14 @@ pub fn run(check: &Check, ctx: &Context, plan: &Plan) -> Result<Measurement, Che
     Ok(m)
 }
 
+/// `spp` rounded up to a whole number of the renderer's spp steps ([`Renderer::spp_step`]).
+///
+/// [`Renderer::spp_step`]: super::renderer::Renderer::spp_step
+fn in_steps(spp: u64, ctx: &Context) -> u64 {
+    let step = ctx.renderer.spp_step().max(1);
+    spp.div_ceil(step) * step
+}
+
 /// Runs `check` at `spp` samples per pixel.
 fn run_at(check: &Check, spp: u64, ctx: &Context) -> Result<Measurement, CheckError> {
     let mut c = check.clone();
@@ -103,8 +111,7 @@ fn powered_spp(
     delta: f64,
     written: u64,
 ) -> Result<(u64, String), CheckError> {
-    let step = ctx.renderer.spp_step().max(1);
-    let pilot_spp = (written / PILOT_SHARE).max(4).div_ceil(step) * step;
+    let pilot_spp = in_steps((written / PILOT_SHARE).max(4), ctx);
     let pilot_ctx = Context {
         seed: mix64(ctx.seed ^ 0x0070_696c_6f74), // "pilot"
         ..*ctx
@@ -125,10 +132,10 @@ fn powered_spp(
     let limit = power::min_detectable_bias(se, m.sub_test_level(ctx.alpha), POWER) / expected.abs();
     let scale = (limit / margin).powi(2) * pilot_spp as f64 / written as f64;
     let capped = scale > MAX_SCALE;
-    let spp = ((scale.min(MAX_SCALE) * written as f64).ceil() as u64)
-        .max(4)
-        .div_ceil(step)
-        * step;
+    let spp = in_steps(
+        ((scale.min(MAX_SCALE) * written as f64).ceil() as u64).max(4),
+        ctx,
+    );
     let note = format!(
         "power target {}: pilot {pilot_spp} spp detects {} beyond the tolerance, so {spp} spp{}",
         fmt_pct(delta),
@@ -191,14 +198,10 @@ fn looks(
     designs: &(Design, Design),
     spp: u64,
 ) -> Result<Measurement, CheckError> {
-    // the maximum budget: the larger of the two designs' inflations, in whole quarters, each a
-    // multiple of the renderer's spp step so that every look is
+    // the maximum budget: the larger of the two designs' inflations, in whole quarters, each
+    // in whole spp steps of the renderer, so that every look is too
     let inflation = designs.0.inflation.max(designs.1.inflation);
-    let step = ctx.renderer.spp_step().max(1);
-    let quarter = ((spp as f64 * inflation / 4.0).ceil() as u64)
-        .max(1)
-        .div_ceil(step)
-        * step;
+    let quarter = in_steps(((spp as f64 * inflation / 4.0).ceil() as u64).max(1), ctx);
     let n_max = 4 * quarter;
     let mut parts: Vec<(u64, Measurement)> = Vec::new();
     let mut weighted = 0.0;
