@@ -238,7 +238,7 @@ fn sequential_looks_still_reject_a_broken_renderer_and_pass_a_correct_one() {
 }
 
 #[test]
-fn power_values_and_kinds_without_a_budget_are_refused() {
+fn power_values_fixed_spp_and_kinds_without_a_budget_are_refused() {
     let dir = std::env::temp_dir().join(format!("furnace-power-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let write = |name: &str, body: &str| {
@@ -258,6 +258,21 @@ fn power_values_and_kinds_without_a_budget_are_refused() {
     );
     let e = manifest::load(&no_budget).unwrap_err().to_string();
     assert!(e.contains("no sample budget"), "{e}");
+    let fixed_no_budget = write(
+        "fixed-no-budget.toml",
+        "[[check]]\nname = \"a\"\nkind = \"chi2\"\nsamples = 1000\nfixed = true\n",
+    );
+    let e = manifest::load(&fixed_no_budget).unwrap_err().to_string();
+    assert!(e.contains("always runs its spp as written"), "{e}");
+    let fixed_and_power = write(
+        "fixed-and-power.toml",
+        &format!(
+            "[[check]]\nname = \"a\"\nkind = \"furnace\"\nscene = {:?}\npower = 0.01\nfixed = true\n",
+            root("tests/manifests/scenes/furnace-sphere-0.5.toml").display().to_string()
+        ),
+    );
+    let e = manifest::load(&fixed_and_power).unwrap_err().to_string();
+    assert!(e.contains("give one or the other"), "{e}");
     let out = run_furnace(&["check", "tests/manifests/furnace.toml", "--power", "0"]);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
