@@ -191,15 +191,12 @@ fn sppm_core(
                             let mut rng = SampleStream::new(seed ^ 0x5048_4f54, k, it);
                             cut +=
                                 u64::from(trace_photon(scene, sppm, &wl, &mut rng, &mut |hit| {
-                                    grid.near(hit.p, |px| {
+                                    // inside the radius; which sides count is the BSDF's to
+                                    // say (a reflector's f is 0 across its surface, a
+                                    // dielectric's BTDF gathers the photons arriving from inside)
+                                    grid.near(hit.p, |point| {
+                                        let px = point.px as usize;
                                         let Some(vp) = &visible[px].1 else { return };
-                                        let d2 = (vp.point.p - hit.p).length_squared();
-                                        // inside the radius; which sides count is the BSDF's to say
-                                        // (a reflector's f is 0 across its surface, a dielectric's
-                                        // BTDF gathers the photons arriving from inside)
-                                        if d2 > state.r2[px] {
-                                            return;
-                                        }
                                         let bsdf = &scene.bsdfs[vp.shape as usize];
                                         let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi), &wl);
                                         let xyz = response.xyz(&(vp.beta * f * hit.power), &wl);
@@ -290,15 +287,29 @@ impl State {
 
 /// Visible points in a uniform grid of cubic cells at least as wide as the largest radius
 /// (and at least 1/∛(8n) of the n points' extent, at most 1/128 of it, so that the grid has no
-/// more than about 8 cells per point and stays cheap to build each iteration), stored as one index
-/// list per cell (compressed rows): a photon's neighbours are in its own cell and the 26
-/// around it.
+/// more than about 8 cells per point and stays cheap to build each iteration), stored as one
+/// list per cell (compressed rows) of each point's position, squared radius and pixel, so a
+/// photon's search reads one contiguous run per cell: at most 2×2×2 cells, those that the box
+/// of the largest radius around the photon overlaps.
 struct Grid {
     lo: Vec3,
     cell: f64,
     dims: [i64; 3],
+    /// The largest radius among the points, scene units.
+    radius: f64,
     start: Vec<u32>,
-    items: Vec<u32>,
+    items: Vec<GridPoint>,
+}
+
+/// A visible point as the photon search reads it.
+#[derive(Debug, Clone, Copy, Default)]
+struct GridPoint {
+    /// Its position (the visible point's, same bits), scene units.
+    p: Vec3,
+    /// Its pixel's squared radius, scene units².
+    r2: f64,
+    /// Its pixel.
+    px: u32,
 }
 
 impl Grid {
@@ -313,6 +324,7 @@ impl Grid {
                 lo: Vec3::ZERO,
                 cell: 1.0,
                 dims: [1; 3],
+                radius: 0.0,
                 start: vec![0, 0],
                 items: vec![],
             };
@@ -329,46 +341,42 @@ impl Grid {
         let divisions = (8.0 * points as f64).cbrt().clamp(1.0, 128.0);
         let cell = radius.max(extent / divisions).max(f64::MIN_POSITIVE);
         let dims = ((hi - lo) / cell).to_array().map(|d| d.floor() as i64 + 1);
-        let grid = |cell_of: &dyn Fn(usize) -> usize| {
-            let total = (dims[0] * dims[1] * dims[2]) as usize;
-            let mut start = vec![0u32; total + 1];
-            let members: Vec<(usize, usize)> = visible
-                .iter()
-                .enumerate()
-                .filter(|v| v.1 .1.is_some())
-                .map(|(px, _)| (cell_of(px), px))
-                .collect();
-            for &(c, _) in &members {
-                start[c + 1] += 1;
-            }
-            for i in 0..total {
-                start[i + 1] += start[i];
-            }
-            let mut fill = start.clone();
-            let mut items = vec![0u32; members.len()];
-            for &(c, px) in &members {
-                items[fill[c] as usize] = px as u32;
-                fill[c] += 1;
-            }
-            (start, items)
-        };
-        let this = Grid {
+        let mut this = Grid {
             lo,
             cell,
             dims,
+            radius,
             start: vec![],
             items: vec![],
         };
-        let (start, items) = grid(&|px| {
-            let p = visible[px].1.as_ref().expect("filtered").point.p;
-            this.index(this.coords(p))
-                .expect("a visible point lies in the grid")
-        });
-        Grid {
-            start,
-            items,
-            ..this
+        let members: Vec<(usize, GridPoint)> = visible
+            .iter()
+            .enumerate()
+            .filter_map(|(px, v)| {
+                let p = v.1.as_ref()?.point.p;
+                let c = this
+                    .index(this.coords(p))
+                    .expect("a visible point lies in the grid");
+                let (r2, px) = (r2[px], px as u32);
+                Some((c, GridPoint { p, r2, px }))
+            })
+            .collect();
+        let total = (dims[0] * dims[1] * dims[2]) as usize;
+        let mut start = vec![0u32; total + 1];
+        for &(c, _) in &members {
+            start[c + 1] += 1;
         }
+        for i in 0..total {
+            start[i + 1] += start[i];
+        }
+        let mut fill = start.clone();
+        let mut items = vec![GridPoint::default(); members.len()];
+        for &(c, point) in &members {
+            items[fill[c] as usize] = point;
+            fill[c] += 1;
+        }
+        (this.start, this.items) = (start, items);
+        this
     }
 
     fn coords(&self, p: Vec3) -> [i64; 3] {
@@ -382,18 +390,30 @@ impl Grid {
         inside.then(|| ((c[2] * self.dims[1] + c[1]) * self.dims[0] + c[0]) as usize)
     }
 
-    fn near(&self, p: Vec3, mut each: impl FnMut(usize)) {
-        let k = self.coords(p);
-        for dz in -1..=1 {
-            for dy in -1..=1 {
-                for dx in -1..=1 {
-                    if let Some(c) = self.index([
-                        k[0].saturating_add(dx),
-                        k[1].saturating_add(dy),
-                        k[2].saturating_add(dz),
-                    ]) {
-                        let (a, b) = (self.start[c] as usize, self.start[c + 1] as usize);
-                        self.items[a..b].iter().for_each(|&px| each(px as usize));
+    /// Calls `each` with every point whose own radius reaches `p` (squared distance at most its
+    /// r², computed as the gather always has), once each, cell by cell.
+    fn near(&self, p: Vec3, mut each: impl FnMut(&GridPoint)) {
+        // the cells the box p ± radius overlaps, padded for the rounding of the cell
+        // coordinates (a few ulps of the coordinates involved): visiting a cell too many costs
+        // a few distance tests, missing one would lose photons
+        let slack = 8.0 * f64::EPSILON * (p.abs() + self.lo.abs() + self.radius);
+        let reach = Vec3::splat(self.radius * (1.0 + 1e-9)) + slack;
+        let (a, b) = (self.coords(p - reach), self.coords(p + reach));
+        let range = |i: usize| a[i].max(0)..=b[i].min(self.dims[i] - 1);
+        for z in range(2) {
+            for y in range(1) {
+                let row = (z * self.dims[1] + y) * self.dims[0];
+                let xs = range(0);
+                let (x0, x1) = (*xs.start(), *xs.end());
+                if x0 > x1 {
+                    continue;
+                }
+                // the cells of one row are adjacent in `start`: one contiguous run of points
+                let first = self.start[(row + x0) as usize] as usize;
+                let last = self.start[(row + x1 + 1) as usize] as usize;
+                for point in &self.items[first..last] {
+                    if (point.p - p).length_squared() <= point.r2 {
+                        each(point);
                     }
                 }
             }
