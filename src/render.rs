@@ -203,6 +203,37 @@ impl<'a> FilmResponse<'a> {
         if self.grey {
             return self.white.map(|c| c * l.0[0]);
         }
+        let mut cmf = [[0.0; 3]; N_WAVELENGTHS];
+        for (c, &lambda) in cmf.iter_mut().zip(&wl.lambda).take(self.lanes) {
+            *c = self.observer.cmf(lambda);
+        }
+        self.weigh(l, &wl.pdf, &cmf)
+    }
+
+    /// [`FilmResponse::xyz`] for many spectra at one set of wavelengths (an SPPM iteration's):
+    /// the matching functions looked up once, the same values bit for bit.
+    pub fn at(&self, wl: &Wavelengths) -> FixedResponse<'_> {
+        let mut cmf = [[0.0; 3]; N_WAVELENGTHS];
+        if !self.grey {
+            for (c, &lambda) in cmf.iter_mut().zip(&wl.lambda).take(self.lanes) {
+                *c = self.observer.cmf(lambda);
+            }
+        }
+        FixedResponse {
+            response: self,
+            pdf: wl.pdf,
+            cmf,
+        }
+    }
+
+    /// X = (1/lanes) Σ L(λi) x̄(λi)/p(λi) / ∫ȳ from the lanes' densities and matching functions.
+    #[inline(always)]
+    fn weigh(
+        &self,
+        l: &SampledSpectrum,
+        pdf: &[f64; N_WAVELENGTHS],
+        cmf: &[[f64; 3]; N_WAVELENGTHS],
+    ) -> [f64; 3] {
         // The weights never depend on the path: when a path drops its secondary wavelengths
         // (dispersion) the integrator scales the hero by the lane count instead, so what the
         // path gathered before keeps its 1/lanes weight (integrators::path).
@@ -210,16 +241,35 @@ impl<'a> FilmResponse<'a> {
         // every lane's radiance over pdf at once (four divisions in one instruction); lanes
         // past `lanes` are left out of the sum
         let mut k = [0.0; N_WAVELENGTHS];
-        for (k, (l, pdf)) in k.iter_mut().zip(l.0.iter().zip(&wl.pdf)) {
+        for (k, (l, pdf)) in k.iter_mut().zip(l.0.iter().zip(pdf)) {
             *k = l / pdf;
         }
-        for (&k, &lambda) in k.iter().zip(&wl.lambda).take(self.lanes) {
-            let c = self.observer.cmf(lambda);
+        for (&k, c) in k.iter().zip(cmf).take(self.lanes) {
             for j in 0..3 {
                 xyz[j] += k * c[j];
             }
         }
         xyz.map(|v| v * self.y_norm / self.lanes as f64)
+    }
+}
+
+/// A [`FilmResponse`] at one fixed set of wavelengths ([`FilmResponse::at`]).
+#[derive(Debug, Clone)]
+pub struct FixedResponse<'a> {
+    response: &'a FilmResponse<'a>,
+    pdf: [f64; N_WAVELENGTHS],
+    cmf: [[f64; 3]; N_WAVELENGTHS],
+}
+
+impl FixedResponse<'_> {
+    /// XYZ of radiance `l` at the fixed wavelengths, as [`FilmResponse::xyz`] gives it.
+    #[inline]
+    pub fn xyz(&self, l: &SampledSpectrum) -> [f64; 3] {
+        let r = self.response;
+        if r.grey {
+            return r.white.map(|c| c * l.0[0]);
+        }
+        r.weigh(l, &self.pdf, &self.cmf)
     }
 }
 

@@ -14,7 +14,7 @@ use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
 use crate::math::Vec3;
-use crate::scattering::{Bsdf, Bxdf};
+use crate::scattering::{Bsdf, Bxdf, SampledBsdf};
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 
@@ -67,6 +67,46 @@ pub fn is_delta(bsdf: &Bsdf, wl: &Wavelengths) -> bool {
         .is_some_and(|s| s.delta)
 }
 
+/// The scene's BSDFs at one iteration's wavelengths, shared by its camera and photon paths:
+/// which shapes are delta and each Lambertian's reflectance, evaluated once per iteration
+/// rather than at every bounce and gather (the same values).
+#[derive(Debug, Clone)]
+pub struct IterationBsdfs {
+    delta: Vec<bool>,
+    reflectance: Vec<Option<SampledSpectrum>>,
+}
+
+impl IterationBsdfs {
+    /// The BSDFs of `scene`'s shapes at `wl`.
+    pub fn new(scene: &Scene, wl: &Wavelengths) -> Self {
+        let delta = scene.bsdfs.iter().map(|b| is_delta(b, wl)).collect();
+        let reflectance = scene
+            .bsdfs
+            .iter()
+            .map(|b| match b {
+                Bsdf::Diffuse(l) => Some(l.reflectance.sample(wl)),
+                _ => None,
+            })
+            .collect();
+        IterationBsdfs { delta, reflectance }
+    }
+
+    /// True when shape `shape`'s BSDF scatters only into delta lobes ([`is_delta`]).
+    #[inline]
+    pub fn is_delta(&self, shape: u32) -> bool {
+        self.delta[shape as usize]
+    }
+
+    /// Shape `shape`'s BSDF at the iteration's wavelengths `wl`.
+    #[inline]
+    pub fn at<'a>(&self, scene: &'a Scene, shape: u32, wl: &'a Wavelengths) -> SampledBsdf<'a> {
+        let cached = self.reflectance[shape as usize];
+        SampledBsdf::with_reflectance(&scene.bsdfs[shape as usize], wl, |r| {
+            cached.unwrap_or_else(|| r.sample(wl))
+        })
+    }
+}
+
 /// Where a camera path ends: its first non-delta surface.
 #[derive(Debug, Clone, Copy)]
 pub struct VisiblePoint {
@@ -89,6 +129,7 @@ const MAX_CHAIN: u32 = 64;
 /// (already weighted) and the visible point, if any.
 pub fn camera_path(
     scene: &Scene,
+    bsdfs: &IterationBsdfs,
     mut ray: Ray,
     wl: &Wavelengths,
     rng: &mut SampleStream,
@@ -111,7 +152,7 @@ pub fn camera_path(
         let bsdf = &scene.bsdfs[hit.shape as usize];
         let frame = Frame::from_normal(sp.n);
         let wo = frame.to_local(-ray.d);
-        if !is_delta(bsdf, wl) {
+        if !bsdfs.is_delta(hit.shape) {
             return (
                 le,
                 Some(VisiblePoint {
@@ -154,6 +195,7 @@ pub struct PhotonHit {
 /// true when the path-length guard cut it.
 pub fn trace_photon(
     scene: &Scene,
+    bsdfs: &IterationBsdfs,
     settings: &Sppm,
     wl: &Wavelengths,
     rng: &mut SampleStream,
@@ -178,7 +220,7 @@ pub fn trace_photon(
         }
         let sp = hit.point;
         let bsdf = &scene.bsdfs[hit.shape as usize];
-        if !is_delta(bsdf, wl) {
+        if !bsdfs.is_delta(hit.shape) {
             deposit(&PhotonHit {
                 p: sp.p,
                 n: sp.n,
@@ -188,7 +230,8 @@ pub fn trace_photon(
         }
         let frame = Frame::from_normal(sp.n);
         let to_prev = frame.to_local(-ray.d);
-        let Some(bs) = bsdf.sample(to_prev, rng.next_2d(), rng.next_f64(), wl) else {
+        let sampled = bsdfs.at(scene, hit.shape, wl);
+        let Some(bs) = sampled.sample(to_prev, rng.next_2d(), rng.next_f64()) else {
             break;
         };
         // the adjoint BSDF: f*(prev, next) = f(prev, next)·η(next)²/η(prev)² (Veach 1997, §5.2)

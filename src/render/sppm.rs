@@ -7,10 +7,11 @@
 
 use super::{FilmResponse, RenderError, RenderSettings};
 use crate::film::Film;
-use crate::integrators::sppm::{camera_path, trace_photon, unsupported, Sppm, VisiblePoint};
+use crate::integrators::sppm::{
+    camera_path, trace_photon, unsupported, IterationBsdfs, Sppm, VisiblePoint,
+};
 use crate::math::rng::{mix64, SampleStream};
 use crate::math::Vec3;
-use crate::scattering::Bxdf;
 use crate::scene::Scene;
 use crate::spectrum::Wavelengths;
 use rayon::prelude::*;
@@ -166,13 +167,15 @@ fn sppm_core(
                 let jitter = SampleStream::new(seed, u64::MAX, it).next_f64();
                 let u = (it as f64 + jitter) / sppm.iterations as f64;
                 let wl = Wavelengths::for_film(u, lanes, grey);
+                let bsdfs = IterationBsdfs::new(scene, &wl);
                 let visible: Vec<([f64; 3], Option<VisiblePoint>)> = (0..n)
                     .into_par_iter()
                     .map(|px| {
                         let mut rng = SampleStream::new(seed, px as u64, it);
                         let [jx, jy] = rng.next_2d();
                         let (x, y) = ((px % w) as f64 + jx, (px / w) as f64 + jy);
-                        let (le, vp) = camera_path(scene, camera.ray(x, y, w, h), &wl, &mut rng);
+                        let ray = camera.ray(x, y, w, h);
+                        let (le, vp) = camera_path(scene, &bsdfs, ray, &wl, &mut rng);
                         (response.xyz(&le, &wl), vp)
                     })
                     .collect();
@@ -180,6 +183,7 @@ fn sppm_core(
                     (0..3).for_each(|c| acc[c] += le[c]);
                 }
                 let grid = Grid::new(&visible, &state.r2);
+                let at_wl = response.at(&wl);
                 let photons = sppm.photons_per_iteration;
                 let chunks: Vec<(Vec<[f64; 4]>, u64)> = (0..CHUNKS)
                     .into_par_iter()
@@ -189,22 +193,28 @@ fn sppm_core(
                         let mut cut = 0u64;
                         for k in part(c)..part(c + 1) {
                             let mut rng = SampleStream::new(seed ^ 0x5048_4f54, k, it);
-                            cut +=
-                                u64::from(trace_photon(scene, sppm, &wl, &mut rng, &mut |hit| {
+                            cut += u64::from(trace_photon(
+                                scene,
+                                &bsdfs,
+                                sppm,
+                                &wl,
+                                &mut rng,
+                                &mut |hit| {
                                     // inside the radius; which sides count is the BSDF's to
                                     // say (a reflector's f is 0 across its surface, a
                                     // dielectric's BTDF gathers the photons arriving from inside)
                                     grid.near(hit.p, |point| {
                                         let px = point.px as usize;
                                         let Some(vp) = &visible[px].1 else { return };
-                                        let bsdf = &scene.bsdfs[vp.shape as usize];
-                                        let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi), &wl);
-                                        let xyz = response.xyz(&(vp.beta * f * hit.power), &wl);
+                                        let bsdf = bsdfs.at(scene, vp.shape, &wl);
+                                        let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi));
+                                        let xyz = at_wl.xyz(&(vp.beta * f * hit.power));
                                         let a = &mut acc[px];
                                         (0..3).for_each(|i| a[i] += xyz[i]);
                                         a[3] += 1.0;
                                     });
-                                }));
+                                },
+                            ));
                         }
                         (acc, cut)
                     })
