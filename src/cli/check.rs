@@ -447,6 +447,11 @@ fn write_bundles(
         if a.fixed {
             rerun.push_str(" --fixed");
         }
+        // alone, the check is the whole family: its family-wise rate is the per-test level it
+        // was judged at in this run, so the re-run gives the same verdict
+        if let Some(alpha) = o.alpha {
+            rerun.push_str(&format!(" --alpha {alpha:e}"));
+        }
         let info = bundle::BundleInfo {
             renderer: e.label.clone(),
             renderer_version: version.get_or_insert_with(|| e.version()).clone(),

@@ -61,6 +61,8 @@ pub fn readme(o: &Outcome, info: &BundleInfo) -> String {
          | samples, time | {samples}, {seconds:.2} s |\n\n\
          ## What was measured\n\n{message}\n\n{isolation}\
          ## Re-run the check\n\n```\n{rerun}\n```\n\n\
+         (A stochastic check's `--alpha` is the per-test level α above: alone, the check is the \
+         whole family, so the re-run judges it at the same level.)\n\n\
          ## The renderer alone\n\n{renders}\n\n\
          ## Summary\n\n\
          furnace {furnace} judged {renderer} ({version}) with the check `{name}` (kind `{kind}`): \

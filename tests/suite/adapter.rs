@@ -313,6 +313,14 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
         serde_json::from_str(&std::fs::read_to_string(bundle.join("outcome.json")).unwrap())
             .unwrap();
     assert_eq!(outcome["verdict"], "FAIL");
+    // the re-run holds the per-test level the check was judged at
+    let alpha: f64 = readme
+        .split("--alpha ")
+        .nth(1)
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|a| a.parse().ok())
+        .unwrap_or_else(|| panic!("no --alpha in the re-run line of\n{readme}"));
+    assert_eq!(Some(alpha), outcome["alpha"].as_f64());
     let render = bundle.join("render-0");
     assert!(render.join("scene.xml").is_file());
     // nothing is kept beside the bundle: every kept render belongs to the failing check
