@@ -268,9 +268,7 @@ impl LightTracer {
             let Some(bs) = bsdf.sample(to_prev, u_next, u_lobe, wl) else {
                 break;
             };
-            let (eta_next, eta_prev) = (bsdf.eta(bs.wi, wl), bsdf.eta(to_prev, wl));
-            let eta_ratio = SampledSpectrum(std::array::from_fn(|i| eta_next.0[i] / eta_prev.0[i]));
-            beta *= bs.weight * eta_ratio * eta_ratio;
+            beta *= bs.weight * bsdf.eta_ratio_squared(to_prev, bs.wi, wl);
             if beta.is_black() || !beta.is_finite() {
                 break;
             }

@@ -235,9 +235,7 @@ pub fn trace_photon(
             break;
         };
         // the adjoint BSDF: f*(prev, next) = f(prev, next)·η(next)²/η(prev)² (Veach 1997, §5.2)
-        let (eta_next, eta_prev) = (bsdf.eta(bs.wi, wl), bsdf.eta(to_prev, wl));
-        let eta = SampledSpectrum(std::array::from_fn(|i| eta_next.0[i] / eta_prev.0[i]));
-        beta *= bs.weight * eta * eta;
+        beta *= bs.weight * bsdf.eta_ratio_squared(to_prev, bs.wi, wl);
         if beta.is_black() || !beta.is_finite() {
             break;
         }
