@@ -440,6 +440,41 @@ impl Aggregate {
 
     /// [`Aggregate::intersect`] ignoring the shapes in `skip`.
     pub fn intersect_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<Hit> {
+        let (best_t, best) = match self.candidates.as_slice() {
+            [only] => self.intersect_only(only, ray, t_max, skip)?,
+            _ => self.intersect_walk(ray, t_max, skip)?,
+        };
+        let (point, shape) = match best {
+            Found::Point(shape, point) => (point, shape),
+            Found::Triangle { p, n, shape, bary } => (triangle::surface_point(bary, *p, *n), shape),
+        };
+        Some(Hit {
+            t: best_t,
+            point,
+            shape,
+        })
+    }
+
+    /// A scene of one BVH primitive (a furnace sphere, one quad): its exact test alone. The
+    /// BVH's boxes are conservative, so they cull only rays the exact test misses: the same
+    /// hits, without the walk's set-up.
+    #[inline(always)]
+    fn intersect_only<'a>(
+        &'a self,
+        only: &'a Candidate,
+        ray: &Ray,
+        t_max: f64,
+        skip: Skip,
+    ) -> Option<(f64, Found<'a>)> {
+        if skip.contains(only.shape()) {
+            return None;
+        }
+        self.intersect_candidate(only, &ShearedRay::new(*ray), t_max)
+    }
+
+    /// The nearest hit through the BVH walk: (t, what was hit).
+    #[inline(always)]
+    fn intersect_walk(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<(f64, Found<'_>)> {
         let (bray, t0) = self.clip(ray, t_max)?;
         let sheared = ShearedRay::new(*ray);
         let mut best_t = t_max;
@@ -456,15 +491,7 @@ impl Aggregate {
             // Conservative f32 distance for the BVH's own culling.
             (((t - t0) * self.scale * (1.0 + 1e-6)) as f32).next_up()
         });
-        let (point, shape) = match best? {
-            Found::Point(shape, point) => (point, shape),
-            Found::Triangle { p, n, shape, bary } => (triangle::surface_point(bary, *p, *n), shape),
-        };
-        Some(Hit {
-            t: best_t,
-            point,
-            shape,
-        })
+        best.map(|found| (best_t, found))
     }
 
     /// True when something lies on the ray with 0 < t < t_max.
@@ -474,6 +501,9 @@ impl Aggregate {
 
     /// [`Aggregate::occluded`] ignoring the shapes in `skip`.
     pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
+        if let [only] = self.candidates.as_slice() {
+            return self.intersect_only(only, ray, t_max, skip).is_some();
+        }
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
         };
