@@ -1057,6 +1057,62 @@ mod tests {
         assert!(hits > 100, "{hits} hits");
     }
 
+    #[test]
+    fn a_single_primitive_is_hit_as_the_bvh_walk_hits_it() {
+        // the one-primitive shortcut against the walk it skips: a sphere seen from inside
+        // (the furnace) and outside, a quad, at ordinary and extreme scales and offsets,
+        // including rays that graze the sphere's silhouette
+        let mut s = SampleStream::new(11, 0, 0);
+        let (mut hits, mut misses) = (0, 0);
+        for (scale, shift) in [(1.0, 0.0), (1e-6, 0.0), (1e5, 3e7), (0.01, 1e4)] {
+            let c = Vec3::splat(shift);
+            for shape in [
+                Shape::Sphere(Sphere {
+                    center: c,
+                    radius: scale,
+                    flip_normals: true,
+                }),
+                Shape::Quad(Quad {
+                    corner: c,
+                    edge_u: Vec3::X * scale,
+                    edge_v: Vec3::Y * scale * 0.7,
+                    flip_normals: false,
+                }),
+            ] {
+                let a = Aggregate::new(vec![shape]);
+                assert_eq!(a.candidates.len(), 1);
+                for k in 0..4_000 {
+                    let o = c + warp::uniform_sphere(s.next_2d()) * scale * 3.0 * s.next_f64();
+                    // every third ray aimed at the silhouette, give or take an ulp-sized step
+                    let aim = if k % 3 == 0 {
+                        let d = (c - o).normalize();
+                        let side = d.any_orthonormal_vector();
+                        c + side * scale * (1.0 + (s.next_f64() - 0.5) * 1e-12)
+                    } else {
+                        c + warp::uniform_sphere(s.next_2d()) * scale * 1.2
+                    };
+                    let r = Ray {
+                        o,
+                        d: (aim - o).normalize(),
+                    };
+                    let t_max = [f64::INFINITY, scale * 2.0][k % 2];
+                    let walk = a.intersect_walk(&r, t_max, Skip::NONE).map(|(t, _)| t);
+                    let hit = a.intersect(&r, t_max);
+                    assert_eq!(hit.as_ref().map(|h| h.t), walk, "ray {r:?}");
+                    assert_eq!(a.occluded(&r, t_max), walk.is_some());
+                    assert!(a
+                        .intersect_except(&r, t_max, Skip::shapes(Some(0), None))
+                        .is_none());
+                    (hits, misses) = (hits + walk.is_some() as u32, misses + walk.is_none() as u32);
+                }
+            }
+        }
+        assert!(
+            hits > 5_000 && misses > 5_000,
+            "{hits} hits, {misses} misses"
+        );
+    }
+
     /// The node test never culls a child that obvhs's own test (on the quantised boxes) keeps,
     /// and keeps the same children apart from boundary cases.
     #[test]
