@@ -86,7 +86,7 @@ pub fn render_sppm_runs(
 
 /// Bytes of SPPM state per pixel besides the kept films: the photon chunks' sums, the visible
 /// point, the per-pixel statistics and one run's film.
-const BYTES_PER_PIXEL: u64 = CHUNKS * 32 + 560;
+const BYTES_PER_PIXEL: u64 = CHUNKS * (32 + 4) + 560;
 
 /// Memory SPPM may hold (its per-pixel state times the pixels), bytes.
 pub const MAX_BYTES: u64 = 8 << 30;
@@ -149,6 +149,8 @@ fn sppm_core(
             let seed = mix64(settings.seed ^ mix64(run.wrapping_add(0x5350_504d)));
             let mut state = State::new(n, radius);
             let mut truncated = 0u64;
+            let mut sums: Vec<ChunkSums> = (0..CHUNKS).map(|_| ChunkSums::new(n)).collect();
+            let mut found = vec![[0.0; 4]; n];
             for it in 0..sppm.iterations {
                 if settings
                     .deadline
@@ -168,6 +170,7 @@ fn sppm_core(
                 let u = (it as f64 + jitter) / sppm.iterations as f64;
                 let wl = Wavelengths::for_film(u, lanes, grey);
                 let bsdfs = IterationBsdfs::new(scene, &wl);
+                let at_wl = response.at(&wl);
                 let visible: Vec<([f64; 3], Option<VisiblePoint>)> = (0..n)
                     .into_par_iter()
                     .map(|px| {
@@ -176,19 +179,19 @@ fn sppm_core(
                         let (x, y) = ((px % w) as f64 + jx, (px / w) as f64 + jy);
                         let ray = camera.ray(x, y, w, h);
                         let (le, vp) = camera_path(scene, &bsdfs, ray, &wl, &mut rng);
-                        (response.xyz(&le, &wl), vp)
+                        (at_wl.xyz(&le), vp)
                     })
                     .collect();
                 for (acc, (le, _)) in state.le.iter_mut().zip(&visible) {
                     (0..3).for_each(|c| acc[c] += le[c]);
                 }
                 let grid = Grid::new(&visible, &state.r2);
-                let at_wl = response.at(&wl);
                 let photons = sppm.photons_per_iteration;
-                let chunks: Vec<(Vec<[f64; 4]>, u64)> = (0..CHUNKS)
-                    .into_par_iter()
-                    .map(|c| {
-                        let mut acc = vec![[0.0; 4]; n];
+                let cuts: Vec<u64> = sums
+                    .par_iter_mut()
+                    .enumerate()
+                    .map(|(c, acc)| {
+                        let c = c as u64;
                         let part = |c: u64| (photons as u128 * c as u128 / CHUNKS as u128) as u64;
                         let mut cut = 0u64;
                         for k in part(c)..part(c + 1) {
@@ -209,22 +212,18 @@ fn sppm_core(
                                         let bsdf = bsdfs.at(scene, vp.shape, &wl);
                                         let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi));
                                         let xyz = at_wl.xyz(&(vp.beta * f * hit.power));
-                                        let a = &mut acc[px];
-                                        (0..3).for_each(|i| a[i] += xyz[i]);
-                                        a[3] += 1.0;
+                                        acc.add(px, xyz);
                                     });
                                 },
                             ));
                         }
-                        (acc, cut)
+                        cut
                     })
                     .collect();
-                let mut found = vec![[0.0; 4]; n];
-                for (chunk, cut) in &chunks {
+                found.fill([0.0; 4]);
+                for (chunk, cut) in sums.iter_mut().zip(&cuts) {
                     truncated += cut;
-                    for (f, a) in found.iter_mut().zip(chunk) {
-                        (0..4).for_each(|i| f[i] += a[i]);
-                    }
+                    chunk.drain_into(&mut found);
                 }
                 state.update(&found, sppm.alpha);
                 progress(run * sppm.iterations + it + 1);
@@ -253,6 +252,45 @@ fn sppm_core(
             .install(run_all)?;
     }
     Ok(())
+}
+
+/// One photon chunk's sums per pixel (XYZ flux, photon count) and the pixels it touched, kept
+/// across iterations so that an iteration of few photons neither allocates nor zeroes an image's
+/// worth of sums per chunk, nor merges untouched pixels (adding a +0 sum changes no bit).
+struct ChunkSums {
+    acc: Vec<[f64; 4]>,
+    touched: Vec<u32>,
+}
+
+impl ChunkSums {
+    fn new(n: usize) -> Self {
+        ChunkSums {
+            acc: vec![[0.0; 4]; n],
+            touched: Vec::new(),
+        }
+    }
+
+    /// Adds one photon's XYZ flux to pixel `px`.
+    #[inline]
+    fn add(&mut self, px: usize, xyz: [f64; 3]) {
+        let a = &mut self.acc[px];
+        if a[3] == 0.0 {
+            self.touched.push(px as u32);
+        }
+        (0..3).for_each(|i| a[i] += xyz[i]);
+        a[3] += 1.0;
+    }
+
+    /// Adds the sums to `found` (chunks in chunk order, so each pixel's total has the same
+    /// bits for any thread count) and clears them for the next iteration.
+    fn drain_into(&mut self, found: &mut [[f64; 4]]) {
+        for &px in &self.touched {
+            let (f, a) = (&mut found[px as usize], &mut self.acc[px as usize]);
+            (0..4).for_each(|i| f[i] += a[i]);
+            *a = [0.0; 4];
+        }
+        self.touched.clear();
+    }
 }
 
 /// Per-pixel SPPM statistics (Hachisuka & Jensen 2009, §3–4).
