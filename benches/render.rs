@@ -3,9 +3,10 @@
 
 use criterion::{criterion_group, criterion_main, Criterion, Throughput};
 use furnace::geometry::Ray;
+use furnace::integrators::sppm::Sppm;
 use furnace::integrators::PathTracer;
 use furnace::math::{rng::SampleStream, warp, Vec3};
-use furnace::render::{render, RenderSettings};
+use furnace::render::{render, sppm::render_sppm, RenderSettings};
 use furnace::scene::Scene;
 use furnace::spectrum::Wavelengths;
 use std::hint::black_box;
@@ -49,6 +50,68 @@ fn cornell_frame(c: &mut Criterion) {
     with_media_code.integrator.force_media_code = true;
     g.bench_function("64x64_4spp_depth5_2threads_media_code", |b| {
         b.iter(|| render(&scene, &with_media_code, &|_| {}).unwrap())
+    });
+    g.finish();
+}
+
+/// Settings of a small frame: `w`², `spp`, unlimited depth (roulette from 5), 2 threads.
+fn frame_settings(w: usize, spp: u64) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: w,
+        spp,
+        seed: 1,
+        threads: 2,
+        integrator: PathTracer::default(),
+        observer: Default::default(),
+        sampler: Default::default(),
+        spectral: Default::default(),
+        deadline: None,
+    }
+}
+
+/// SPPM on the Cornell Box as `sppm/cornell-box` renders it (32×32, 25 000 photons per
+/// iteration), 4 iterations and 2 runs; and as `sppm/cornell-convergence` (500 photons per
+/// iteration), 64 iterations and 2 runs (a run is the unit of SPPM's standard error).
+fn sppm_frame(c: &mut Criterion) {
+    let scene = cornell();
+    let settings = frame_settings(32, 1);
+    let mut g = c.benchmark_group("sppm_frame");
+    g.sample_size(10);
+    for (name, iterations, photons) in [
+        ("32x32_25000_photons_4_iterations_2_runs", 4, 25_000),
+        ("32x32_500_photons_64_iterations_2_runs", 64, 500),
+    ] {
+        let sppm = Sppm {
+            iterations,
+            photons_per_iteration: photons,
+            ..Sppm::default()
+        };
+        g.throughput(Throughput::Elements(2 * iterations * photons));
+        g.bench_function(name, |b| {
+            b.iter(|| render_sppm(&scene, &settings, &sppm, 2, &|_| {}).unwrap())
+        });
+    }
+    g.finish();
+}
+
+/// The furnace sphere at albedo 0.99 (about 100 bounces a path, one BVH primitive): 8×8,
+/// 16 spp, 2 threads.
+fn furnace_sphere_frame(c: &mut Criterion) {
+    let path = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/manifests/scenes/furnace-sphere.toml"
+    );
+    let text = std::fs::read_to_string(path)
+        .expect("bundled template")
+        .replace("${albedo}", "0.99");
+    let scene = Scene::parse(&text, Path::new(path)).expect("bundled scene");
+    let settings = frame_settings(8, 16);
+    let mut g = c.benchmark_group("furnace_sphere_frame");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(8 * 8 * 16));
+    g.bench_function("8x8_16spp_albedo_0.99_2threads", |b| {
+        b.iter(|| render(&scene, &settings, &|_| {}).unwrap())
     });
     g.finish();
 }
@@ -172,6 +235,8 @@ criterion_group!(
     benches,
     bvh_build,
     cornell_frame,
+    sppm_frame,
+    furnace_sphere_frame,
     bvh_intersect,
     spectrum_eval,
     bsdf_sample_eval
