@@ -84,9 +84,10 @@ pub fn render_sppm_runs(
     Ok(films)
 }
 
-/// Bytes of SPPM state per pixel besides the kept films: the photon chunks' sums, the visible
-/// point, the per-pixel statistics and one run's film.
-const BYTES_PER_PIXEL: u64 = CHUNKS * (32 + 4) + 560;
+/// Bytes of SPPM state per pixel besides the kept films: the photon chunks' sums and touched
+/// lists, the visible point, its grid entry (40 bytes), the per-pixel statistics, the merged
+/// sums and one run's film.
+const BYTES_PER_PIXEL: u64 = CHUNKS * (32 + 4) + 600;
 
 /// Memory SPPM may hold (its per-pixel state times the pixels), bytes.
 pub const MAX_BYTES: u64 = 8 << 30;
