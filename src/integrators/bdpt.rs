@@ -14,7 +14,7 @@ use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::Uniforms;
 use crate::math::Vec3;
-use crate::scattering::Bxdf;
+use crate::scattering::{Bxdf, SampledBsdf};
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 use std::f64::consts::PI;
@@ -121,6 +121,9 @@ struct Vertex {
     delta: bool,
     /// A vertex before this one on its subpath scattered at a dispersive surface.
     dispersed_before: bool,
+    /// A Lambertian surface's reflectance at the path's wavelengths, evaluated once when the
+    /// walk samples the vertex and reused by every connection through it; None elsewhere.
+    reflectance: Option<SampledSpectrum>,
 }
 
 impl Vertex {
@@ -293,6 +296,7 @@ impl Bdpt {
                 pdf_rev: 0.0,
                 delta: false,
                 dispersed_before: prev.dispersed_before || separates(scene, prev),
+                reflectance: None,
             };
             v.pdf_fwd = to_area(pdf_dir, prev.sp.p, &v);
             path.push(v);
@@ -306,7 +310,9 @@ impl Bdpt {
             let u_lobe = rng.next_f64();
             let u = rng.next_2d();
             let u_rr = rng.next_f64();
-            let Some(bs) = bsdf.sample(wo, u, u_lobe, wl) else {
+            let sampled = SampledBsdf::new(bsdf, wl);
+            path[cur].reflectance = sampled.reflectance();
+            let Some(bs) = sampled.sample(wo, u, u_lobe) else {
                 return false;
             };
             let mut weight = bs.weight;
@@ -363,6 +369,7 @@ impl Bdpt {
             pdf_rev: 0.0,
             delta: false,
             dispersed_before: false,
+            reflectance: None,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
         let pdf = setup.camera_pdf(ray.d);
@@ -415,6 +422,7 @@ impl Bdpt {
             pdf_rev: 0.0,
             delta: false,
             dispersed_before: false,
+            reflectance: None,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
@@ -630,7 +638,11 @@ impl Bdpt {
                 } else {
                     (w, to_prev)
                 };
-                setup.scene.bsdfs[shape as usize].eval(wo, wi, wl)
+                let bsdf = &setup.scene.bsdfs[shape as usize];
+                SampledBsdf::with_reflectance(bsdf, wl, |r| {
+                    v.reflectance.unwrap_or_else(|| r.sample(wl))
+                })
+                .eval(wo, wi)
             }
         };
         (!f.is_black()).then_some(f)

@@ -193,6 +193,13 @@ impl<'a> SampledBsdf<'a> {
         }
     }
 
+    /// A Lambertian's reflectance at the vertex's wavelengths (None for other BSDFs), for a
+    /// caller that keeps it with the vertex.
+    #[inline]
+    pub fn reflectance(&self) -> Option<SampledSpectrum> {
+        self.reflectance
+    }
+
     /// [`Bxdf::pdf`] at the vertex's wavelengths.
     #[inline]
     pub fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
