@@ -200,14 +200,7 @@ impl<'a> FilmResponse<'a> {
     /// XYZ of radiance `l` (W·sr⁻¹·m⁻²·nm⁻¹ at `wl`), Y ≈ 1 for a flat spectrum of 1.
     #[inline]
     pub fn xyz(&self, l: &SampledSpectrum, wl: &Wavelengths) -> [f64; 3] {
-        if self.grey {
-            return self.white.map(|c| c * l.0[0]);
-        }
-        let mut cmf = [[0.0; 3]; N_WAVELENGTHS];
-        for (c, &lambda) in cmf.iter_mut().zip(&wl.lambda).take(self.lanes) {
-            *c = self.observer.cmf(lambda);
-        }
-        self.weigh(l, &wl.pdf, &cmf)
+        self.at(wl).xyz(l)
     }
 
     /// [`FilmResponse::xyz`] for many spectra at one set of wavelengths (an SPPM iteration's):

@@ -639,10 +639,7 @@ impl Bdpt {
                     (w, to_prev)
                 };
                 let bsdf = &setup.scene.bsdfs[shape as usize];
-                SampledBsdf::with_reflectance(bsdf, wl, |r| {
-                    v.reflectance.unwrap_or_else(|| r.sample(wl))
-                })
-                .eval(wo, wi)
+                SampledBsdf::with_known(bsdf, wl, v.reflectance).eval(wo, wi)
             }
         };
         (!f.is_black()).then_some(f)

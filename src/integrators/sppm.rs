@@ -83,10 +83,7 @@ impl IterationBsdfs {
         let reflectance = scene
             .bsdfs
             .iter()
-            .map(|b| match b {
-                Bsdf::Diffuse(l) => Some(l.reflectance.sample(wl)),
-                _ => None,
-            })
+            .map(|b| SampledBsdf::new(b, wl).reflectance())
             .collect();
         IterationBsdfs { delta, reflectance }
     }
@@ -100,10 +97,11 @@ impl IterationBsdfs {
     /// Shape `shape`'s BSDF at the iteration's wavelengths `wl`.
     #[inline]
     pub fn at<'a>(&self, scene: &'a Scene, shape: u32, wl: &'a Wavelengths) -> SampledBsdf<'a> {
-        let cached = self.reflectance[shape as usize];
-        SampledBsdf::with_reflectance(&scene.bsdfs[shape as usize], wl, |r| {
-            cached.unwrap_or_else(|| r.sample(wl))
-        })
+        SampledBsdf::with_known(
+            &scene.bsdfs[shape as usize],
+            wl,
+            self.reflectance[shape as usize],
+        )
     }
 }
 

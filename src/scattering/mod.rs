@@ -193,6 +193,13 @@ impl<'a> SampledBsdf<'a> {
         }
     }
 
+    /// [`SampledBsdf::new`] with a Lambertian's reflectance at `wl` already known (`known`,
+    /// as [`SampledBsdf::reflectance`] gave it), else evaluated here.
+    #[inline]
+    pub fn with_known(bsdf: &'a Bsdf, wl: &'a Wavelengths, known: Option<SampledSpectrum>) -> Self {
+        Self::with_reflectance(bsdf, wl, |r| known.unwrap_or_else(|| r.sample(wl)))
+    }
+
     /// A Lambertian's reflectance at the vertex's wavelengths (None for other BSDFs), for a
     /// caller that keeps it with the vertex.
     #[inline]
