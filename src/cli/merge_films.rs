@@ -40,7 +40,14 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
     }
     let (header, film) =
         furnace::film::partial::merge_files(&a.parts).context("cannot merge the partial films")?;
-    let code = super::render::write_film(&film, header.attributes, &a.out, &png, a.exposure)?;
+    let code = super::render::write_film(
+        &film,
+        header.attributes,
+        Vec::new(),
+        &a.out,
+        &png,
+        a.exposure,
+    )?;
     super::say!(
         "{}x{} px from {} parts; noise: mean relative variance of the Y pixel means {:.4e}",
         film.width,

@@ -86,6 +86,13 @@ pub struct RenderArgs {
     /// Wavelengths per sample entering the film: 4 (hero wavelength sampling) or 1 (the single-wavelength estimator, for comparison).
     #[arg(long, default_value_t = 4, value_parser = clap::value_parser!(u8).range(1..=4))]
     wavelengths: u8,
+    /// Also store each independent run's linear R, G, B image in the EXR (layers run.K.R/G/B):
+    /// the runs of --integrator bdpt or sppm, the chains of mlt, or with --integrator light
+    /// --runs independent light renders sharing --light-paths. Their pixels are correlated
+    /// within a run, so `furnace compare` takes a region's standard error from the runs'
+    /// region means and refuses region tests on such an image without them.
+    #[arg(long)]
+    keep_runs: bool,
     /// Output EXR path [default: out/<scene name>.exr].
     #[arg(short, long)]
     out: Option<PathBuf>,
@@ -209,6 +216,25 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     furnace::limits::image(settings.width as u64, settings.height as u64)
         .context("the image is too large")?;
     let light = a.integrator == "light";
+    if a.keep_runs && !["light", "sppm", "bdpt", "mlt"].contains(&a.integrator.as_str()) {
+        return Err(anyhow::anyhow!(
+            "--keep-runs stores the runs of an image whose pixels are correlated (--integrator light, sppm, bdpt or mlt); the {} image's pixels are independent, and its pixel variances give a region's error",
+            a.integrator
+        )
+        .into());
+    }
+    if a.keep_runs && (shard.is_some() || a.renderer.is_some()) {
+        return Err(anyhow::anyhow!(
+            "--keep-runs renders the whole image in one process: no --shard, no --renderer"
+        )
+        .into());
+    }
+    if a.keep_runs && light && a.runs < 2 {
+        return Err(anyhow::anyhow!(
+            "--keep-runs with --integrator light renders --runs independent light images: give at least 2"
+        )
+        .into());
+    }
     if a.light_paths.is_some() && !light {
         return Err(anyhow::anyhow!(
             "--light-paths is only used by --integrator light (the path tracer takes --spp)"
@@ -275,7 +301,16 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     }
     let bar = progress_bar(super::quiet(), total)?;
     let start = Instant::now();
-    let film = if light {
+    let mut runs = Vec::new();
+    let film = if light && a.keep_runs {
+        furnace::render::render_light_runs(&scene, &settings, total, a.runs, &|n| {
+            bar.set_position(n)
+        })
+        .map(|films| {
+            runs = run_layers(&films);
+            furnace::render::merge_runs(films).expect("at least two runs")
+        })
+    } else if light {
         render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
     } else {
         render(&scene, &settings, &|n| bar.set_position(n))
@@ -283,7 +318,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let code = write_film(&film, attrs, &exr_path, &png_path, a.exposure)?;
+    let code = write_film(&film, attrs, runs, &exr_path, &png_path, a.exposure)?;
     if light {
         super::say!(
             "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
@@ -357,7 +392,7 @@ fn render_radiosity_image(
     ] {
         attrs.push((k.into(), v));
     }
-    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    let code = write_film(&film, attrs, Vec::new(), exr_path, png_path, a.exposure)?;
     super::say!(
         "radiosity: {} patches of at most {:.4} (scene units), {} wavelength nodes, {} form factors ({:.2} s), {} Gauss-Seidel sweeps to a relative error bound {:.1e} ({:.2} s); form-factor row sums {:.6}-{:.6}",
         st.patches,
@@ -437,9 +472,15 @@ fn render_bdpt_image(
         .saturating_mul(settings.spp);
     let bar = progress_bar(super::quiet(), total)?;
     let start = Instant::now();
-    let film =
-        furnace::render::render_bdpt(scene, &per_run, &bdpt, a.runs, &|n| bar.set_position(n))
+    let films =
+        furnace::render::render_bdpt_runs(scene, &per_run, &bdpt, a.runs, &|n| bar.set_position(n))
             .context("cannot render")?;
+    let runs = if a.keep_runs {
+        run_layers(&films)
+    } else {
+        Vec::new()
+    };
+    let film = furnace::render::merge_runs(films).expect("at least two runs");
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     set_attrs(
@@ -454,9 +495,11 @@ fn render_bdpt_image(
                     }),
             ),
             ("furnace.variance_dof", (a.runs - 1).to_string()),
+            // a run's pixels share its light subpaths' splats
+            ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "bdpt: {}x{} px, {} spp in {} runs, {:.2} s wall, {:.3} M samples/s",
         settings.width,
@@ -504,8 +547,14 @@ fn render_mlt_image(
     };
     let bdpt = Bdpt::from(&settings.integrator);
     let start = Instant::now();
-    let film =
-        furnace::render::render_mlt(scene, settings, &bdpt, &mlt).context("cannot render")?;
+    let films = furnace::render::render_mlt_chains(scene, settings, &bdpt, &mlt)
+        .context("cannot render")?;
+    let runs = if a.keep_runs {
+        run_layers(&films)
+    } else {
+        Vec::new()
+    };
+    let film = furnace::render::merge_runs(films).expect("at least two chains");
     let secs = start.elapsed().as_secs_f64();
     set_attrs(
         &mut attrs,
@@ -516,9 +565,11 @@ fn render_mlt_image(
                 a.mutations_per_pixel.to_string(),
             ),
             ("furnace.variance_dof", (a.chains - 1).to_string()),
+            // a chain's pixels share its normalisation and its wandering state
+            ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "mlt: {}x{} px, {} mutations per pixel in {} chains, {:.2} s wall, {:.3} M mutations/s",
         settings.width,
@@ -562,9 +613,20 @@ fn render_sppm_image(
     }
     let bar = progress_bar(super::quiet(), a.runs.saturating_mul(a.iterations))?;
     let start = Instant::now();
-    let film =
-        furnace::render::render_sppm(scene, settings, &sppm, a.runs, &|n| bar.set_position(n))
-            .context("cannot render")?;
+    let mut runs = Vec::new();
+    let film = furnace::render::render_sppm_each(
+        scene,
+        settings,
+        &sppm,
+        a.runs,
+        &|n| bar.set_position(n),
+        &mut |f| {
+            if a.keep_runs {
+                runs.extend(run_layers_of(runs.len() / 3, f));
+            }
+        },
+    )
+    .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     set_attrs(
@@ -577,9 +639,11 @@ fn render_sppm_image(
             ),
             ("furnace.sppm_runs", a.runs.to_string()),
             ("furnace.variance_dof", a.runs.saturating_sub(1).to_string()),
+            // a run's pixels share its photons
+            ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, exr_path, png_path, a.exposure)?;
+    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "sppm: {} runs x {} iterations x {} photons, {}x{} px, {:.2} s wall, {:.3} M photons/s",
         a.runs,
@@ -591,6 +655,28 @@ fn render_sppm_image(
         photons as f64 / secs / 1e6
     );
     Ok(code)
+}
+
+/// The linear R, G, B means of independent runs' films as EXR layers run.K.R/G/B (what
+/// `--keep-runs` stores; `harness::compare::RgbImage` reads them back).
+fn run_layers(films: &[furnace::film::Film]) -> Vec<(String, Vec<f32>)> {
+    films
+        .iter()
+        .enumerate()
+        .flat_map(|(k, f)| run_layers_of(k, f))
+        .collect()
+}
+
+/// Run `k`'s layers of [`run_layers`].
+fn run_layers_of(k: usize, film: &furnace::film::Film) -> Vec<(String, Vec<f32>)> {
+    ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            let plane = film.means(3 + c).iter().map(|&v| v as f32).collect();
+            (format!("run.{k}.{name}"), plane)
+        })
+        .collect()
 }
 
 /// Sets (replacing) the EXR header attributes `pairs`.
@@ -706,7 +792,7 @@ fn render_external(
     let film = ext
         .render(scene, settings)
         .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
-    let code = write_film(&film, attrs, out, png, a.exposure)?;
+    let code = write_film(&film, attrs, Vec::new(), out, png, a.exposure)?;
     super::say!(
         "{}x{} px, {} spp in {k} runs through {spec}, {:.2} s wall",
         settings.width,
@@ -819,12 +905,15 @@ fn attributes(
 pub(super) fn write_film(
     film: &furnace::film::Film,
     attrs: Vec<(String, String)>,
+    extra: Vec<(String, Vec<f32>)>,
     exr_path: &Path,
     png_path: &Path,
     exposure: f64,
 ) -> Result<i32, Failure> {
     let bad = film.non_finite_pixels();
-    io::write_exr(exr_path, &film.to_layers(attrs))
+    let mut layers = film.to_layers(attrs);
+    layers.channels.extend(extra);
+    io::write_exr(exr_path, &layers)
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
     io::write_png_srgb(
         png_path,

@@ -42,6 +42,14 @@ pub struct RgbImage {
     /// stats::MeanVar), when known: region tests then use the Satterthwaite degrees of
     /// freedom of the region's variance instead of treating it as known.
     pub variance_variance: Option<[Vec<f64>; 3]>,
+    /// Whether the pixels are correlated within a run (header `furnace.pixels_correlated`:
+    /// light-traced, BDPT, MLT and SPPM images), so that a region's standard error cannot come
+    /// from its pixels' variances.
+    pub pixels_correlated: bool,
+    /// Linear R, G, B planes of each of the independent runs the image was made from (layers
+    /// `run.K.R/G/B`, written by `furnace render --keep-runs`); empty when not stored. A
+    /// region's standard error then comes from the spread of the runs' region means.
+    pub runs: Vec<[Vec<f64>; 3]>,
 }
 
 impl RgbImage {
@@ -78,6 +86,24 @@ impl RgbImage {
         let variance_dof = attr("furnace.variance_dof")
             .or_else(|| attr("furnace.spp").map(|n| n - 1.0))
             .filter(|d| *d >= 1.0);
+        let pixels_correlated = l
+            .attributes
+            .iter()
+            .any(|a| a.0 == "furnace.pixels_correlated" && a.1 == "true");
+        let mut runs = Vec::new();
+        while let Some(r) = plane(&format!("run.{}.R", runs.len())) {
+            let k = runs.len();
+            let other = |c: &str| {
+                plane(&format!("run.{k}.{c}"))
+                    .ok_or_else(|| format!("layer run.{k}.R has no run.{k}.{c} beside it"))
+            };
+            runs.push([r, other("G")?, other("B")?]);
+        }
+        if runs.len() == 1 {
+            return Err(
+                "one run layer (run.0.*): a region's spread needs at least two runs".into(),
+            );
+        }
         Ok(RgbImage {
             width: l.width,
             height: l.height,
@@ -85,6 +111,8 @@ impl RgbImage {
             variance,
             variance_dof,
             variance_variance: None,
+            pixels_correlated,
+            runs,
         })
     }
 
@@ -128,6 +156,8 @@ impl RgbImage {
                     .map(|p| p.channels[3 + c].mean_variance_variance())
                     .collect()
             })),
+            pixels_correlated: false,
+            runs: Vec::new(),
         }
     }
 
@@ -381,11 +411,49 @@ pub const REL_MSE_EPS: f64 = 1e-2;
 /// run (SPPM, BDPT, MLT): the mean of the runs' region means with its standard error, and that
 /// error's degrees of freedom (runs − 1).
 pub fn runs_region_mean(runs: &[RgbImage], c: usize, r: [usize; 4]) -> ((f64, f64), f64) {
-    let means: Vec<f64> = runs.iter().map(|img| region_mean(img, c, r).0).collect();
+    spread(runs.iter().map(|img| region_mean(img, c, r).0).collect())
+}
+
+/// The mean of K independent estimates, its standard error from their spread, and K − 1.
+fn spread(means: Vec<f64>) -> ((f64, f64), f64) {
     let k = means.len() as f64;
     let mean = means.iter().sum::<f64>() / k;
     let var = means.iter().map(|m| (m - mean).powi(2)).sum::<f64>() / (k - 1.0);
     ((mean, (var / k).sqrt()), k - 1.0)
+}
+
+/// Region `r`'s mean of channel `c` with its standard error and that error's degrees of
+/// freedom, for an image read from a file: from the spread of its stored runs' region means
+/// when it has runs, else from its pixels' variances ([`region_mean`], [`region_dof`]). An
+/// image whose pixels are correlated within a run and which stores no runs has no valid
+/// region error: that is an error, not a guess. The region mean itself is the image's.
+pub fn region_estimate(
+    img: &RgbImage,
+    c: usize,
+    r: [usize; 4],
+) -> Result<((f64, f64), f64), String> {
+    if img.runs.len() >= 2 {
+        let means = img
+            .runs
+            .iter()
+            .map(|run| plane_mean(&run[c], img.width, r))
+            .collect();
+        let ((_, se), dof) = spread(means);
+        return Ok(((region_mean(img, c, r).0, se), dof));
+    }
+    if img.pixels_correlated {
+        return Err("its pixels are correlated within a run (header furnace.pixels_correlated: light-traced, BDPT, MLT or SPPM), so a region's standard error is not the sum of its pixels' variances; render it with `furnace render --keep-runs`, which stores the independent runs' images, or compare it with `furnace check` (the reciprocity_image and algorithm_agreement kinds keep the runs)".into());
+    }
+    Ok((region_mean(img, c, r), region_dof(img, c, r)))
+}
+
+/// Mean of a plane of width `w` over the pixel rectangle `r`.
+fn plane_mean(plane: &[f64], w: usize, r: [usize; 4]) -> f64 {
+    let mut sum = 0.0;
+    for y in r[1]..r[3] {
+        sum += plane[y * w + r[0]..y * w + r[2]].iter().sum::<f64>();
+    }
+    sum / ((r[2] - r[0]) * (r[3] - r[1])) as f64
 }
 
 /// Mean of channel `c` over the pixel rectangle `r` [x0, y0, x1, y1) and its standard error
@@ -474,12 +542,16 @@ pub fn compare(
     for reg in &all {
         let rect = reg.pixels(w, h)?;
         for (c, channel) in CHANNELS.iter().enumerate() {
+            let (t, t_dof) =
+                region_estimate(test, c, rect).map_err(|e| format!("the test image: {e}"))?;
+            let (r, r_dof) = region_estimate(reference, c, rect)
+                .map_err(|e| format!("the reference image: {e}"))?;
             results.push(region_test(
                 &reg.name,
                 channel,
-                region_mean(test, c, rect),
-                region_mean(reference, c, rect),
-                [region_dof(test, c, rect), region_dof(reference, c, rect)],
+                t,
+                r,
+                [t_dof, r_dof],
                 rel_tolerance,
             ));
         }
@@ -654,6 +726,8 @@ mod tests {
             variance,
             variance_dof: None,
             variance_variance: None,
+            pixels_correlated: false,
+            runs: Vec::new(),
         }
     }
 
@@ -683,7 +757,146 @@ mod tests {
             variance: Some(var),
             variance_dof: Some(k as f64 - 1.0),
             variance_variance: None,
+            pixels_correlated: false,
+            runs: Vec::new(),
         }
+    }
+
+    /// An image of 1.0 everywhere made of `k` runs whose pixels share a run-wide offset
+    /// (sd `shared`) besides their own noise (sd 0.01): pixels correlated within a run, as in
+    /// an SPPM run's shared photons. Pixel variances come from the runs' spread.
+    fn correlated_runs(w: usize, h: usize, k: usize, shared: f64, seed: u64) -> RgbImage {
+        let mut rng = SampleStream::new(seed, 2, 0);
+        let mut gauss = || {
+            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
+            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        };
+        let runs: Vec<[Vec<f64>; 3]> = (0..k)
+            .map(|_| {
+                std::array::from_fn(|_| {
+                    let offset = shared * gauss();
+                    (0..w * h).map(|_| 1.0 + offset + 0.01 * gauss()).collect()
+                })
+            })
+            .collect();
+        let mut rgb: [Vec<f64>; 3] = Default::default();
+        let mut var: [Vec<f64>; 3] = Default::default();
+        for c in 0..3 {
+            for i in 0..w * h {
+                let xs: Vec<f64> = runs.iter().map(|r| r[c][i]).collect();
+                let m = xs.iter().sum::<f64>() / k as f64;
+                let s2 = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (k - 1) as f64;
+                rgb[c].push(m);
+                var[c].push(s2 / k as f64);
+            }
+        }
+        RgbImage {
+            width: w,
+            height: h,
+            rgb,
+            variance: Some(var),
+            variance_dof: Some(k as f64 - 1.0),
+            variance_variance: None,
+            pixels_correlated: true,
+            runs,
+        }
+    }
+
+    #[test]
+    fn correlated_pixels_take_region_errors_from_their_runs() {
+        // Ten pairs of images of the same truth, each the mean of 8 runs whose pixels share a
+        // run-wide offset: with the runs' region means the regions agree (at the family rate,
+        // so at most one pair may differ), while summing the pixel variances treats 1024
+        // correlated pixels as independent, understates a region's error 14- to 29-fold and
+        // calls nearly every pair different (the negative control).
+        let (mut agree, mut naive_differ) = (0, 0);
+        for pair in 0..10 {
+            let a = correlated_runs(32, 32, 8, 0.02, 2 * pair);
+            let b = correlated_runs(32, 32, 8, 0.02, 2 * pair + 1);
+            let c = compare(&a, &b, &grid_regions(2), 0.01, 0.01, 0.0).unwrap();
+            assert!(
+                c.regions
+                    .iter()
+                    .all(|r| (7.0..=14.0 + 1e-9).contains(&r.dof)),
+                "{:?}",
+                c.regions[0]
+            );
+            agree += usize::from(!c.differ);
+            let naive = |img: &RgbImage| RgbImage {
+                pixels_correlated: false,
+                runs: Vec::new(),
+                ..img.clone()
+            };
+            naive_differ += usize::from(
+                compare(&naive(&a), &naive(&b), &grid_regions(2), 0.01, 0.01, 0.0)
+                    .unwrap()
+                    .differ,
+            );
+        }
+        assert!(agree >= 9, "{agree} of 10 pairs agree");
+        assert!(naive_differ >= 9, "{naive_differ} of 10 naive pairs differ");
+        // the region error is the runs' spread: for the whole image, sd(offset)/√8
+        let a = correlated_runs(32, 32, 8, 0.02, 99);
+        let ((_, se), dof) = region_estimate(&a, 0, [0, 0, 32, 32]).unwrap();
+        assert_eq!(dof, 7.0);
+        assert!(
+            se > 0.02 / 8f64.sqrt() / 3.0 && se < 0.02 / 8f64.sqrt() * 3.0,
+            "{se}"
+        );
+    }
+
+    #[test]
+    fn correlated_pixels_without_runs_are_refused_not_guessed() {
+        let mut a = correlated_runs(8, 8, 4, 0.02, 1);
+        a.runs.clear();
+        let b = correlated_runs(8, 8, 4, 0.02, 2);
+        let e = compare(&a, &b, &[], 0.01, 0.01, 0.0).unwrap_err();
+        assert!(
+            e.starts_with("the test image:") && e.contains("--keep-runs"),
+            "{e}"
+        );
+        let e = compare(&b, &a, &[], 0.01, 0.01, 0.0).unwrap_err();
+        assert!(e.starts_with("the reference image:"), "{e}");
+    }
+
+    #[test]
+    fn run_layers_are_read_back_and_checked() {
+        let img = correlated_runs(4, 2, 3, 0.02, 5);
+        let mut channels = Vec::new();
+        for (c, name) in CHANNELS.iter().enumerate() {
+            channels.push((
+                name.to_string(),
+                img.rgb[c].iter().map(|&v| v as f32).collect(),
+            ));
+        }
+        for (k, run) in img.runs.iter().enumerate() {
+            for (c, name) in CHANNELS.iter().enumerate() {
+                let plane: Vec<f32> = run[c].iter().map(|&v| v as f32).collect();
+                channels.push((format!("run.{k}.{name}"), plane));
+            }
+        }
+        let layers = Layers {
+            width: 4,
+            height: 2,
+            channels,
+            attributes: vec![("furnace.pixels_correlated".into(), "true".into())],
+        };
+        let back = RgbImage::from_layers(&layers).unwrap();
+        assert!(back.pixels_correlated);
+        assert_eq!(back.runs.len(), 3);
+        assert_eq!(back.runs[2][1][7], img.runs[2][1][7] as f32 as f64);
+        // a run without all three channels, or a single run, is an error
+        let mut broken = layers.clone();
+        broken.channels.retain(|(n, _)| n != "run.1.B");
+        let e = RgbImage::from_layers(&broken).unwrap_err();
+        assert!(e.contains("run.1.B"), "{e}");
+        let mut single = layers;
+        single
+            .channels
+            .retain(|(n, _)| !n.starts_with("run.1.") && !n.starts_with("run.2."));
+        assert!(RgbImage::from_layers(&single)
+            .unwrap_err()
+            .contains("two runs"));
     }
 
     #[test]
@@ -773,6 +986,8 @@ mod tests {
             variance: None,
             variance_dof: None,
             variance_variance: None,
+            pixels_correlated: false,
+            runs: Vec::new(),
         };
         let c = compare(&img(1.1), &img(1.0), &[], 0.01, 0.01, 0.0).unwrap();
         let m = &c.metrics[0];

@@ -54,6 +54,38 @@ pub fn render_light_paths(
     trace_light_image(scene, settings, n_paths, &[], &sensor, progress).map(|i| i.film)
 }
 
+/// `runs` independent light-traced images of `scene` with `n_paths` paths in all (run r
+/// traces paths ⌊r·n/runs⌋..⌊(r+1)·n/runs⌋ of its own stream, seed mix64(seed + r)): the
+/// images `furnace render --keep-runs` stores, whose region means give a region's standard
+/// error where the pixel variances cannot (a run's pixels are correlated). `progress` is
+/// called with the paths finished so far over all runs.
+pub fn render_light_runs(
+    scene: &Scene,
+    settings: &RenderSettings,
+    n_paths: u64,
+    runs: u64,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Vec<Film>, RenderError> {
+    if runs < 2 || n_paths < runs {
+        return Err(RenderError::Settings(format!(
+            "{n_paths} light paths in {runs} runs: a run's spread needs at least 2 runs of at least one path each"
+        )));
+    }
+    let bound = |r: u64| (r as u128 * n_paths as u128 / runs as u128) as u64;
+    let mut films = Vec::with_capacity(runs as usize);
+    for r in 0..runs {
+        let s = RenderSettings {
+            seed: mix64(settings.seed.wrapping_add(r)),
+            ..settings.clone()
+        };
+        let base = bound(r);
+        films.push(render_light_paths(scene, &s, bound(r + 1) - base, &|n| {
+            progress(base + n)
+        })?);
+    }
+    Ok(films)
+}
+
 /// The scene's pinhole camera as the light tracer's sensor.
 fn pinhole(scene: &Scene, settings: &RenderSettings) -> Result<PinholeSensor, RenderError> {
     let camera = scene

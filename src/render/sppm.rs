@@ -43,6 +43,19 @@ pub fn render_sppm(
     runs: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
+    render_sppm_each(scene, settings, sppm, runs, progress, &mut |_| {})
+}
+
+/// [`render_sppm`], handing each run's film to `each` (in run order) before it is merged, so
+/// that a caller can keep what it needs of the runs without holding their films.
+pub fn render_sppm_each(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    runs: u64,
+    progress: &(dyn Fn(u64) + Sync),
+    each: &mut (dyn FnMut(&Film) + Send),
+) -> Result<Film, RenderError> {
     let mut merged: Option<Film> = None;
     sppm_core(
         scene,
@@ -52,9 +65,12 @@ pub fn render_sppm(
         density,
         progress,
         1,
-        &mut |film| match &mut merged {
-            None => merged = Some(film),
-            Some(m) => crate::film::merge_pixels(&mut m.pixels, &film.pixels),
+        &mut |film| {
+            each(&film);
+            match &mut merged {
+                None => merged = Some(film),
+                Some(m) => crate::film::merge_pixels(&mut m.pixels, &film.pixels),
+            }
         },
     )?;
     Ok(merged.expect("at least one run"))

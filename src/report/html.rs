@@ -751,6 +751,8 @@ mod tests {
             variance: Some(std::array::from_fn(|_| vec![1e-6; 16])),
             variance_dof: None,
             variance_variance: None,
+            pixels_correlated: false,
+            runs: Vec::new(),
         }
     }
 

@@ -97,6 +97,70 @@ fn missing_scene_file_exits_2() {
 }
 
 #[test]
+fn compare_takes_a_bdpt_images_region_errors_from_its_kept_runs() {
+    // A BDPT image's pixels are correlated within a run: `compare` refuses its region tests
+    // unless the EXR keeps the runs (--keep-runs), and then judges it against a path-traced
+    // render of the same scene. The kept runs do not change the image.
+    let dir = std::env::temp_dir().join(format!("furnace-keep-runs-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = root("scenes/cornell-box.toml");
+    let render = |extra: &[&str], out: &std::path::Path| {
+        let o = furnace()
+            .args(["render", "-q", "--width", "16", "--height", "16"])
+            .arg(&scene)
+            .args(extra)
+            .arg("-o")
+            .arg(out)
+            .output()
+            .unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(0),
+            "{}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    };
+    let (pt, bd, kept) = (dir.join("pt.exr"), dir.join("bd.exr"), dir.join("kept.exr"));
+    render(&["--spp", "256", "--seed", "5"], &pt);
+    let bdpt = ["--integrator", "bdpt", "--spp", "64", "--runs", "8"];
+    render(&bdpt, &bd);
+    render(&[&bdpt[..], &["--keep-runs"]].concat(), &kept);
+    let a = furnace::io::image::read_exr(&bd).unwrap();
+    let b = furnace::io::image::read_exr(&kept).unwrap();
+    assert_eq!(a.channel("R"), b.channel("R"));
+    assert_eq!(b.channel("run.7.B").map(<[f32]>::len), Some(256));
+    let compare = |test: &std::path::Path| {
+        furnace()
+            .args(["compare", "-q"])
+            .arg(test)
+            .arg(&pt)
+            .arg("--regions")
+            .arg(root("scenes/cornell-box.regions.toml"))
+            .output()
+            .unwrap()
+    };
+    let refused = compare(&bd);
+    assert_eq!(refused.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--keep-runs"));
+    let judged = compare(&kept);
+    assert_eq!(
+        judged.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&judged.stderr)
+    );
+    // the path tracer's pixels are independent: nothing to keep
+    let o = furnace()
+        .args(["render", "-q", "--keep-runs"])
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("independent"));
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
 fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
     use furnace::io::image::{read_exr, write_exr};
     let dir = std::env::temp_dir().join(format!("furnace-compare-{}", std::process::id()));

@@ -102,6 +102,8 @@ fn flat(rgb: [f64; 3]) -> RgbImage {
         variance: Some(std::array::from_fn(|_| vec![1e-4; 32 * 32])),
         variance_dof: None,
         variance_variance: None,
+        pixels_correlated: false,
+        runs: Vec::new(),
     }
 }
 
