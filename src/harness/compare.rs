@@ -739,27 +739,10 @@ mod tests {
             let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
             (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
         };
-        let mut rgb: [Vec<f64>; 3] = Default::default();
-        let mut var: [Vec<f64>; 3] = Default::default();
-        for c in 0..3 {
-            for _ in 0..w * h {
-                let xs: Vec<f64> = (0..k).map(|_| 1.0 + sd * gauss()).collect();
-                let m = xs.iter().sum::<f64>() / k as f64;
-                let s2 = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (k - 1) as f64;
-                rgb[c].push(m);
-                var[c].push(s2 / k as f64);
-            }
-        }
-        RgbImage {
-            width: w,
-            height: h,
-            rgb,
-            variance: Some(var),
-            variance_dof: Some(k as f64 - 1.0),
-            variance_variance: None,
-            pixels_correlated: false,
-            runs: Vec::new(),
-        }
+        let batches = (0..k)
+            .map(|_| std::array::from_fn(|_| (0..w * h).map(|_| 1.0 + sd * gauss()).collect()))
+            .collect();
+        from_runs(w, h, batches, false)
     }
 
     /// An image of 1.0 everywhere made of `k` runs whose pixels share a run-wide offset
@@ -771,7 +754,7 @@ mod tests {
             let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
             (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
         };
-        let runs: Vec<[Vec<f64>; 3]> = (0..k)
+        let runs = (0..k)
             .map(|_| {
                 std::array::from_fn(|_| {
                     let offset = shared * gauss();
@@ -779,15 +762,22 @@ mod tests {
                 })
             })
             .collect();
+        from_runs(w, h, runs, true)
+    }
+
+    /// The image of independent runs' planes: each pixel's mean over the runs and the
+    /// variance of that mean from their spread (runs − 1 dof); `correlated` keeps the runs
+    /// and marks the pixels correlated.
+    fn from_runs(w: usize, h: usize, runs: Vec<[Vec<f64>; 3]>, correlated: bool) -> RgbImage {
+        let k = runs.len() as f64;
         let mut rgb: [Vec<f64>; 3] = Default::default();
         let mut var: [Vec<f64>; 3] = Default::default();
         for c in 0..3 {
             for i in 0..w * h {
-                let xs: Vec<f64> = runs.iter().map(|r| r[c][i]).collect();
-                let m = xs.iter().sum::<f64>() / k as f64;
-                let s2 = xs.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (k - 1) as f64;
+                let m = runs.iter().map(|r| r[c][i]).sum::<f64>() / k;
+                let s2 = runs.iter().map(|r| (r[c][i] - m).powi(2)).sum::<f64>() / (k - 1.0);
                 rgb[c].push(m);
-                var[c].push(s2 / k as f64);
+                var[c].push(s2 / k);
             }
         }
         RgbImage {
@@ -795,10 +785,10 @@ mod tests {
             height: h,
             rgb,
             variance: Some(var),
-            variance_dof: Some(k as f64 - 1.0),
+            variance_dof: Some(k - 1.0),
             variance_variance: None,
-            pixels_correlated: true,
-            runs,
+            pixels_correlated: correlated,
+            runs: if correlated { runs } else { Vec::new() },
         }
     }
 
