@@ -16,6 +16,14 @@ pub fn mix64(mut z: u64) -> u64 {
 
 const GOLDEN: u64 = 0x9e37_79b9_7f4a_7c15;
 
+/// The seed of independent run `run` of a render with seed `seed`; `tag` keeps estimators
+/// apart. The run index is mixed before it meets the seed, so renders with neighbouring seeds
+/// share no run (mix64(seed + run) gave seed s's run r + 1 to seed s + 1's run r).
+#[inline]
+pub fn run_seed(seed: u64, run: u64, tag: u64) -> u64 {
+    mix64(seed ^ mix64(run.wrapping_add(tag)))
+}
+
 /// How the numbers of a pixel's samples are placed (see the module doc).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum Sampler {

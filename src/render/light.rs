@@ -12,7 +12,7 @@ use crate::film::partial::PartialFilm;
 use crate::film::{Film, Pixel};
 use crate::integrators::light::{PinholeSensor, Sensor, Splat};
 use crate::integrators::LightTracer;
-use crate::math::rng::{mix64, SampleStream, Sampler};
+use crate::math::rng::{mix64, run_seed, SampleStream, Sampler};
 use crate::scene::Scene;
 use crate::spectrum::Wavelengths;
 use crate::stats::MeanVar;
@@ -55,7 +55,7 @@ pub fn render_light_paths(
 }
 
 /// `runs` independent light-traced images of `scene` with `n_paths` paths in all (run r
-/// traces paths ⌊r·n/runs⌋..⌊(r+1)·n/runs⌋ of its own stream, seed mix64(seed + r)): the
+/// traces paths ⌊r·n/runs⌋..⌊(r+1)·n/runs⌋ of its own stream, `math::rng::run_seed`): the
 /// images `furnace render --keep-runs` stores, whose region means give a region's standard
 /// error where the pixel variances cannot (a run's pixels are correlated). `progress` is
 /// called with the paths finished so far over all runs.
@@ -75,7 +75,7 @@ pub fn render_light_runs(
     let mut films = Vec::with_capacity(runs as usize);
     for r in 0..runs {
         let s = RenderSettings {
-            seed: mix64(settings.seed.wrapping_add(r)),
+            seed: run_seed(settings.seed, r, 0x4c49_4748), // "LIGH"
             ..settings.clone()
         };
         let base = bound(r);

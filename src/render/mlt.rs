@@ -13,7 +13,7 @@ use super::{check_common, in_pool, FilmResponse, RenderError, RenderSettings};
 use crate::film::Film;
 use crate::integrators::bdpt::{unsupported, Bdpt, Buffers, Setup, Splat};
 use crate::integrators::mlt::{Mlt, PrimarySample};
-use crate::math::rng::{mix64, SampleStream, Uniforms};
+use crate::math::rng::{run_seed, SampleStream, Uniforms};
 use crate::scene::Scene;
 use crate::spectrum::Wavelengths;
 use rayon::prelude::*;
@@ -131,7 +131,7 @@ pub fn render_mlt_chains(
         .max(1);
     let start = std::time::Instant::now();
     let chain = |c: u64| -> Result<Film, RenderError> {
-        let seed = mix64(settings.seed.wrapping_add(c));
+        let seed = run_seed(settings.seed, c, 0x4d4c_5420); // "MLT "
         let mut buffers = Buffers::default();
         let mut splats = Vec::new();
         let mut out = Contribution::default();

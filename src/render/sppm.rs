@@ -10,7 +10,7 @@ use crate::film::Film;
 use crate::integrators::sppm::{
     camera_path, trace_photon, unsupported, IterationBsdfs, Sppm, VisiblePoint,
 };
-use crate::math::rng::{mix64, SampleStream};
+use crate::math::rng::{run_seed, SampleStream};
 use crate::math::Vec3;
 use crate::scene::Scene;
 use crate::spectrum::Wavelengths;
@@ -163,7 +163,7 @@ fn sppm_core(
     let start = std::time::Instant::now();
     let mut run_all = || -> Result<(), RenderError> {
         for run in 0..runs {
-            let seed = mix64(settings.seed ^ mix64(run.wrapping_add(0x5350_504d)));
+            let seed = run_seed(settings.seed, run, 0x5350_504d); // "SPPM"
             let mut state = State::new(n, radius);
             let mut truncated = 0u64;
             let mut sums: Vec<ChunkSums> = (0..CHUNKS).map(|_| ChunkSums::new(n)).collect();
