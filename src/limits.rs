@@ -39,6 +39,9 @@ pub const MAX_COORDINATE: f64 = 1e12;
 /// mirror image of [`MAX_COORDINATE`]; below it squared lengths leave f64's normal range.
 pub const MIN_EXTENT: f64 = 1e-12;
 
+/// Most channels of an EXR furnace reads (with [`MAX_PIXELS`], 4 GiB of f32 at most).
+pub const MAX_CHANNELS: usize = 64;
+
 /// Longest piece of user input quoted in a message, characters.
 pub const MAX_QUOTED: usize = 120;
 

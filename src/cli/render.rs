@@ -50,7 +50,7 @@ pub struct RenderArgs {
     /// Initial gather radius of SPPM, scene units [default: 1/50 of the scene's bounding radius].
     #[arg(long)]
     radius: Option<f64>,
-    /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them.
+    /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them; with --integrator light --keep-runs, the independent light renders that share --light-paths. Not used otherwise.
     #[arg(long, default_value_t = 4)]
     runs: u64,
     /// Mutations per pixel of --integrator mlt, over all chains.
@@ -88,7 +88,8 @@ pub struct RenderArgs {
     wavelengths: u8,
     /// Also store each independent run's linear R, G, B image in the EXR (layers run.K.R/G/B):
     /// the runs of --integrator bdpt or sppm, the chains of mlt, or with --integrator light
-    /// --runs independent light renders sharing --light-paths. Their pixels are correlated
+    /// --runs independent light renders sharing --light-paths (each with its own seed, so the
+    /// image differs from the single light render of the same seed). Their pixels are correlated
     /// within a run, so `furnace compare` takes a region's standard error from the runs'
     /// region means and refuses region tests on such an image without them.
     #[arg(long)]
@@ -229,11 +230,26 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    if a.keep_runs && light && a.runs < 2 {
-        return Err(anyhow::anyhow!(
-            "--keep-runs with --integrator light renders --runs independent light images: give at least 2"
-        )
-        .into());
+    if a.keep_runs {
+        // the image's own channels plus R, G, B per run must stay readable
+        let runs = if a.integrator == "mlt" {
+            a.chains
+        } else {
+            a.runs
+        };
+        let own = furnace::film::Film::new(1, 1)
+            .to_layers(Vec::new())
+            .channels
+            .len() as u64;
+        let most = (furnace::limits::MAX_CHANNELS as u64 - own) / 3;
+        if !(2..=most).contains(&runs) {
+            return Err(anyhow::anyhow!(
+                "--keep-runs stores each of the {runs} {} as three EXR channels: give 2 to {most} (furnace reads EXRs of at most {} channels)",
+                if a.integrator == "mlt" { "--chains" } else { "--runs" },
+                furnace::limits::MAX_CHANNELS
+            )
+            .into());
+        }
     }
     if a.light_paths.is_some() && !light {
         return Err(anyhow::anyhow!(

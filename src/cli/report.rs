@@ -67,8 +67,9 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     let mut sections = Vec::new();
     for pair in a.compare.chunks(2) {
         let (t, r) = (load_rgb(&pair[0])?, load_rgb(&pair[1])?);
-        let c = compare::compare(&t, &r, &regions, a.alpha, 0.01, 0.0)
-            .map_err(|e| anyhow::anyhow!(e))?;
+        let c = compare::compare(&t, &r, &regions, a.alpha, 0.01, 0.0).map_err(|e| {
+            anyhow::anyhow!("--compare {} {}: {e}", pair[0].display(), pair[1].display())
+        })?;
         sections.push(section(&pair[0], &pair[1], &t, &r, c, &regions, a.alpha)?);
     }
     if runs.is_empty() && sections.is_empty() {

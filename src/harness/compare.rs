@@ -90,14 +90,26 @@ impl RgbImage {
             .attributes
             .iter()
             .any(|a| a.0 == "furnace.pixels_correlated" && a.1 == "true");
+        // runs 0..K-1, each with R, G and B, and no other run.* channel
+        let run_channels = l
+            .channels
+            .iter()
+            .filter(|c| c.0.starts_with("run."))
+            .count();
         let mut runs = Vec::new();
-        while let Some(r) = plane(&format!("run.{}.R", runs.len())) {
+        while runs.len() * 3 < run_channels {
             let k = runs.len();
-            let other = |c: &str| {
-                plane(&format!("run.{k}.{c}"))
-                    .ok_or_else(|| format!("layer run.{k}.R has no run.{k}.{c} beside it"))
+            let layer = |c: &str| {
+                plane(&format!("run.{k}.{c}")).ok_or_else(|| {
+                    format!("{run_channels} run.* channels, but no run.{k}.{c}: runs must be run.0 to run.K-1, each with R, G and B")
+                })
             };
-            runs.push([r, other("G")?, other("B")?]);
+            runs.push([layer("R")?, layer("G")?, layer("B")?]);
+        }
+        if runs.len() * 3 != run_channels {
+            return Err(format!(
+                "{run_channels} run.* channels: runs must be run.0 to run.K-1, each with R, G and B and nothing else"
+            ));
         }
         if runs.len() == 1 {
             return Err(
@@ -400,7 +412,7 @@ pub struct Comparison {
     pub flagged_pixels: Option<usize>,
     /// Per-pixel |z| (max over channels) when available, for the difference map.
     pub pixel_z: Option<Vec<f64>>,
-    /// Whether the reference carried variance channels.
+    /// Whether the reference carried an error estimate (variance channels or kept runs).
     pub reference_has_variance: bool,
 }
 
@@ -442,7 +454,7 @@ pub fn region_estimate(
         return Ok(((region_mean(img, c, r).0, se), dof));
     }
     if img.pixels_correlated {
-        return Err("its pixels are correlated within a run (header furnace.pixels_correlated: light-traced, BDPT, MLT or SPPM), so a region's standard error is not the sum of its pixels' variances; render it with `furnace render --keep-runs`, which stores the independent runs' images, or compare it with `furnace check` (the reciprocity_image and algorithm_agreement kinds keep the runs)".into());
+        return Err("its pixels are correlated within a run (header furnace.pixels_correlated: light-traced, BDPT, MLT or SPPM), so a region's standard error is not the sum of its pixels' variances; render it with `furnace render --keep-runs` (not sharded), which stores the independent runs' images, or compare it with `furnace check` (the reciprocity_image and algorithm_agreement kinds keep the runs)".into());
     }
     Ok((region_mean(img, c, r), region_dof(img, c, r)))
 }
@@ -595,7 +607,7 @@ pub fn compare(
         differ,
         flagged_pixels: flagged,
         pixel_z,
-        reference_has_variance: reference.variance.is_some(),
+        reference_has_variance: reference.variance.is_some() || reference.runs.len() >= 2,
     })
 }
 
@@ -880,6 +892,13 @@ mod tests {
         broken.channels.retain(|(n, _)| n != "run.1.B");
         let e = RgbImage::from_layers(&broken).unwrap_err();
         assert!(e.contains("run.1.B"), "{e}");
+        let mut gap = layers.clone();
+        gap.channels.retain(|(n, _)| !n.starts_with("run.1."));
+        let e = RgbImage::from_layers(&gap).unwrap_err();
+        assert!(e.contains("no run.1.R"), "{e}");
+        let mut stray = layers.clone();
+        stray.channels.push(("run.x".into(), vec![0.0; 8]));
+        assert!(RgbImage::from_layers(&stray).is_err());
         let mut single = layers;
         single
             .channels

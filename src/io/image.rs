@@ -336,7 +336,9 @@ pub fn read_exr(path: &Path) -> Result<Layers, ImageIoError> {
     if let Ok(Ok(header)) = header {
         for h in &header.headers {
             let (w, hh) = (h.layer_size.width(), h.layer_size.height());
-            if crate::limits::image(w as u64, hh as u64).is_err() || h.channels.list.len() > 64 {
+            if crate::limits::image(w as u64, hh as u64).is_err()
+                || h.channels.list.len() > crate::limits::MAX_CHANNELS
+            {
                 return Err(ImageIoError::InvalidSize {
                     path: path.to_path_buf(),
                     width: w,

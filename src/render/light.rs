@@ -66,9 +66,9 @@ pub fn render_light_runs(
     runs: u64,
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Vec<Film>, RenderError> {
-    if runs < 2 || n_paths < runs {
+    if runs < 2 || n_paths < 2 * runs {
         return Err(RenderError::Settings(format!(
-            "{n_paths} light paths in {runs} runs: a run's spread needs at least 2 runs of at least one path each"
+            "{n_paths} light paths in {runs} runs: a run's spread needs at least 2 runs of at least 2 paths each"
         )));
     }
     let bound = |r: u64| (r as u128 * n_paths as u128 / runs as u128) as u64;
@@ -434,6 +434,24 @@ fn span_all() -> Span {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn light_runs_are_independent_images_of_their_share_of_the_paths() {
+        let scene = Scene::load(std::path::Path::new("scenes/cornell-box.toml")).unwrap();
+        let mut s = crate::render::test_settings(1);
+        (s.width, s.height) = (8, 8);
+        let films = render_light_runs(&scene, &s, 3001, 3, &|_| {}).unwrap();
+        assert_eq!(films.len(), 3);
+        // 1000, 1000 and 1001 paths: each pixel counts its run's paths
+        let counts: Vec<u64> = films
+            .iter()
+            .map(|f| f.pixels[0].channels[1].count())
+            .collect();
+        assert_eq!(counts, [1000, 1000, 1001]);
+        assert!(films[0].pixels != films[1].pixels);
+        assert!(render_light_runs(&scene, &s, 5, 3, &|_| {}).is_err());
+        assert!(render_light_runs(&scene, &s, 100, 1, &|_| {}).is_err());
+    }
     use crate::integrators::PathTracer;
     use crate::spectrum::N_WAVELENGTHS;
     use std::path::Path;

@@ -83,7 +83,7 @@ fn evaluate(
 }
 
 /// The `mlt.chains` independent MLT images of `scene` (one sample per pixel each: the chain's
-/// estimate); chain c uses the seed mix64(seed + c). `settings.spp` is not used.
+/// estimate); chain c uses the seed `math::rng::run_seed(seed, c, …)`. `settings.spp` is not used.
 pub fn render_mlt_chains(
     scene: &Scene,
     settings: &RenderSettings,

@@ -149,6 +149,37 @@ fn compare_takes_a_bdpt_images_region_errors_from_its_kept_runs() {
         "{}",
         String::from_utf8_lossy(&judged.stderr)
     );
+    // SPPM's runs and light tracing's independent renders are kept and judged too
+    for (extra, name) in [
+        (
+            "--integrator sppm --iterations 2 --photons-per-iteration 2000 --runs 3",
+            "sppm.exr",
+        ),
+        (
+            "--integrator light --light-paths 40000 --runs 4",
+            "light.exr",
+        ),
+    ] {
+        let out = dir.join(name);
+        let extra: Vec<&str> = extra.split(' ').collect();
+        render(&[&extra[..], &["--keep-runs"]].concat(), &out);
+        let o = compare(&out);
+        assert_ne!(
+            o.status.code(),
+            Some(2),
+            "{name}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+    }
+    // more runs than an EXR furnace reads can hold is refused before rendering
+    let o = furnace()
+        .args(["render", "-q", "--keep-runs", "--runs", "18"])
+        .args(&bdpt[..4])
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("give 2 to 17"));
     // the path tracer's pixels are independent: nothing to keep
     let o = furnace()
         .args(["render", "-q", "--keep-runs"])
