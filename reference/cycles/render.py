@@ -120,6 +120,9 @@ def parse_args(argv=None):
                    help="largest relative bound on the energy an unlimited depth loses to Cycles' 1024-bounce "
                         "limit (a^(K+1)/(1-a) at K = 1025 furnace bounces, for the largest albedo a < 1); above "
                         "it the scene is refused, not rendered low (default: %(default)s)")
+    p.add_argument("--no-emitter-sampling", action="store_true",
+                   help="verification only: no light sampling of emissive surfaces (every emitter material's "
+                        "emission_sampling = NONE), so Cycles finds them by BSDF sampling alone")
     p.add_argument("--allow-eta-mismatch", action="store_true",
                    help="verification only: render a camera or emitter inside a dielectric instead of refusing")
     return p.parse_args(argv)
@@ -405,6 +408,8 @@ class Builder:
                 nt.links.new(emit.outputs[0], add.inputs[1])
                 surface = add
         else:
+            m.cycles.emission_sampling = "NONE"
+        if self.args.no_emitter_sampling:
             m.cycles.emission_sampling = "NONE"
         if surface is None and mat["type"] != "null":
             # depth 0 and no emission: a black, opaque surface (nothing is reflected).
@@ -703,6 +708,7 @@ def main(argv=None):
         "subpixels": None if sub == 1 else
         f"{sub}x{sub} sub-pixels at {spp // (sub * sub)} spp each, averaged (Blender renders at least 4x4 px)",
         "eta_mismatch_allowed": args.allow_eta_mismatch,
+        "emitter_sampling": not args.no_emitter_sampling,
         "settings": used,
         "camera": cam,
         "spheres": b.sphere_notes,
