@@ -1,5 +1,6 @@
 # The half-space sphere (FINDINGS.md, "LuxCore half-space: the mechanism") rendered by LuxCore at a
 # chosen camera distance and field of view, writing scratch files under ./out/.
+# Run with the LuxCore venv's python (it runs the driver with the same interpreter).
 # usage: camera_distance.py name sigma_t cx cy cz camdist fov [eps_min] [seeds] [spp]
 import json, subprocess, sys, os, numpy as np, OpenEXR
 name, st, cx, cy, cz, D, fov = sys.argv[1], float(sys.argv[2]), *map(float, sys.argv[3:8])
@@ -17,7 +18,7 @@ sc = {"camera":{"fov_y_deg":fov,"look_at":[cx,cy,cz],"medium":None,"position":[c
 json.dump(sc, open(f"out/{name}/scene.json","w"))
 vals = []
 for s in range(seeds):
-    cmd = ["/root/venvs/luxcore/bin/python", "/work/main/reference/luxcore/render.py", "--scene", f"out/{name}/scene.json",
+    cmd = [sys.executable, os.path.join(os.path.dirname(os.path.abspath(__file__)), "../../../../reference/luxcore/render.py"), "--scene", f"out/{name}/scene.json",
            "--out", f"out/{name}/b{s}.exr", "--spp", str(spp), "--seed", str(1000+s), "--width", "16", "--height", "16",
            "--max-depth", "-1", "--threads", "2"]
     if eps: cmd += ["--luxcore-epsilon-min", eps]
