@@ -445,10 +445,11 @@ pub fn region_estimate(
     r: [usize; 4],
 ) -> Result<((f64, f64), f64), String> {
     if img.runs.len() >= 2 {
+        let n = ((r[2] - r[0]) * (r[3] - r[1])) as f64;
         let means = img
             .runs
             .iter()
-            .map(|run| plane_mean(&run[c], img.width, r))
+            .map(|run| plane_sum(&run[c], img.width, r) / n)
             .collect();
         let ((_, se), dof) = spread(means);
         return Ok(((region_mean(img, c, r).0, se), dof));
@@ -459,31 +460,28 @@ pub fn region_estimate(
     Ok((region_mean(img, c, r), region_dof(img, c, r)))
 }
 
-/// Mean of a plane of width `w` over the pixel rectangle `r`.
-fn plane_mean(plane: &[f64], w: usize, r: [usize; 4]) -> f64 {
+/// Sum of a plane of width `w` over the pixel rectangle `r` [x0, y0, x1, y1), in row-major
+/// order.
+fn plane_sum(plane: &[f64], w: usize, r: [usize; 4]) -> f64 {
     let mut sum = 0.0;
     for y in r[1]..r[3] {
-        sum += plane[y * w + r[0]..y * w + r[2]].iter().sum::<f64>();
+        for x in r[0]..r[2] {
+            sum += plane[y * w + x];
+        }
     }
-    sum / ((r[2] - r[0]) * (r[3] - r[1])) as f64
+    sum
 }
 
 /// Mean of channel `c` over the pixel rectangle `r` [x0, y0, x1, y1) and its standard error
 /// √(Σ var)/n, which treats the pixels as independent estimates (true for camera-path renders;
 /// not for light-traced images, whose region statistics come from the light tracer itself).
 pub fn region_mean(img: &RgbImage, c: usize, r: [usize; 4]) -> (f64, f64) {
-    let (mut sum, mut var, mut n) = (0.0, 0.0, 0.0);
-    for y in r[1]..r[3] {
-        for x in r[0]..r[2] {
-            let i = y * img.width + x;
-            sum += img.rgb[c][i];
-            if let Some(v) = &img.variance {
-                var += v[c][i];
-            }
-            n += 1.0;
-        }
-    }
-    (sum / n, var.sqrt() / n)
+    let n = ((r[2] - r[0]) * (r[3] - r[1])) as f64;
+    let var = img
+        .variance
+        .as_ref()
+        .map_or(0.0, |v| plane_sum(&v[c], img.width, r));
+    (plane_sum(&img.rgb[c], img.width, r) / n, var.sqrt() / n)
 }
 
 /// Degrees of freedom of the variance of a region mean of channel `c` (Satterthwaite: from
@@ -493,15 +491,10 @@ pub fn region_dof(img: &RgbImage, c: usize, r: [usize; 4]) -> f64 {
     let (Some(v), Some(vv)) = (&img.variance, &img.variance_variance) else {
         return f64::INFINITY;
     };
-    let (mut sv, mut svv) = (0.0, 0.0);
-    for y in r[1]..r[3] {
-        for x in r[0]..r[2] {
-            let i = y * img.width + x;
-            sv += v[c][i];
-            svv += vv[c][i];
-        }
-    }
-    satterthwaite_dof(sv, svv)
+    satterthwaite_dof(
+        plane_sum(&v[c], img.width, r),
+        plane_sum(&vv[c], img.width, r),
+    )
 }
 
 /// Compares `test` with `reference` over `regions` (the whole image is always one region) at
