@@ -704,6 +704,15 @@ mod tests {
     }
     use crate::math::rng::SampleStream;
 
+    /// Standard normal numbers from stream `stream` of `seed` (Box–Muller, Box & Muller 1958).
+    fn gaussians(seed: u64, stream: u64) -> impl FnMut() -> f64 {
+        let mut rng = SampleStream::new(seed, stream, 0);
+        move || {
+            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
+            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        }
+    }
+
     /// A synthetic render of a known image: pixel means with Gaussian noise of known variance.
     fn noisy(
         w: usize,
@@ -712,12 +721,7 @@ mod tests {
         sd: f64,
         seed: u64,
     ) -> RgbImage {
-        let mut rng = SampleStream::new(seed, 0, 0);
-        let mut gauss = || {
-            // Box–Muller (Box & Muller 1958)
-            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
-            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        };
+        let mut gauss = gaussians(seed, 0);
         let rgb = std::array::from_fn(|c| {
             (0..w * h)
                 .map(|i| truth(i % w, i / w, c) + sd * gauss())
@@ -739,11 +743,7 @@ mod tests {
     /// An image of `truth` whose pixels are means of `k` noisy batches, with the variance of
     /// each mean *estimated* from those batches (as render.py --batches does).
     fn batched(w: usize, h: usize, k: usize, sd: f64, seed: u64) -> RgbImage {
-        let mut rng = SampleStream::new(seed, 1, 0);
-        let mut gauss = || {
-            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
-            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        };
+        let mut gauss = gaussians(seed, 1);
         let batches = (0..k)
             .map(|_| std::array::from_fn(|_| (0..w * h).map(|_| 1.0 + sd * gauss()).collect()))
             .collect();
@@ -754,11 +754,7 @@ mod tests {
     /// (sd `shared`) besides their own noise (sd 0.01): pixels correlated within a run, as in
     /// an SPPM run's shared photons. Pixel variances come from the runs' spread.
     fn correlated_runs(w: usize, h: usize, k: usize, shared: f64, seed: u64) -> RgbImage {
-        let mut rng = SampleStream::new(seed, 2, 0);
-        let mut gauss = || {
-            let (u1, u2) = (rng.next_f64().max(1e-300), rng.next_f64());
-            (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
-        };
+        let mut gauss = gaussians(seed, 2);
         let runs = (0..k)
             .map(|_| {
                 std::array::from_fn(|_| {
