@@ -323,8 +323,9 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             bar.set_position(n)
         })
         .map(|films| {
-            runs = run_layers(&films);
-            furnace::render::merge_runs(films).expect("at least two runs")
+            let (film, layers) = merged_runs(films, true);
+            runs = layers;
+            film
         })
     } else if light {
         render_light_paths(&scene, &settings, total, &|n| bar.set_position(n))
@@ -491,12 +492,7 @@ fn render_bdpt_image(
     let films =
         furnace::render::render_bdpt_runs(scene, &per_run, &bdpt, a.runs, &|n| bar.set_position(n))
             .context("cannot render")?;
-    let runs = if a.keep_runs {
-        run_layers(&films)
-    } else {
-        Vec::new()
-    };
-    let film = furnace::render::merge_runs(films).expect("at least two runs");
+    let (film, runs) = merged_runs(films, a.keep_runs);
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     set_attrs(
@@ -565,12 +561,7 @@ fn render_mlt_image(
     let start = Instant::now();
     let films = furnace::render::render_mlt_chains(scene, settings, &bdpt, &mlt)
         .context("cannot render")?;
-    let runs = if a.keep_runs {
-        run_layers(&films)
-    } else {
-        Vec::new()
-    };
-    let film = furnace::render::merge_runs(films).expect("at least two chains");
+    let (film, runs) = merged_runs(films, a.keep_runs);
     let secs = start.elapsed().as_secs_f64();
     set_attrs(
         &mut attrs,
@@ -673,17 +664,27 @@ fn render_sppm_image(
     Ok(code)
 }
 
-/// The linear R, G, B means of independent runs' films as EXR layers run.K.R/G/B (what
-/// `--keep-runs` stores; `harness::compare::RgbImage` reads them back).
-fn run_layers(films: &[furnace::film::Film]) -> Vec<(String, Vec<f32>)> {
-    films
-        .iter()
-        .enumerate()
-        .flat_map(|(k, f)| run_layers_of(k, f))
-        .collect()
+/// Independent runs' films merged into the image, with the runs' linear R, G, B means as EXR
+/// layers run.K.R/G/B when `keep` (what `--keep-runs` stores; `harness::compare::RgbImage`
+/// reads them back).
+fn merged_runs(
+    films: Vec<furnace::film::Film>,
+    keep: bool,
+) -> (furnace::film::Film, Vec<(String, Vec<f32>)>) {
+    let layers = if keep {
+        films
+            .iter()
+            .enumerate()
+            .flat_map(|(k, f)| run_layers_of(k, f))
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let film = furnace::render::merge_runs(films).expect("a render of runs returns at least one");
+    (film, layers)
 }
 
-/// Run `k`'s layers of [`run_layers`].
+/// Run `k`'s layers of [`merged_runs`].
 fn run_layers_of(k: usize, film: &furnace::film::Film) -> Vec<(String, Vec<f32>)> {
     ["R", "G", "B"]
         .iter()

@@ -434,10 +434,13 @@ fn span_all() -> Span {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::integrators::PathTracer;
+    use crate::spectrum::N_WAVELENGTHS;
+    use std::path::Path;
 
     #[test]
     fn light_runs_are_independent_images_of_their_share_of_the_paths() {
-        let scene = Scene::load(std::path::Path::new("scenes/cornell-box.toml")).unwrap();
+        let scene = scene_file("scenes/cornell-box.toml");
         let mut s = crate::render::test_settings(1);
         (s.width, s.height) = (8, 8);
         let films = render_light_runs(&scene, &s, 3001, 3, &|_| {}).unwrap();
@@ -452,9 +455,6 @@ mod tests {
         assert!(render_light_runs(&scene, &s, 5, 3, &|_| {}).is_err());
         assert!(render_light_runs(&scene, &s, 100, 1, &|_| {}).is_err());
     }
-    use crate::integrators::PathTracer;
-    use crate::spectrum::N_WAVELENGTHS;
-    use std::path::Path;
 
     fn scene_file(rel: &str) -> Scene {
         Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)).unwrap()
