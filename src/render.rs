@@ -12,7 +12,7 @@ pub mod sppm;
 pub use bdpt::{render_bdpt, render_bdpt_runs};
 pub use light::{render_light_part, render_light_paths, render_light_runs, LightImage};
 pub use mlt::{render_mlt, render_mlt_chains};
-pub use sppm::{render_sppm, render_sppm_each, render_sppm_runs};
+pub use sppm::{render_sppm, render_sppm_each, render_sppm_radii, render_sppm_runs};
 
 use crate::film::blocks::{spans, BlockFold, Piece};
 use crate::film::partial::PartialFilm;

@@ -110,6 +110,29 @@ pub trait Renderer: Sync {
         )))
     }
 
+    /// [`Self::render_sppm`] at each initial radius of `radii` (replacing `sppm`'s): per
+    /// radius, its `runs` images. The default renders each radius on its own; furnace's own
+    /// renderer shares one camera and photon pass among them (the same images, bit for bit).
+    fn render_sppm_radii(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        sppm: &Sppm,
+        radii: &[f64],
+        runs: u64,
+    ) -> Result<Vec<Vec<Film>>, RendererError> {
+        radii
+            .iter()
+            .map(|&r| {
+                let at = Sppm {
+                    initial_radius: Some(r),
+                    ..*sppm
+                };
+                self.render_sppm(scene, settings, &at, runs)
+            })
+            .collect()
+    }
+
     /// Renders `scene` by bidirectional path tracing: `runs` independent images of
     /// `settings.spp` samples per pixel each (their spread is the standard error; one run's
     /// pixels are correlated through its light-tracing splats). Only furnace's own renderer
@@ -260,6 +283,26 @@ impl Renderer for BuiltIn {
         runs: u64,
     ) -> Result<Vec<Film>, RendererError> {
         sppm_images(scene, settings, sppm, runs, crate::render::sppm::density)
+    }
+
+    fn render_sppm_radii(
+        &self,
+        scene: &Scene,
+        settings: &RenderSettings,
+        sppm: &Sppm,
+        radii: &[f64],
+        runs: u64,
+    ) -> Result<Vec<Vec<Film>>, RendererError> {
+        crate::render::render_sppm_radii(
+            scene,
+            settings,
+            sppm,
+            radii,
+            runs,
+            crate::render::sppm::density,
+            &|_| {},
+        )
+        .map_err(|e| RendererError(e.to_string()))
     }
 
     fn render_bdpt(

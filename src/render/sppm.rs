@@ -61,11 +61,12 @@ pub fn render_sppm_each(
         scene,
         settings,
         sppm,
+        None,
         runs,
         density,
         progress,
         1,
-        &mut |film| {
+        &mut |_, film| {
             each(&film);
             match &mut merged {
                 None => merged = Some(film),
@@ -91,11 +92,43 @@ pub fn render_sppm_runs(
         scene,
         settings,
         sppm,
+        None,
         runs,
         estimate,
         progress,
         runs,
-        &mut |f| films.push(f),
+        &mut |_, f| films.push(f),
+    )?;
+    Ok(films)
+}
+
+/// Most initial radii [`render_sppm_radii`] renders in one pass.
+pub const MAX_RADII: usize = 4;
+
+/// [`render_sppm_runs`] at each initial radius of `radii` (`sppm.initial_radius` is ignored),
+/// from the same camera and photon paths: per radius, its `runs` films, each bit-identical to
+/// a render at that radius alone, for the cost of one camera and photon pass (the gathers are
+/// per radius). A refinement study's images at r and r/2 then differ by the radius alone.
+pub fn render_sppm_radii(
+    scene: &Scene,
+    settings: &RenderSettings,
+    sppm: &Sppm,
+    radii: &[f64],
+    runs: u64,
+    estimate: DensityEstimate,
+    progress: &(dyn Fn(u64) + Sync),
+) -> Result<Vec<Vec<Film>>, RenderError> {
+    let mut films: Vec<Vec<Film>> = radii.iter().map(|_| Vec::new()).collect();
+    sppm_core(
+        scene,
+        settings,
+        sppm,
+        Some(radii),
+        runs,
+        estimate,
+        progress,
+        runs,
+        &mut |k, f| films[k].push(f),
     )?;
     Ok(films)
 }
@@ -108,17 +141,22 @@ const BYTES_PER_PIXEL: u64 = CHUNKS * (32 + 4) + 600;
 /// Memory SPPM may hold (its per-pixel state times the pixels), bytes.
 pub const MAX_BYTES: u64 = 8 << 30;
 
-/// The iteration loop; `on_run` receives each run's film; `kept` films are held at once.
+/// The iteration loop at the initial radii `radii` (`None`: `sppm`'s own); `on_run` receives
+/// each run's film at each radius (its index in `radii`), runs in order; `kept` films per radius
+/// are held at once. The radii share each iteration's camera and photon paths (which do not
+/// depend on the radius), so each radius's films are bit-identical to a render at that radius
+/// alone.
 #[allow(clippy::too_many_arguments)]
 fn sppm_core(
     scene: &Scene,
     settings: &RenderSettings,
     sppm: &Sppm,
+    radii: Option<&[f64]>,
     runs: u64,
     estimate: DensityEstimate,
     progress: &(dyn Fn(u64) + Sync),
     kept: u64,
-    on_run: &mut (dyn FnMut(Film) + Send),
+    on_run: &mut (dyn FnMut(usize, Film) + Send),
 ) -> Result<(), RenderError> {
     if let Some(why) = unsupported(scene) {
         return Err(RenderError::Settings(format!(
@@ -138,7 +176,19 @@ fn sppm_core(
     }
     let (w, h) = (settings.width, settings.height);
     crate::limits::image(w as u64, h as u64).map_err(|e| RenderError::Settings(e.to_string()))?;
-    let bytes = (w as u64 * h as u64).saturating_mul(BYTES_PER_PIXEL + kept.saturating_mul(240));
+    let own = [sppm
+        .initial_radius
+        .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0)];
+    let radii = radii.unwrap_or(&own);
+    if radii.is_empty() || radii.len() > MAX_RADII {
+        return Err(RenderError::Settings(format!(
+            "SPPM renders 1 to {MAX_RADII} initial radii in one pass, got {}",
+            radii.len()
+        )));
+    }
+    let bytes = (w as u64 * h as u64)
+        .saturating_mul(BYTES_PER_PIXEL + kept.saturating_mul(240))
+        .saturating_mul(radii.len() as u64);
     if bytes > MAX_BYTES {
         return Err(RenderError::Settings(format!(
             "SPPM would hold {:.1} GiB of per-pixel state for a {w}x{h} image (about {} bytes a pixel); the limit is {} GiB: render a smaller image",
@@ -148,10 +198,10 @@ fn sppm_core(
         )));
     }
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
-    let radius = sppm
-        .initial_radius
-        .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
-    if !(radius.is_finite() && radius > 0.0 && (radius * radius).is_normal()) {
+    if let Some(radius) = radii
+        .iter()
+        .find(|r| !(r.is_finite() && **r > 0.0 && (**r * **r).is_normal()))
+    {
         return Err(RenderError::Settings(format!(
             "SPPM's initial radius must be a positive length, got {radius}"
         )));
@@ -164,9 +214,12 @@ fn sppm_core(
     let mut run_all = || -> Result<(), RenderError> {
         for run in 0..runs {
             let seed = run_seed(settings.seed, run, 0x5350_504d); // "SPPM"
-            let mut state = State::new(n, radius);
+            let mut states: Vec<State> = radii.iter().map(|&r| State::new(n, r)).collect();
             let mut truncated = 0u64;
-            let mut sums: Vec<ChunkSums> = (0..CHUNKS).map(|_| ChunkSums::new(n)).collect();
+            // per chunk, one set of sums per radius
+            let mut sums: Vec<Vec<ChunkSums>> = (0..CHUNKS)
+                .map(|_| radii.iter().map(|_| ChunkSums::new(n)).collect())
+                .collect();
             let mut found = vec![[0.0; 4]; n];
             for it in 0..sppm.iterations {
                 if settings
@@ -199,10 +252,12 @@ fn sppm_core(
                         (at_wl.xyz(&le), vp)
                     })
                     .collect();
-                for (acc, (le, _)) in state.le.iter_mut().zip(&visible) {
-                    (0..3).for_each(|c| acc[c] += le[c]);
+                for state in &mut states {
+                    for (acc, (le, _)) in state.le.iter_mut().zip(&visible) {
+                        (0..3).for_each(|c| acc[c] += le[c]);
+                    }
                 }
-                let grid = Grid::new(&visible, &state.r2);
+                let grids: Vec<Grid> = states.iter().map(|s| Grid::new(&visible, &s.r2)).collect();
                 let photons = sppm.photons_per_iteration;
                 let cuts: Vec<u64> = sums
                     .par_iter_mut()
@@ -223,36 +278,42 @@ fn sppm_core(
                                     // inside the radius; which sides count is the BSDF's to
                                     // say (a reflector's f is 0 across its surface, a
                                     // dielectric's BTDF gathers the photons arriving from inside)
-                                    grid.near(hit.p, |point| {
-                                        let px = point.px as usize;
-                                        let Some(vp) = &visible[px].1 else { return };
-                                        let bsdf = bsdfs.at(scene, vp.shape, &wl);
-                                        let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi));
-                                        let xyz = at_wl.xyz(&(vp.beta * f * hit.power));
-                                        acc.add(px, xyz);
-                                    });
+                                    for (grid, acc) in grids.iter().zip(acc.iter_mut()) {
+                                        grid.near(hit.p, |point| {
+                                            let px = point.px as usize;
+                                            let Some(vp) = &visible[px].1 else { return };
+                                            let bsdf = bsdfs.at(scene, vp.shape, &wl);
+                                            let f = bsdf.eval(vp.wo, vp.frame.to_local(hit.wi));
+                                            let xyz = at_wl.xyz(&(vp.beta * f * hit.power));
+                                            acc.add(px, xyz);
+                                        });
+                                    }
                                 },
                             ));
                         }
                         cut
                     })
                     .collect();
-                found.fill([0.0; 4]);
-                for (chunk, cut) in sums.iter_mut().zip(&cuts) {
-                    truncated += cut;
-                    chunk.drain_into(&mut found);
+                truncated += cuts.iter().sum::<u64>();
+                for (k, state) in states.iter_mut().enumerate() {
+                    found.fill([0.0; 4]);
+                    for chunk in &mut sums {
+                        chunk[k].drain_into(&mut found);
+                    }
+                    state.update(&found, sppm.alpha);
                 }
-                state.update(&found, sppm.alpha);
                 progress(run * sppm.iterations + it + 1);
             }
             let scale = 1.0 / sppm.iterations as f64;
             let emitted = sppm.iterations as f64 * sppm.photons_per_iteration as f64;
-            let xyz = (0..n).map(|px| {
-                std::array::from_fn(|c| {
-                    state.le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
-                })
-            });
-            on_run(super::run_film(settings, xyz, truncated));
+            for (k, state) in states.iter().enumerate() {
+                let xyz = (0..n).map(|px| {
+                    std::array::from_fn(|c| {
+                        state.le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
+                    })
+                });
+                on_run(k, super::run_film(settings, xyz, truncated));
+            }
         }
         Ok(())
     };
@@ -507,6 +568,40 @@ mod tests {
         let b = render_sppm(&scene, &settings(2), &sppm, 2, &|_| {}).unwrap();
         assert_eq!(a.pixels, b.pixels);
         assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+    }
+
+    #[test]
+    fn radii_in_one_pass_are_the_renders_at_each_radius_alone() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let sppm = Sppm {
+            iterations: 3,
+            photons_per_iteration: 3000,
+            ..Default::default()
+        };
+        let r = scene.aggregate.bounding_sphere().1 / 50.0;
+        let radii = [r / 2.0, r, 3.0 * r];
+        let together =
+            render_sppm_radii(&scene, &settings(2), &sppm, &radii, 2, density, &|_| {}).unwrap();
+        assert_eq!(together.len(), radii.len());
+        for (films, &radius) in together.iter().zip(&radii) {
+            let alone = Sppm {
+                initial_radius: Some(radius),
+                ..sppm
+            };
+            let alone = render_sppm_runs(&scene, &settings(1), &alone, 2, density, &|_| {});
+            assert_eq!(films, &alone.unwrap(), "radius {radius}");
+        }
+        // the radii differ in the image, or the test above would prove nothing
+        assert_ne!(together[0], together[2]);
+        for bad in [
+            &[][..],
+            &[r; MAX_RADII + 1][..],
+            &[r, -1.0][..],
+            &[f64::NAN][..],
+        ] {
+            let e = render_sppm_radii(&scene, &settings(1), &sppm, bad, 2, density, &|_| {});
+            assert!(e.is_err(), "{bad:?}");
+        }
     }
 
     #[test]

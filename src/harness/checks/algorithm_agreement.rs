@@ -434,12 +434,15 @@ fn render_pair(
             let r = settings
                 .initial_radius
                 .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
-            let at = |radius: f64| {
-                let sp = Sppm {
-                    initial_radius: Some(radius),
-                    ..*settings
-                };
-                let films = ctx.renderer.render_sppm(scene, s, &sp, *runs)?;
+            // with refinement, the images at r/2 and r in one pass (the same paths gathered
+            // at both radii)
+            let radii: &[f64] = if refine { &[r / 2.0, r] } else { &[r] };
+            let mut images = ctx
+                .renderer
+                .render_sppm_radii(scene, s, settings, radii, *runs)?
+                .into_iter();
+            let mut next = || {
+                let films = images.next().unwrap_or_default();
                 if films.len() as u64 != *runs {
                     return Err(CheckError::Renderer(format!(
                         "the photon mapper returned {} runs for {runs}",
@@ -450,11 +453,8 @@ fn render_pair(
                     films.iter().map(RgbImage::from_film).collect(),
                 ))
             };
-            let (test, coarse) = if refine {
-                (at(r / 2.0)?, Some(at(r)?))
-            } else {
-                (at(r)?, None)
-            };
+            let test = next()?;
+            let coarse = if refine { Some(next()?) } else { None };
             Ok((
                 test,
                 coarse,
