@@ -1,8 +1,9 @@
 //! The scene aggregate: all shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
 //! only home of `obvhs`). The BVH works in f32 and only culls, conservatively at any scale or
 //! offset (a frame normalised to [`FRAME_EXTENT`], padded boxes, rays clipped in f64); every
-//! candidate is then intersected exactly in f64, in scene units. The frame, the node test and
-//! quad pairs: docs/rendering.md, "`geometry::accel`".
+//! candidate is then intersected exactly in f64, in scene units. A scene of at most
+//! [`FLAT_MAX`] primitives tests every primitive's padded f64 box instead of walking. The frame,
+//! the node test and quad pairs: docs/rendering.md, "`geometry::accel`".
 
 use super::{
     mesh::TriangleMesh,
@@ -35,6 +36,107 @@ enum Candidate {
     /// one BVH primitive: `len` entries of [`Aggregate::bundled`] from `start`. The BVH builder
     /// takes time quadratic in the number of equal boxes; a bundle keeps it n log n.
     Bundle { start: u32, len: u32, shape: u32 },
+}
+
+/// Most BVH primitives for which queries test every primitive's box in turn instead of walking
+/// the BVH (the Cornell boxes have 18 to 20; measured in docs/performance.md, "Small scenes
+/// test every box").
+const FLAT_MAX: usize = 32;
+
+/// Each BVH primitive's padded box in f64 (scene units), by axis and in BVH slot order, for
+/// scenes of 2 to [`FLAT_MAX`] primitives, then NaN boxes (which every ray misses) to the end
+/// of the last group of [`LANES`]. The boxes hold the f32 BVH's boxes' padding, so they too
+/// cull only rays the exact tests miss.
+#[derive(Debug, Clone, PartialEq)]
+struct FlatBoxes {
+    lo: [[f64; FLAT_MAX]; 3],
+    hi: [[f64; FLAT_MAX]; 3],
+    /// Groups of [`LANES`] boxes in use.
+    groups: usize,
+}
+
+/// Boxes tested together (one AVX-512 register of f64, two of AVX2).
+const LANES: usize = 8;
+
+impl FlatBoxes {
+    /// Boxes `boxes` (at most [`FLAT_MAX`]), the rest NaN.
+    fn new(boxes: impl ExactSizeIterator<Item = (Vec3, Vec3)>) -> FlatBoxes {
+        let mut f = FlatBoxes {
+            lo: [[f64::NAN; FLAT_MAX]; 3],
+            hi: [[f64::NAN; FLAT_MAX]; 3],
+            groups: boxes.len().div_ceil(LANES),
+        };
+        for (i, (a, b)) in boxes.take(FLAT_MAX).enumerate() {
+            for axis in 0..3 {
+                f.lo[axis][i] = a[axis];
+                f.hi[axis][i] = b[axis];
+            }
+        }
+        f
+    }
+
+    /// The entry and exit distances of the ray (origin `o`, reciprocal direction `inv`) through
+    /// box `i`, the exit at most `t_max`, the entry at least 0: a miss when entry > exit (and
+    /// for a NaN box, whose distances are NaN). The same operations as [`FlatBoxes::entered`]'s
+    /// lanes, so the same values.
+    #[inline(always)]
+    fn span(&self, i: usize, o: &[f64; 3], inv: &[f64; 3], t_max: f64) -> (f64, f64) {
+        let (mut tn, mut tf) = (0.0f64, t_max);
+        for a in 0..3 {
+            let t0 = (self.lo[a][i] - o[a]) * inv[a];
+            let t1 = (self.hi[a][i] - o[a]) * inv[a];
+            let (lo, hi) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+            tn = if tn > lo { tn } else { lo };
+            tf = if tf < hi { tf } else { hi };
+        }
+        (tn, tf)
+    }
+
+    /// The boxes the ray enters within [0, t_max], as bits by slot, with the ray's origin and
+    /// reciprocal direction: a zero or subnormal direction component's reciprocal is held
+    /// finite (±f64::MAX), so that no 0·inf makes a NaN. Slab tests in [`LANES`] f64 lanes.
+    #[inline(always)]
+    fn entered(&self, ray: &Ray, t_max: f64) -> (u32, [f64; 3], [f64; 3]) {
+        let o = ray.o.to_array();
+        let inv = ray.d.to_array().map(|d| {
+            let r = 1.0 / d;
+            if r.is_finite() {
+                r
+            } else {
+                f64::MAX.copysign(r)
+            }
+        });
+        let mut mask = 0u32;
+        for g in 0..self.groups.min(FLAT_MAX / LANES) {
+            let mut tn = [0.0f64; LANES];
+            let mut tf = [t_max; LANES];
+            for a in 0..3 {
+                let (lo, hi) = (&self.lo[a][g * LANES..], &self.hi[a][g * LANES..]);
+                for l in 0..LANES {
+                    let t0 = (lo[l] - o[a]) * inv[a];
+                    let t1 = (hi[l] - o[a]) * inv[a];
+                    let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
+                    tn[l] = if tn[l] > near { tn[l] } else { near };
+                    tf[l] = if tf[l] < far { tf[l] } else { far };
+                }
+            }
+            for l in 0..LANES {
+                mask |= u32::from(tn[l] <= tf[l]) << (g * LANES + l);
+            }
+        }
+        (mask, o, inv)
+    }
+}
+
+/// The set bits of `mask`, lowest first.
+fn bits(mut mask: u32) -> impl Iterator<Item = usize> {
+    std::iter::from_fn(move || {
+        (mask != 0).then(|| {
+            let i = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            i
+        })
+    })
 }
 
 /// Fewest equal boxes that make a bundle (fewer cost the builder little; leaving them alone
@@ -130,6 +232,8 @@ pub struct Aggregate {
     scale: f64,
     lo: Vec3,
     hi: Vec3,
+    /// Every slot's box, for a scene small enough to test them all (see [`FLAT_MAX`]).
+    flat: Option<FlatBoxes>,
 }
 
 impl std::fmt::Debug for Aggregate {
@@ -285,6 +389,17 @@ impl Aggregate {
             .collect();
         let depth = cwbvh_depth(&bvh);
         let child_boxes = bvh.nodes.iter().map(ChildBoxes::decode).collect();
+        let flat = (2..=FLAT_MAX)
+            .contains(&bvh.primitive_indices.len())
+            .then(|| {
+                FlatBoxes::new(bvh.primitive_indices.iter().map(|&j| {
+                    let members = &slots[j as usize];
+                    let (a, b) = members.iter().fold(boxes[members[0]], |(a, b), &k| {
+                        (a.min(boxes[k].0), b.max(boxes[k].1))
+                    });
+                    (a - pad, b + pad)
+                }))
+            });
         Aggregate {
             shapes,
             candidates,
@@ -297,6 +412,7 @@ impl Aggregate {
             scale,
             lo: lo - pad * 2.0,
             hi: hi + pad * 2.0,
+            flat,
         }
     }
 
@@ -440,8 +556,9 @@ impl Aggregate {
 
     /// [`Aggregate::intersect`] ignoring the shapes in `skip`.
     pub fn intersect_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<Hit> {
-        let (best_t, best) = match self.candidates.as_slice() {
-            [only] => self.intersect_only(only, ray, t_max, skip)?,
+        let (best_t, best) = match (self.candidates.as_slice(), &self.flat) {
+            ([only], _) => self.intersect_only(only, ray, t_max, skip)?,
+            (_, Some(flat)) => self.intersect_flat(flat, ray, t_max, skip)?,
             _ => self.intersect_walk(ray, t_max, skip)?,
         };
         let (point, shape) = match best {
@@ -470,6 +587,39 @@ impl Aggregate {
             return None;
         }
         self.intersect_candidate(only, &ShearedRay::new(*ray), t_max)
+    }
+
+    /// The nearest hit of a small scene: every slot whose box the ray enters before the
+    /// nearest hit so far, in slot order (the walk's hits; only an exact tie between two
+    /// primitives could resolve differently).
+    #[inline(always)]
+    fn intersect_flat<'a>(
+        &'a self,
+        flat: &FlatBoxes,
+        ray: &Ray,
+        t_max: f64,
+        skip: Skip,
+    ) -> Option<(f64, Found<'a>)> {
+        let (mask, o, inv) = flat.entered(ray, t_max);
+        if mask == 0 {
+            return None;
+        }
+        let sheared = ShearedRay::new(*ray);
+        let mut best_t = t_max;
+        let mut best: Option<Found> = None;
+        for i in bits(mask) {
+            // a hit lies beyond its padded box's entry: a box entered at or after the best
+            // hit so far holds no nearer one
+            if flat.span(i, &o, &inv, t_max).0 < best_t
+                && !skip.contains(self.candidates[i].shape())
+            {
+                if let Some((t, found)) = self.intersect_slot(i, &sheared, best_t) {
+                    best_t = t;
+                    best = Some(found);
+                }
+            }
+        }
+        best.map(|found| (best_t, found))
     }
 
     /// The nearest hit through the BVH walk: (t, what was hit).
@@ -503,6 +653,17 @@ impl Aggregate {
     pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
         if let [only] = self.candidates.as_slice() {
             return self.intersect_only(only, ray, t_max, skip).is_some();
+        }
+        if let Some(flat) = &self.flat {
+            let (mask, _, _) = flat.entered(ray, t_max);
+            if mask == 0 {
+                return false;
+            }
+            let sheared = ShearedRay::new(*ray);
+            return bits(mask).any(|i| {
+                !skip.contains(self.candidates[i].shape())
+                    && self.intersect_slot(i, &sheared, t_max).is_some()
+            });
         }
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
@@ -1110,6 +1271,100 @@ mod tests {
         assert!(
             hits > 5_000 && misses > 5_000,
             "{hits} hits, {misses} misses"
+        );
+    }
+
+    /// A Cornell-like room at `scale` moved by `shift`: five walls and a light (quads), two
+    /// blocks turned about the vertical (meshes) and two spheres: 24 slots.
+    fn room(scale: f64, shift: Vec3) -> Vec<Shape> {
+        let at = |v: Vec3| v * scale + shift;
+        let quad = |corner: Vec3, u: Vec3, v: Vec3| {
+            Shape::Quad(Quad {
+                corner: at(corner),
+                edge_u: u * scale,
+                edge_v: v * scale,
+                flip_normals: false,
+            })
+        };
+        let block = |size: Vec3, turn: f64, offset: Vec3| {
+            let c = cube(1.0, Vec3::ZERO);
+            let (sin, cos) = turn.sin_cos();
+            let p = c
+                .positions
+                .iter()
+                .map(|q| {
+                    let q = *q * size;
+                    at(Vec3::new(cos * q.x + sin * q.z, q.y, -sin * q.x + cos * q.z) + offset)
+                })
+                .collect();
+            Shape::Mesh(TriangleMesh::new(p, c.triangles.clone(), false))
+        };
+        let sphere = |center: Vec3, radius: f64| {
+            Shape::Sphere(Sphere {
+                center: at(center),
+                radius: radius * scale,
+                flip_normals: false,
+            })
+        };
+        vec![
+            quad(Vec3::ZERO, Vec3::X, Vec3::Z),
+            quad(Vec3::Y, Vec3::Z, Vec3::X),
+            quad(Vec3::Z, Vec3::X, Vec3::Y),
+            quad(Vec3::ZERO, Vec3::Y, Vec3::Z),
+            quad(Vec3::X, Vec3::Z, Vec3::Y),
+            quad(Vec3::new(0.4, 0.999, 0.4), Vec3::Z * 0.2, Vec3::X * 0.2),
+            block(Vec3::new(0.3, 0.6, 0.3), 0.3, Vec3::new(0.2, 0.0, 0.5)),
+            block(Vec3::splat(0.3), -0.29, Vec3::new(0.55, 0.0, 0.15)),
+            sphere(Vec3::new(0.7, 0.5, 0.7), 0.15),
+            sphere(Vec3::new(0.3, 0.8, 0.2), 0.1),
+        ]
+    }
+
+    #[test]
+    fn small_scenes_testing_every_box_hit_as_the_bvh_walk_hits() {
+        // the flat box loop against the walk it replaces, at ordinary and extreme scales and
+        // offsets: rays from inside and outside the room, bounded and unbounded, with and
+        // without a skipped shape, and shadow rays between hits as the renderer casts them
+        let mut s = SampleStream::new(12, 0, 0);
+        let (mut hits, mut shadow) = (0, 0);
+        for (scale, shift) in [(1.0, 0.0), (1e-5, 0.0), (1e4, 1e7), (3.0, -2e3)] {
+            let a = Aggregate::new(room(scale, Vec3::splat(shift)));
+            assert!((2..=FLAT_MAX).contains(&a.candidates.len()), "{:?}", a);
+            assert!(a.flat.is_some());
+            let mut walk = a.clone();
+            walk.flat = None;
+            let (c, r) = a.bounding_sphere();
+            for k in 0..6_000 {
+                let o = c + warp::uniform_sphere(s.next_2d()) * r * [0.3, 0.6, 1.5][k % 3];
+                let d = warp::uniform_sphere(s.next_2d());
+                let ray = Ray { o, d };
+                let t_max = [f64::INFINITY, r * s.next_f64()][k % 2];
+                let skip = [Skip::NONE, Skip::shapes(Some((k % 10) as u32), None)][k / 2 % 2];
+                let y = walk.intersect_except(&ray, t_max, skip);
+                assert_eq!(
+                    a.intersect_except(&ray, t_max, skip),
+                    y,
+                    "x{scale}: {ray:?}"
+                );
+                assert_eq!(
+                    a.occluded_except(&ray, t_max, skip),
+                    walk.occluded_except(&ray, t_max, skip),
+                    "x{scale}: {ray:?}"
+                );
+                hits += y.is_some() as u32;
+                let (Some(h), Some(to)) = (y, walk.intersect(&Ray { o, d: -d }, f64::INFINITY))
+                else {
+                    continue;
+                };
+                let (sr, dist) = crate::geometry::ray::spawn_to(&h.point, &to.point);
+                assert_eq!(a.occluded(&sr, dist), walk.occluded(&sr, dist), "{sr:?}");
+                assert_eq!(a.intersect(&sr, dist), walk.intersect(&sr, dist), "{sr:?}");
+                shadow += 1;
+            }
+        }
+        assert!(
+            hits > 10_000 && shadow > 5_000,
+            "{hits} hits, {shadow} shadow rays"
         );
     }
 

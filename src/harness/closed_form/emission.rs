@@ -40,9 +40,7 @@ pub fn emitted_along_k(
         .lights
         .iter()
         .map(|l| match l {
-            Light::Environment { radiance } | Light::Area { radiance, .. } => {
-                luminance_y(radiance)
-            }
+            Light::Environment { radiance } | Light::Area { radiance, .. } => luminance_y(radiance),
             _ => 0.0,
         })
         .collect();
