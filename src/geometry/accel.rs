@@ -1,8 +1,8 @@
 //! The scene aggregate: all shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
 //! only home of `obvhs`). The BVH works in f32 and only culls, conservatively at any scale or
-//! offset (a frame normalised to [`FRAME_EXTENT`], padded boxes, rays clipped in f64); every
+//! offset (a frame normalised to `FRAME_EXTENT`, padded boxes, rays clipped in f64); every
 //! candidate is then intersected exactly in f64, in scene units. A scene of at most
-//! [`FLAT_MAX`] primitives tests every primitive's padded f64 box instead of walking. The frame,
+//! `FLAT_MAX` primitives tests every primitive's padded f64 box instead of walking. The frame,
 //! the node test and quad pairs: docs/rendering.md, "`geometry::accel`".
 
 use super::{
