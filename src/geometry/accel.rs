@@ -590,8 +590,8 @@ impl Aggregate {
     }
 
     /// The nearest hit of a small scene: every slot whose box the ray enters before the
-    /// nearest hit so far, in slot order (the walk's hits; only an exact tie between two
-    /// primitives could resolve differently).
+    /// nearest hit so far, in slot order (the walk's hits; only a tie within rounding between
+    /// two primitives, at an edge they share, may resolve differently).
     #[inline(always)]
     fn intersect_flat<'a>(
         &'a self,
@@ -1326,7 +1326,7 @@ mod tests {
         // offsets: rays from inside and outside the room, bounded and unbounded, with and
         // without a skipped shape, and shadow rays between hits as the renderer casts them
         let mut s = SampleStream::new(12, 0, 0);
-        let (mut hits, mut shadow) = (0, 0);
+        let (mut hits, mut shadow, mut ties) = (0, 0, 0);
         for (scale, shift) in [(1.0, 0.0), (1e-5, 0.0), (1e4, 1e7), (3.0, -2e3)] {
             let a = Aggregate::new(room(scale, Vec3::splat(shift)));
             assert!((2..=FLAT_MAX).contains(&a.candidates.len()), "{:?}", a);
@@ -1335,17 +1335,36 @@ mod tests {
             walk.flat = None;
             let (c, r) = a.bounding_sphere();
             for k in 0..6_000 {
-                let o = c + warp::uniform_sphere(s.next_2d()) * r * [0.3, 0.6, 1.5][k % 3];
-                let d = warp::uniform_sphere(s.next_2d());
+                let mut o = c + warp::uniform_sphere(s.next_2d()) * r * [0.3, 0.6, 1.5][k % 3];
+                let mut d = warp::uniform_sphere(s.next_2d());
+                if k % 5 == 0 {
+                    // along an axis or within a coordinate plane (zero direction components,
+                    // whose reciprocals the box test holds finite), from the room's own planes
+                    let axis = (k / 5) % 3;
+                    d = Vec3::from_array(std::array::from_fn(|a| match (k / 15) % 2 {
+                        0 => f64::from(a == axis) * [1.0, -1.0][(k / 30) % 2],
+                        _ if a == axis => 0.0,
+                        _ => d[a],
+                    }))
+                    .normalize();
+                    o[axis] = shift + scale * [0.0, 0.5, 1.0][(k / 60) % 3];
+                }
                 let ray = Ray { o, d };
                 let t_max = [f64::INFINITY, r * s.next_f64()][k % 2];
                 let skip = [Skip::NONE, Skip::shapes(Some((k % 10) as u32), None)][k / 2 % 2];
                 let y = walk.intersect_except(&ray, t_max, skip);
-                assert_eq!(
-                    a.intersect_except(&ray, t_max, skip),
-                    y,
-                    "x{scale}: {ray:?}"
-                );
+                let x = a.intersect_except(&ray, t_max, skip);
+                if x != y {
+                    // only a tie within rounding may differ: a ray through an edge shared by two
+                    // primitives, whose distances differ by an ulp or none, each loop keeping
+                    // the first it tests (the exact test's range check rounds too)
+                    let (x, y) = (x.unwrap(), y.unwrap());
+                    assert!(
+                        (x.t - y.t).abs() <= 1e-15 * y.t,
+                        "x{scale}: {ray:?}: {x:?} {y:?}"
+                    );
+                    ties += 1;
+                }
                 assert_eq!(
                     a.occluded_except(&ray, t_max, skip),
                     walk.occluded_except(&ray, t_max, skip),
@@ -1358,13 +1377,17 @@ mod tests {
                 };
                 let (sr, dist) = crate::geometry::ray::spawn_to(&h.point, &to.point);
                 assert_eq!(a.occluded(&sr, dist), walk.occluded(&sr, dist), "{sr:?}");
-                assert_eq!(a.intersect(&sr, dist), walk.intersect(&sr, dist), "{sr:?}");
+                let (x, y) = (a.intersect(&sr, dist), walk.intersect(&sr, dist));
+                assert_eq!(x.is_some(), y.is_some(), "{sr:?}");
+                if let (Some(x), Some(y)) = (x, y) {
+                    assert!((x.t - y.t).abs() <= 1e-15 * y.t, "{sr:?}: {x:?} {y:?}");
+                }
                 shadow += 1;
             }
         }
         assert!(
-            hits > 10_000 && shadow > 5_000,
-            "{hits} hits, {shadow} shadow rays"
+            hits > 10_000 && shadow > 5_000 && ties < 20,
+            "{hits} hits, {shadow} shadow rays, {ties} ties"
         );
     }
 
