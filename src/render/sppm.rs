@@ -215,6 +215,9 @@ fn sppm_core(
         for run in 0..runs {
             let seed = run_seed(settings.seed, run, 0x5350_504d); // "SPPM"
             let mut states: Vec<State> = radii.iter().map(|&r| State::new(n, r)).collect();
+            // emission seen by the camera paths, summed over iterations (XYZ): the same at
+            // every radius
+            let mut le = vec![[0.0; 3]; n];
             let mut truncated = 0u64;
             // per chunk, one set of sums per radius
             let mut sums: Vec<Vec<ChunkSums>> = (0..CHUNKS)
@@ -252,10 +255,8 @@ fn sppm_core(
                         (at_wl.xyz(&le), vp)
                     })
                     .collect();
-                for state in &mut states {
-                    for (acc, (le, _)) in state.le.iter_mut().zip(&visible) {
-                        (0..3).for_each(|c| acc[c] += le[c]);
-                    }
+                for (acc, (seen, _)) in le.iter_mut().zip(&visible) {
+                    (0..3).for_each(|c| acc[c] += seen[c]);
                 }
                 let grids: Vec<Grid> = states.iter().map(|s| Grid::new(&visible, &s.r2)).collect();
                 let photons = sppm.photons_per_iteration;
@@ -309,7 +310,7 @@ fn sppm_core(
             for (k, state) in states.iter().enumerate() {
                 let xyz = (0..n).map(|px| {
                     std::array::from_fn(|c| {
-                        state.le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
+                        le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
                     })
                 });
                 on_run(k, super::run_film(settings, xyz, truncated));
@@ -379,8 +380,6 @@ struct State {
     count: Vec<f64>,
     /// Accumulated flux τ (XYZ).
     tau: Vec<[f64; 3]>,
-    /// Emission seen by the camera paths, summed over iterations (XYZ).
-    le: Vec<[f64; 3]>,
 }
 
 impl State {
@@ -389,7 +388,6 @@ impl State {
             r2: vec![radius * radius; n],
             count: vec![0.0; n],
             tau: vec![[0.0; 3]; n],
-            le: vec![[0.0; 3]; n],
         }
     }
 
