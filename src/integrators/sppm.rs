@@ -34,6 +34,15 @@ pub struct Sppm {
     pub rr_depth: u32,
 }
 
+impl Sppm {
+    /// The initial gather radius in `scene`: `initial_radius`, or 1/50 of the scene's bounding
+    /// radius (scene units).
+    pub fn radius_in(&self, scene: &Scene) -> f64 {
+        self.initial_radius
+            .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0)
+    }
+}
+
 impl Default for Sppm {
     fn default() -> Self {
         Sppm {

@@ -176,9 +176,7 @@ fn sppm_core(
     }
     let (w, h) = (settings.width, settings.height);
     crate::limits::image(w as u64, h as u64).map_err(|e| RenderError::Settings(e.to_string()))?;
-    let own = [sppm
-        .initial_radius
-        .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0)];
+    let own = [sppm.radius_in(scene)];
     let radii = radii.unwrap_or(&own);
     if radii.is_empty() || radii.len() > MAX_RADII {
         return Err(RenderError::Settings(format!(
@@ -576,7 +574,7 @@ mod tests {
             photons_per_iteration: 3000,
             ..Default::default()
         };
-        let r = scene.aggregate.bounding_sphere().1 / 50.0;
+        let r = sppm.radius_in(&scene);
         let radii = [r / 2.0, r, 3.0 * r];
         let together =
             render_sppm_radii(&scene, &settings(2), &sppm, &radii, 2, density, &|_| {}).unwrap();

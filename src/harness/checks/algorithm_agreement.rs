@@ -431,9 +431,7 @@ fn render_pair(
             ))
         }
         Algorithm::Sppm { settings, runs } => {
-            let r = settings
-                .initial_radius
-                .unwrap_or(scene.aggregate.bounding_sphere().1 / 50.0);
+            let r = settings.radius_in(scene);
             // with refinement, the images at r/2 and r in one pass (the same paths gathered
             // at both radii)
             let radii: &[f64] = if refine { &[r / 2.0, r] } else { &[r] };
