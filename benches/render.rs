@@ -37,6 +37,7 @@ fn cornell_frame(c: &mut Criterion) {
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     };
     let mut g = c.benchmark_group("cornell_frame");
     g.sample_size(20);
@@ -67,6 +68,7 @@ fn frame_settings(w: usize, spp: u64) -> RenderSettings {
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     }
 }
 

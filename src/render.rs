@@ -39,6 +39,7 @@ pub(crate) fn test_settings(threads: usize) -> RenderSettings {
         sampler: Sampler::Independent,
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     }
 }
 
@@ -121,6 +122,33 @@ pub struct RenderSettings {
     /// Stop with [`RenderError::OutOfTime`] once this instant has passed (checked per pixel,
     /// and per 1024 light paths).
     pub deadline: Option<std::time::Instant>,
+    /// The pixels the caller reads, [x0, y0, x1, y1) (None: all). The path tracer, the
+    /// radiosity image and SPPM leave the pixels outside empty (no samples) and trace nothing
+    /// for them; the pixels inside are those of the whole render bit for bit. Estimators whose
+    /// light paths reach every pixel (light tracer, BDPT, MLT) and external renderers render
+    /// the whole image.
+    pub crop: Option<[usize; 4]>,
+}
+
+impl RenderSettings {
+    /// The pixel rectangle [x0, y0, x1, y1) to render: the crop, or the whole image; an error
+    /// for a crop that is empty or does not fit the image.
+    pub fn crop_rect(&self) -> Result<[usize; 4], RenderError> {
+        let (w, h) = (self.width, self.height);
+        match self.crop {
+            None => Ok([0, 0, w, h]),
+            Some(r @ [x0, y0, x1, y1]) if x0 < x1 && y0 < y1 && x1 <= w && y1 <= h => Ok(r),
+            Some(r) => Err(RenderError::Settings(format!(
+                "the crop {r:?} is not a non-empty pixel rectangle [x0, y0, x1, y1) of the {w}x{h} image"
+            ))),
+        }
+    }
+}
+
+/// Whether pixel (x, y) lies in the rectangle `r` [x0, y0, x1, y1).
+#[inline]
+pub fn in_rect(r: [usize; 4], x: usize, y: usize) -> bool {
+    (r[0]..r[2]).contains(&x) && (r[1]..r[3]).contains(&y)
 }
 
 /// How wavelengths are handled (both choices are unbiased; they trade time and variance).
@@ -412,6 +440,7 @@ fn render_blocks(
         )));
     }
     check_common(settings)?;
+    let crop = settings.crop_rect()?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
@@ -427,8 +456,15 @@ fn render_blocks(
     let samples = (blocks.end * BLOCK_SAMPLES).min(settings.spp) - blocks.start * BLOCK_SAMPLES;
     let merge = |a: &mut Pixel, b: &Pixel| a.merge(b);
     let tiles_x = w.div_ceil(TILE);
+    // the tiles that hold a pixel of the crop (the others stay empty)
     let tiles: Vec<(usize, usize)> = (0..h.div_ceil(TILE))
         .flat_map(|ty| (0..tiles_x).map(move |tx| (tx, ty)))
+        .filter(|&(tx, ty)| {
+            tx * TILE < crop[2]
+                && crop[0] < (tx + 1) * TILE
+                && ty * TILE < crop[3]
+                && crop[1] < (ty + 1) * TILE
+        })
         .collect();
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);
@@ -443,8 +479,14 @@ fn render_blocks(
                 // per pixel, its n_pieces piece states in order
                 let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0) * n_pieces);
                 let mut cut = 0;
+                let mut rendered = 0u64;
                 for y in y0..y1 {
                     for x in x0..x1 {
+                        if !in_rect(crop, x, y) {
+                            pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
+                            continue;
+                        }
+                        rendered += 1;
                         if out_of_time.load(Ordering::Relaxed)
                             || settings
                                 .deadline
@@ -502,8 +544,7 @@ fn render_blocks(
                     }
                 }
                 truncated.fetch_add(cut, Ordering::Relaxed);
-                let n_px = (pixels.len() / n_pieces) as u64;
-                let n = done.fetch_add(n_px * samples, Ordering::Relaxed) + n_px * samples;
+                let n = done.fetch_add(rendered * samples, Ordering::Relaxed) + rendered * samples;
                 progress(n);
                 (tx, ty, pixels)
             })
@@ -515,7 +556,7 @@ fn render_blocks(
         return Err(RenderError::OutOfTime {
             seconds: start.elapsed().as_secs_f64(),
             done: results.iter().flat_map(|r| &r.2).map(per_pixel).sum(),
-            total: (w * h) as u64 * samples,
+            total: ((crop[2] - crop[0]) * (crop[3] - crop[1])) as u64 * samples,
         });
     }
     let mut pieces = vec![vec![Pixel::default(); w * h]; n_pieces];
@@ -553,6 +594,7 @@ mod tests {
             sampler: Sampler::Independent,
             spectral: Default::default(),
             deadline: None,
+            crop: None,
         }
     }
 
@@ -620,6 +662,45 @@ mod tests {
         // and for one thread
         let one = render(&scene, &settings(100, 1), &|_| {}).unwrap();
         assert_eq!(film_bits(&one), film_bits(&whole));
+    }
+
+    #[test]
+    fn a_cropped_render_is_the_whole_render_inside_and_empty_outside() {
+        let scene = cornell_box();
+        let whole = render(&scene, &settings(20, 2), &|_| {}).unwrap();
+        // a crop across tile edges (TILE = 8) and one inside a single tile
+        for crop in [[3, 5, 11, 9], [1, 1, 2, 2]] {
+            let s = RenderSettings {
+                crop: Some(crop),
+                ..settings(20, 2)
+            };
+            let cropped = render(&scene, &s, &|_| {}).unwrap();
+            let area = (crop[2] - crop[0]) * (crop[3] - crop[1]);
+            assert_eq!(cropped.rendered_pixels(), area);
+            for (i, (a, b)) in whole.pixels.iter().zip(&cropped.pixels).enumerate() {
+                if in_rect(crop, i % s.width, i / s.width) {
+                    assert_eq!(a, b, "pixel {i} of crop {crop:?}");
+                } else {
+                    assert_eq!(*b, Pixel::default(), "pixel {i} outside crop {crop:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn crops_outside_the_image_or_empty_are_refused() {
+        let scene = cornell_box();
+        for crop in [[0, 0, 13, 4], [2, 2, 2, 5], [5, 1, 4, 3], [0, 0, 12, 13]] {
+            let s = RenderSettings {
+                crop: Some(crop),
+                ..settings(4, 1)
+            };
+            let e = render(&scene, &s, &|_| {}).unwrap_err();
+            assert!(
+                e.to_string().contains("not a non-empty pixel rectangle"),
+                "{crop:?}: {e}"
+            );
+        }
     }
 
     #[test]

@@ -177,6 +177,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             wavelengths: a.wavelengths as usize,
         },
         deadline: None,
+        crop: None,
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(

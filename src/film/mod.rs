@@ -71,6 +71,14 @@ impl Film {
         }
     }
 
+    /// Pixels holding at least one sample (a render's crop leaves the others empty).
+    pub fn rendered_pixels(&self) -> usize {
+        self.pixels
+            .iter()
+            .filter(|p| p.channels[1].count() > 0)
+            .count()
+    }
+
     /// Pixel means of channel `c` (index into [`CHANNELS`]).
     pub fn means(&self, c: usize) -> Vec<f64> {
         self.pixels.iter().map(|p| p.channels[c].mean()).collect()

@@ -31,7 +31,8 @@ pub struct RegionStats {
     pub pixels: usize,
     /// Pixels whose variance holds Monte Carlo noise beyond rounding ([`has_noise`]).
     pub noisy_pixels: usize,
-    /// Camera paths traced for the whole image.
+    /// Camera paths traced: spp times the pixels rendered (those outside a crop may be left
+    /// empty).
     pub samples: u64,
     /// Whether the variance settled (stats::stability on the pixel residuals).
     pub stable: bool,
@@ -172,6 +173,7 @@ pub fn settings_for(
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: ctx.deadline,
+        crop: None,
     }
 }
 
@@ -197,7 +199,12 @@ pub fn render_region(
     expected_px: Option<&[f64]>,
     diag_alpha: f64,
 ) -> Result<RegionStats, CheckError> {
-    let film = ctx.renderer.render(scene, settings)?;
+    // only the region is read: the renderer may leave the other pixels empty
+    let cropped = RenderSettings {
+        crop: Some(region),
+        ..settings.clone()
+    };
+    let film = ctx.renderer.render(scene, &cropped)?;
     Ok(region_stats(
         &film,
         region,
@@ -263,7 +270,8 @@ pub fn region_stats_of(
     let n = px.len() as f64;
     let mean = px.iter().sum::<f64>() / n;
     let se_within = vars.iter().sum::<f64>().sqrt() / n;
-    let samples = (film.width * film.height) as u64 * spp;
+    // the pixels rendered (a renderer may leave those outside a crop empty) times spp
+    let samples = film.rendered_pixels() as u64 * spp;
     let resid: Vec<f64> = match expected_px {
         Some(e) => px.iter().zip(e).map(|(m, e)| m - e).collect(),
         None => px.iter().map(|m| m - mean).collect(),

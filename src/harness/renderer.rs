@@ -43,7 +43,8 @@ impl From<RendererError> for super::error::CheckError {
 pub trait Renderer: Sync {
     /// Name shown in reports.
     fn name(&self) -> String;
-    /// Renders `scene` with `settings`.
+    /// Renders `scene` with `settings`. A `settings.crop` names the only pixels the caller
+    /// reads: the renderer may leave the others empty or render them too.
     fn render(&self, scene: &Scene, settings: &RenderSettings) -> Result<Film, RendererError>;
     /// True for furnace's own renderer: kinds that need its estimators or film run only for it.
     fn is_reference(&self) -> bool {

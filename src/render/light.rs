@@ -475,6 +475,7 @@ mod tests {
             sampler: Sampler::Independent,
             spectral: Default::default(),
             deadline: None,
+            crop: None,
         }
     }
 

@@ -195,6 +195,7 @@ fn sppm_core(
             MAX_BYTES >> 30
         )));
     }
+    let crop = settings.crop_rect()?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     if let Some(radius) = radii
         .iter()
@@ -245,6 +246,10 @@ fn sppm_core(
                 let visible: Vec<([f64; 3], Option<VisiblePoint>)> = (0..n)
                     .into_par_iter()
                     .map(|px| {
+                        if !super::in_rect(crop, px % w, px / w) {
+                            // outside the crop: no visible point, so no photon is gathered
+                            return ([0.0; 3], None);
+                        }
                         let mut rng = SampleStream::new(seed, px as u64, it);
                         let [jx, jy] = rng.next_2d();
                         let (x, y) = ((px % w) as f64 + jx, (px / w) as f64 + jy);
@@ -311,7 +316,13 @@ fn sppm_core(
                         le[px][c] * scale + estimate(state.tau[px][c], emitted, state.r2[px])
                     })
                 });
-                on_run(k, super::run_film(settings, xyz, truncated));
+                let mut film = super::run_film(settings, xyz, truncated);
+                for (px, pixel) in film.pixels.iter_mut().enumerate() {
+                    if !super::in_rect(crop, px % w, px / w) {
+                        *pixel = Default::default();
+                    }
+                }
+                on_run(k, film);
             }
         }
         Ok(())
@@ -564,6 +575,35 @@ mod tests {
         let b = render_sppm(&scene, &settings(2), &sppm, 2, &|_| {}).unwrap();
         assert_eq!(a.pixels, b.pixels);
         assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+    }
+
+    #[test]
+    fn a_cropped_render_is_the_whole_render_inside_and_empty_outside() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let sppm = Sppm {
+            iterations: 3,
+            photons_per_iteration: 3000,
+            ..Default::default()
+        };
+        let whole = render_sppm_runs(&scene, &settings(2), &sppm, 2, density, &|_| {}).unwrap();
+        let crop = [2, 3, 7, 6];
+        let s = RenderSettings {
+            crop: Some(crop),
+            ..settings(2)
+        };
+        let cropped = render_sppm_runs(&scene, &s, &sppm, 2, density, &|_| {}).unwrap();
+        for (w, c) in whole.iter().zip(&cropped) {
+            assert_eq!(c.rendered_pixels(), 15);
+            assert_eq!(w.truncated_paths, c.truncated_paths);
+            for (i, (a, b)) in w.pixels.iter().zip(&c.pixels).enumerate() {
+                if crate::render::in_rect(crop, i % s.width, i / s.width) {
+                    assert_eq!(a, b, "pixel {i}");
+                } else {
+                    assert_eq!(*b, Default::default(), "pixel {i} outside the crop");
+                }
+            }
+        }
+        assert!(cropped[0].pixels.iter().any(|p| p.channels[1].mean() > 0.0));
     }
 
     #[test]

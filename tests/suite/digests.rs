@@ -68,6 +68,7 @@ fn settings(scene: &Scene) -> RenderSettings {
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     }
 }
 

@@ -321,6 +321,7 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     };
     assert!(ext.render(&scene, &settings).is_err());
     assert_eq!(temp_folders("slow"), before);

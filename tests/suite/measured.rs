@@ -55,6 +55,7 @@ fn synthesize(dir: &Path) {
             sampler: Default::default(),
             spectral: Default::default(),
             deadline: None,
+            crop: None,
         };
         let film = render(&scene, &s, &|_| {}).unwrap();
         for (k, c) in chunk.iter().enumerate() {

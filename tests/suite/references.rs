@@ -176,6 +176,7 @@ fn the_cornell_colour_difference_is_the_colour_conversion() {
             sampler: Default::default(),
             spectral: Default::default(),
             deadline: None,
+            crop: None,
         };
         render(&scene, &s, &|_| {}).unwrap()
     };

@@ -23,6 +23,7 @@ fn settings(w: usize, h: usize, spp: u64, seed: u64, threads: usize) -> RenderSe
         sampler: Default::default(),
         spectral: Default::default(),
         deadline: None,
+        crop: None,
     }
 }
 

@@ -60,7 +60,7 @@ impl Kind for EstimatorAgreement {
         let mut stats = Vec::new();
         let mut films = Vec::new();
         for (i, (name, st)) in strategies.iter().enumerate() {
-            let s = settings_for(
+            let mut s = settings_for(
                 check,
                 scene,
                 ctx,
@@ -69,6 +69,8 @@ impl Kind for EstimatorAgreement {
                 *st,
             );
             let region = region_of(check, &s)?;
+            // only the region is read
+            s.crop = Some(region);
             let film = ctx.renderer.render(scene, &s)?;
             stats.push((
                 *name,

@@ -182,8 +182,11 @@ pub fn ladder(
     if scene.render.max_depth.is_some() {
         return Err("the scene caps the path depth; the estimators compared here render every bounce, so render.max_depth must be absent".into());
     }
-    let base = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
+    let mut base = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
     let region = region_of(check, &base)?;
+    // Only the region is read: the path tracer and SPPM trace its pixels alone (the light
+    // tracer, BDPT and MLT render the whole image, their light paths reaching every pixel).
+    base.crop = Some(region);
     let (w, h) = (base.width, base.height);
     let pixels = region_pixels(w, region);
 
@@ -200,6 +203,8 @@ pub fn ladder(
         let mut s = base.clone();
         s.seed = mix64(ctx.seed ^ ((r as u64 + 1) << 32));
         let t0 = Instant::now();
+        // pixels rendered per image (a renderer may leave those outside the crop empty)
+        let mut rendered = w * h;
         let images: Vec<Vec<f64>> = match p.estimator {
             Estimator::Sppm(sp) => {
                 let sp = Sppm {
@@ -207,6 +212,9 @@ pub fn ladder(
                     ..sp
                 };
                 let films = ctx.renderer.render_sppm(scene, &s, &sp, p.runs)?;
+                if let Some(f) = films.first() {
+                    rendered = f.rendered_pixels();
+                }
                 if films.len() as u64 != p.runs {
                     return Err(CheckError::Renderer(format!(
                         "the photon mapper returned {} runs for {}",
@@ -246,7 +254,9 @@ pub fn ladder(
                     sk.seed = mix64(s.seed ^ (k + 1));
                     sk.spp = n;
                     Ok(if p.estimator == Estimator::Path {
-                        ctx.renderer.render(scene, &sk)?.means(1)
+                        let film = ctx.renderer.render(scene, &sk)?;
+                        rendered = film.rendered_pixels();
+                        film.means(1)
                     } else {
                         let paths = n.saturating_mul((w * h) as u64);
                         ctx.renderer
@@ -282,7 +292,7 @@ pub fn ladder(
             &mse,
             ref_mean,
             seconds,
-            n * (w * h) as u64,
+            n * rendered as u64,
         ));
     }
     fit(&p.estimator.label(), rungs, p.runs)
