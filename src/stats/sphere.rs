@@ -351,11 +351,19 @@ impl Cell {
             0.5 * (self.phi[0] + self.phi[1]),
             0.5 * (self.phi[1] - self.phi[0]),
         );
+        // each node φ's (cos, sin) once per cell, not once per node pair: the same arguments,
+        // so the same bits
+        let azimuths: Vec<(f64, f64)> = nodes
+            .iter()
+            .map(|&xp| {
+                let phi = pm + ph * xp;
+                (phi.cos(), phi.sin())
+            })
+            .collect();
         for &xu in nodes {
-            let c = self.node_c(xu).0;
-            for &xp in nodes {
-                out.push(dir(c, pm + ph * xp));
-            }
+            let c = self.node_c(xu).0.clamp(-1.0, 1.0);
+            let s = (1.0 - c * c).max(0.0).sqrt();
+            out.extend(azimuths.iter().map(|&(cos, sin)| [s * cos, s * sin, c]));
         }
         let inset = 1.0 - 1e-9;
         for i in 0..k {
