@@ -295,7 +295,7 @@ impl FixedResponse<'_> {
 }
 
 /// Runs `work` on `threads` rayon workers (0: the global pool, all cores).
-fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
+pub fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> Result<R, RenderError> {
     if threads == 0 {
         return Ok(work());
     }

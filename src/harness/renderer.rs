@@ -244,8 +244,12 @@ pub fn radiosity_image(
 ) -> Result<(Film, SolveStats), RendererError> {
     let mut rs = radiosity.clone();
     rs.deadline = rs.deadline.or(settings.deadline);
-    let solution = solve_with(scene, &rs, &settings.observer, factor)
-        .map_err(|e| RendererError(e.to_string()))?;
+    // on the render's threads, as the image is
+    let solution = crate::render::in_pool(settings.threads, || {
+        solve_with(scene, &rs, &settings.observer, factor)
+    })
+    .map_err(|e| RendererError(e.to_string()))?
+    .map_err(|e| RendererError(e.to_string()))?;
     let film = crate::render::render_radiosity(scene, settings, &solution, &|_| {})
         .map_err(|e| RendererError(e.to_string()))?;
     Ok((film, solution.stats))
