@@ -51,6 +51,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
                 renderer: &BuiltIn,
                 models: None,
                 deadline: None,
+                shared: None,
                 seed: harness::check_seed(check.seed, &check.name, a.seed),
                 threads: a.threads,
                 alpha: 0.01,

@@ -114,6 +114,7 @@ fn powered_spp(
     let pilot_spp = in_steps((written / PILOT_SHARE).max(4), ctx);
     let pilot_ctx = Context {
         seed: mix64(ctx.seed ^ 0x0070_696c_6f74), // "pilot"
+        shared: None,
         ..*ctx
     };
     let m = run_at(check, pilot_spp, &pilot_ctx)?;
@@ -211,6 +212,8 @@ fn looks(
         let stage_spp = ((t - previous) * n_max as f64).round() as u64;
         let stage_ctx = Context {
             seed: mix64(ctx.seed ^ (k as u64 + 1)),
+            // each look's samples its own, references included
+            shared: None,
             ..*ctx
         };
         let m = run_at(check, stage_spp, &stage_ctx)?;
@@ -232,6 +235,7 @@ fn looks(
                 // the full budget, on fresh samples, decides at the check's level.
                 let fixed_ctx = Context {
                     seed: mix64(ctx.seed ^ 0x0066_6978_6564), // "fixed"
+                    shared: None,
                     ..*ctx
                 };
                 let mut f = run_at(check, spp, &fixed_ctx)?;

@@ -96,9 +96,28 @@ pub struct Context<'a> {
     pub alpha: f64,
     /// When the check's time limit runs out (renders stop there with an error).
     pub deadline: Option<std::time::Instant>,
+    /// The run's shared reference renders ([`Context::reference_render`]); None renders
+    /// each reference with the check's own seed (a check with its own `seed`, and the looks
+    /// of a sequential test, whose increments must not share noise).
+    pub shared: Option<&'a super::shared::SharedRenders>,
 }
 
 impl Context<'_> {
+    /// The renderer's image of `scene` with `settings` as a reference for an estimator to be
+    /// compared with: from the run's shared renders when the check uses them (its seed then
+    /// derived from the run's and the request, the same for every check asking), else
+    /// rendered with `settings` as given.
+    pub fn reference_render(
+        &self,
+        scene: &crate::scene::Scene,
+        settings: &crate::render::RenderSettings,
+    ) -> Result<std::sync::Arc<crate::film::Film>, super::renderer::RendererError> {
+        match self.shared {
+            Some(shared) => shared.render(self.renderer, scene, settings),
+            None => Ok(std::sync::Arc::new(self.renderer.render(scene, settings)?)),
+        }
+    }
+
     /// The relative tolerance of a region test against its expected value: the check's
     /// `stated` model tolerance plus, for a renderer whose images carry more rounding than
     /// furnace's f64 film, the excess of its allowance ([`Renderer::image_rounding`]).

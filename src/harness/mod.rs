@@ -2,7 +2,7 @@
 //! judge, and the runner that applies the family-wise error correction.
 //!
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
-//! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test` → `context`, `keys` → `kind` →
+//! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test`, `shared` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `isolation`, `budget` → `runner`.
@@ -28,6 +28,7 @@ pub mod registry;
 pub mod renderer;
 pub mod runner;
 pub mod shard;
+pub mod shared;
 pub mod under_test;
 
 pub use context::{check_seed, Context, Correction, RunOptions, ShardPlan};

@@ -10,6 +10,7 @@ use super::measurement::Measurement;
 use super::model::local::LocalModels;
 use super::outcome::{Outcome, RunReport, ShardInfo, Statistic, Verdict};
 use super::renderer::Renderer;
+use super::shared::SharedRenders;
 use super::under_test::{Filtered, ModelSource, Subject};
 use crate::stats::{multiple, power};
 use std::time::Instant;
@@ -104,7 +105,11 @@ pub fn run_with(
         .count()
         .max(1);
     let alpha = multiple::sidak_alpha(opts.family_alpha, m);
-    let plan = budget::Plan::new(alpha, opts.power, opts.sequential);
+    let level = RunLevel {
+        alpha,
+        plan: budget::Plan::new(alpha, opts.power, opts.sequential),
+        shared: SharedRenders::new(opts.seed),
+    };
     let todo: Vec<&Check> = checks
         .iter()
         .enumerate()
@@ -120,9 +125,8 @@ pub fn run_with(
         let mut p = progress.lock().unwrap_or_else(|e| e.into_inner());
         (*p)(event)
     };
-    let one = |check: &Check, threads: usize| {
-        run_one(check, opts, threads, &subject, alpha, &plan, &report)
-    };
+    let one =
+        |check: &Check, threads: usize| run_one(check, opts, threads, &subject, &level, &report);
     let done: Vec<(Outcome, Option<Measurement>)> = match concurrent_checks(opts, &subject) {
         1 => todo.iter().map(|c| one(c, opts.threads)).collect(),
         n => side_by_side(&todo, n, &one),
@@ -185,6 +189,14 @@ pub fn run_with(
     }
 }
 
+/// What the checks of one run share: the per-test level, the sample plan and the reference
+/// renders.
+struct RunLevel {
+    alpha: f64,
+    plan: Result<budget::Plan, String>,
+    shared: SharedRenders,
+}
+
 /// How many checks run side by side: one per core for furnace's own renderer on every core
 /// (`threads` 0); one at a time otherwise (an external renderer keeps one check's files apart
 /// from the next; `-j N` asks for N threads).
@@ -200,7 +212,8 @@ fn concurrent_checks(opts: &RunOptions, subject: &Subject) -> usize {
 /// wait to start, so each core runs one check without waiting on a shared pool (where short
 /// parallel renders queued behind long ones: docs/performance.md); the checks left when the
 /// queue empties render on every core (`threads` 0). A check's numbers depend only on its
-/// seed, so they are those of a run one check at a time.
+/// seed (and the run's, for shared references), so they are those of a run one check at a
+/// time.
 fn side_by_side<T: Send>(
     todo: &[&Check],
     n: usize,
@@ -238,10 +251,15 @@ fn run_one(
     opts: &RunOptions,
     threads: usize,
     subject: &Subject,
-    alpha: f64,
-    plan: &Result<budget::Plan, String>,
+    level: &RunLevel,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> (Outcome, Option<Measurement>) {
+    let RunLevel {
+        alpha,
+        plan,
+        shared,
+    } = level;
+    let alpha = *alpha;
     let renderer = subject.renderer;
     progress(Progress::Started(&check.name));
     if let Some(why) = check.kind.not_applicable(check, subject) {
@@ -266,6 +284,8 @@ fn run_one(
         seed: check_seed(check.seed, &check.name, opts.seed),
         threads,
         alpha,
+        // a check with its own seed renders its references with it
+        shared: check.seed.is_none().then_some(shared),
     };
     let t0 = Instant::now();
     let result = match plan {
@@ -350,6 +370,7 @@ fn isolate_failures(
             // the level the check itself was judged at (Holm's step-down threshold included)
             alpha: o.alpha.unwrap_or(alpha),
             deadline: None,
+            shared: None,
         };
         let ladder = check.kind.ladder(check);
         if ladder.is_empty() {

@@ -132,7 +132,7 @@ const HARNESS_LAYERS: [&[&str]; 12] = [
     &["names", "outcome", "error"],
     &["measurement", "shard"],
     &["renderer"],
-    &["under_test"],
+    &["under_test", "shared"],
     &["context", "keys"],
     &["kind"],
     &[

@@ -97,6 +97,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
     let ctx = Context {
         models: None,
         deadline: None,
+        shared: None,
         renderer: &BuiltIn,
         seed: 5,
         threads: 0,

@@ -722,6 +722,7 @@ fn convergence_rejects_a_sampler_regression() {
     let ctx = harness::Context {
         models: None,
         deadline: None,
+        shared: None,
         renderer: &BuiltIn,
         seed: 3,
         threads: 0,
@@ -765,6 +766,7 @@ fn convergence_rejects_an_error_floor() {
     let ctx = harness::Context {
         models: None,
         deadline: None,
+        shared: None,
         renderer: &OnePercentBright,
         seed: 3,
         threads: 0,

@@ -77,6 +77,7 @@ fn ctx(renderer: &dyn Renderer) -> Context<'_> {
     Context {
         models: None,
         deadline: None,
+        shared: None,
         renderer,
         seed: 7,
         threads: 0,

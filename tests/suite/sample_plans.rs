@@ -98,6 +98,7 @@ fn rates(check: &Check, plan: &Plan, alpha: f64, seeds: u64) -> (f64, f64, f64) 
             threads: 1,
             alpha,
             deadline: None,
+            shared: None,
         };
         let m = budget::run(check, &ctx, plan).unwrap();
         rejected += u64::from(harness::judge(&m, alpha) == Verdict::Fail);

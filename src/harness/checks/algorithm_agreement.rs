@@ -240,7 +240,7 @@ impl Kind for AlgorithmAgreement {
             let mut ps = s.clone();
             ps.spp = p.reference_spp.unwrap_or(s.spp);
             (
-                Some(RgbImage::from_film(&ctx.renderer.render(scene, &ps)?)),
+                Some(RgbImage::from_film(&*ctx.reference_render(scene, &ps)?)),
                 None,
             )
         };

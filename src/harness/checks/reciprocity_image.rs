@@ -114,7 +114,7 @@ impl Kind for ReciprocityImage {
             .collect::<Result<Vec<_>, _>>()?;
         let n_paths = p.light_paths.unwrap_or((w * h) as u64 * s.spp);
 
-        let path = RgbImage::from_film(&ctx.renderer.render(scene, &s)?);
+        let path = RgbImage::from_film(&*ctx.reference_render(scene, &s)?);
         // An independent seed for the light tracer (its streams are also keyed apart).
         let mut ls = s.clone();
         ls.seed = mix64(ctx.seed ^ 0x5245_4349_5052_4f43);

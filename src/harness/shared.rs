@@ -1,0 +1,166 @@
+//! Reference renders shared by the checks of one run: where several checks compare an
+//! estimator against the same path-traced image (the same scene and settings), it is rendered
+//! once. Its seed comes from the run's seed and what is rendered, never from a check, so a
+//! check's numbers are the same whether the image came from the store or was rendered for it
+//! alone (past the memory cap it is).
+
+use super::renderer::{Renderer, RendererError};
+use crate::film::Film;
+use crate::math::rng::mix64;
+use crate::render::RenderSettings;
+use crate::scene::Scene;
+use std::collections::HashMap;
+use std::fmt::Write;
+use std::sync::{Arc, Mutex, PoisonError};
+
+/// Most pixels the store keeps over a run (about 240 bytes each: 60 MiB); a film that would
+/// pass it is rendered for its check alone, with the same seed.
+pub const MAX_STORED_PIXELS: usize = 1 << 18;
+
+/// One request's film once rendered (None while the first asker renders it, or after its
+/// render failed: the next asker renders it again).
+type Slot = Arc<Mutex<Option<Arc<Film>>>>;
+
+/// One run's store of shared reference images.
+#[derive(Debug)]
+pub struct SharedRenders {
+    run_seed: u64,
+    /// By request.
+    films: Mutex<HashMap<String, Slot>>,
+    /// Pixels of the films kept.
+    stored: Mutex<usize>,
+}
+
+impl SharedRenders {
+    /// An empty store for a run with seed `run_seed`.
+    pub fn new(run_seed: u64) -> Self {
+        SharedRenders {
+            run_seed,
+            films: Mutex::new(HashMap::new()),
+            stored: Mutex::new(0),
+        }
+    }
+
+    /// `renderer`'s image of `scene` with `settings`, whose seed is replaced by one derived
+    /// from the run's seed and the rest of the request (renderer, scene, settings but threads
+    /// and deadline): every check asking for it gets the same film, rendered once. A failed
+    /// render is not kept.
+    pub fn render(
+        &self,
+        renderer: &dyn Renderer,
+        scene: &Scene,
+        settings: &RenderSettings,
+    ) -> Result<Arc<Film>, RendererError> {
+        let (key, seed) = self.key(renderer, scene, settings);
+        let s = RenderSettings {
+            seed,
+            ..settings.clone()
+        };
+        let pixels = s.width.saturating_mul(s.height);
+        let slot = {
+            let mut films = self.films.lock().unwrap_or_else(PoisonError::into_inner);
+            films.entry(key).or_default().clone()
+        };
+        // the first asker renders while later ones wait for its film
+        let mut film = slot.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(f) = film.as_ref() {
+            return Ok(f.clone());
+        }
+        let rendered = Arc::new(renderer.render(scene, &s)?);
+        let mut stored = self.stored.lock().unwrap_or_else(PoisonError::into_inner);
+        if stored.saturating_add(pixels) <= MAX_STORED_PIXELS {
+            *stored += pixels;
+            *film = Some(rendered.clone());
+        }
+        Ok(rendered)
+    }
+
+    /// The request's key and the seed it is rendered with.
+    fn key(
+        &self,
+        renderer: &dyn Renderer,
+        scene: &Scene,
+        settings: &RenderSettings,
+    ) -> (String, u64) {
+        let request = RenderSettings {
+            seed: 0,
+            threads: 0,
+            deadline: None,
+            ..settings.clone()
+        };
+        let mut key = String::new();
+        write!(
+            key,
+            "{}\n{}\n{request:?}",
+            renderer.name(),
+            crate::render::scene_fingerprint(scene)
+        )
+        .expect("writing to a String cannot fail");
+        let mut h = crate::math::Fnv1a::default();
+        h.eat(key.as_bytes());
+        (key, mix64(self.run_seed ^ mix64(h.0)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::harness::BuiltIn;
+    use std::path::Path;
+
+    fn settings(seed: u64) -> RenderSettings {
+        RenderSettings {
+            width: 6,
+            height: 6,
+            spp: 8,
+            seed,
+            threads: 1,
+            ..crate::render::test_settings(1)
+        }
+    }
+
+    #[test]
+    fn one_film_per_request_whatever_the_asking_seed_and_the_same_rendered_alone() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let store = SharedRenders::new(7);
+        let a = store.render(&BuiltIn, &scene, &settings(1)).unwrap();
+        let b = store.render(&BuiltIn, &scene, &settings(2)).unwrap();
+        assert!(Arc::ptr_eq(&a, &b), "rendered twice");
+        // a fresh store (nothing kept) renders the same bits
+        let c = SharedRenders::new(7)
+            .render(&BuiltIn, &scene, &settings(3))
+            .unwrap();
+        assert_eq!(*a, *c);
+        // another run seed, or other settings, another film
+        let d = SharedRenders::new(8)
+            .render(&BuiltIn, &scene, &settings(1))
+            .unwrap();
+        assert_ne!(*a, *d);
+        let more = RenderSettings {
+            spp: 9,
+            ..settings(1)
+        };
+        let e = store.render(&BuiltIn, &scene, &more).unwrap();
+        assert!(!Arc::ptr_eq(&a, &e));
+        assert_eq!(*store.stored.lock().unwrap(), 72);
+    }
+
+    #[test]
+    fn past_the_cap_films_are_rendered_alone_and_failures_are_not_kept() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let store = SharedRenders::new(7);
+        *store.stored.lock().unwrap() = MAX_STORED_PIXELS - 10;
+        let a = store.render(&BuiltIn, &scene, &settings(1)).unwrap();
+        let b = store.render(&BuiltIn, &scene, &settings(1)).unwrap();
+        assert!(!Arc::ptr_eq(&a, &b), "kept past the cap");
+        assert_eq!(*a, *b);
+        let past = RenderSettings {
+            deadline: Some(std::time::Instant::now()),
+            ..settings(1)
+        };
+        let fresh = SharedRenders::new(7);
+        assert!(fresh.render(&BuiltIn, &scene, &past).is_err());
+        let ok = fresh.render(&BuiltIn, &scene, &settings(1)).unwrap();
+        assert_eq!(*ok, *a);
+    }
+}
