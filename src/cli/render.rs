@@ -382,7 +382,10 @@ fn render_radiosity_image(
             patch_size: Some(size),
             ..Default::default()
         };
-        solve(scene, &rs, &settings.observer).context("cannot solve radiosity")
+        // on the render's threads (`-j`), as the image is
+        furnace::render::in_pool(settings.threads, || solve(scene, &rs, &settings.observer))
+            .context("cannot start the worker threads")?
+            .context("cannot solve radiosity")
     };
     let fine = solve_at(size)?;
     let coarse = solve_at(2.0 * size)?;
