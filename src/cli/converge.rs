@@ -52,6 +52,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
                 models: None,
                 deadline: None,
                 shared: None,
+                looks: false,
                 seed: harness::check_seed(check.seed, &check.name, a.seed),
                 threads: a.threads,
                 alpha: 0.01,

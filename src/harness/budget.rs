@@ -13,14 +13,7 @@ use crate::math::rng::mix64;
 use crate::stats::power;
 use crate::stats::sequential::{self, upper_quantile, Design};
 
-/// Information fractions of the sequential looks: a quarter, a half and all of the budget.
-pub const LOOKS: [f64; 3] = [0.25, 0.5, 1.0];
-/// Boundary shapes (Δ₁ efficacy, Δ₂ futility) of the Pampallona–Tsiatis family: between
-/// O'Brien–Fleming and Pocock for rejections, Pocock-like for acceptances; the design table
-/// in docs/statistics.md compares the alternatives.
-pub const SHAPES: (f64, f64) = (0.25, 0.5);
-/// The power every budget is planned for (at the check's detection limit).
-pub const POWER: f64 = 0.95;
+pub use crate::stats::sequential::{LOOKS, POWER, SHAPES};
 /// The pilot runs at 1/PILOT_SHARE of the manifest's spp (at least 4).
 pub const PILOT_SHARE: u64 = 16;
 /// The largest factor a power target may scale a check's spp by.

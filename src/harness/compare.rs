@@ -157,10 +157,15 @@ impl RgbImage {
             height: film.height,
             rgb: std::array::from_fn(|c| film.means(3 + c)),
             variance: Some(std::array::from_fn(|c| film.mean_variances(3 + c))),
+            // the fewest samples of a rendered pixel (pixels of a crop or of sequential looks
+            // may hold different counts; a whole render's are all alike)
             variance_dof: film
                 .pixels
-                .first()
-                .map(|p| p.channels[0].count() as f64 - 1.0)
+                .iter()
+                .map(|p| p.channels[0].count())
+                .filter(|n| *n > 0)
+                .min()
+                .map(|n| n as f64 - 1.0)
                 .filter(|d| *d >= 1.0),
             variance_variance: Some(std::array::from_fn(|c| {
                 film.pixels

@@ -286,6 +286,7 @@ fn run_one(
         alpha,
         // a check with its own seed renders its references with it
         shared: check.seed.is_none().then_some(shared),
+        looks: plan.as_ref().is_ok_and(|p| p.designs.is_some()),
     };
     let t0 = Instant::now();
     let result = match plan {
@@ -371,6 +372,7 @@ fn isolate_failures(
             alpha: o.alpha.unwrap_or(alpha),
             deadline: None,
             shared: None,
+            looks: false,
         };
         let ladder = check.kind.ladder(check);
         if ladder.is_empty() {

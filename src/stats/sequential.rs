@@ -18,6 +18,16 @@ fn pdf(x: f64) -> f64 {
     (-0.5 * x * x).exp() / (2.0 * std::f64::consts::PI).sqrt()
 }
 
+/// Information fractions of the harness's sequential looks: a quarter, a half and all of the
+/// budget.
+pub const LOOKS: [f64; 3] = [0.25, 0.5, 1.0];
+/// Boundary shapes (Δ₁ efficacy, Δ₂ futility) of the Pampallona–Tsiatis family the harness
+/// uses: between O'Brien–Fleming and Pocock for rejections, Pocock-like for acceptances; the
+/// design table in docs/statistics.md compares the alternatives.
+pub const SHAPES: (f64, f64) = (0.25, 0.5);
+/// The power every sequential budget is planned for (at the check's detection limit).
+pub const POWER: f64 = 0.95;
+
 /// A group-sequential design for a standardized statistic Z_k (cumulative z after stage k,
 /// unit variance, mean η·√t_k under a bias whose full-information drift is η).
 #[derive(Debug, Clone, PartialEq)]

@@ -137,6 +137,7 @@ fn a_ladder_stops_at_its_budget() {
         alpha: 1e-3,
         deadline: None,
         shared: None,
+        looks: false,
     };
     let found =
         furnace::harness::isolation::isolate(&check.kind.ladder(&check), &ctx, 1, 0.0, None)

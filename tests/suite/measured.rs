@@ -98,6 +98,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
         models: None,
         deadline: None,
         shared: None,
+        looks: false,
         renderer: &BuiltIn,
         seed: 5,
         threads: 0,

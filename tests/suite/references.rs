@@ -78,6 +78,7 @@ fn ctx(renderer: &dyn Renderer) -> Context<'_> {
         models: None,
         deadline: None,
         shared: None,
+        looks: false,
         renderer,
         seed: 7,
         threads: 0,

@@ -99,6 +99,7 @@ fn rates(check: &Check, plan: &Plan, alpha: f64, seeds: u64) -> (f64, f64, f64) 
             alpha,
             deadline: None,
             shared: None,
+            looks: false,
         };
         let m = budget::run(check, &ctx, plan).unwrap();
         rejected += u64::from(harness::judge(&m, alpha) == Verdict::Fail);
