@@ -120,6 +120,45 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
     );
 }
 
+#[test]
+fn image_compare_in_looks_passes_the_box_on_fewer_samples_and_rejects_the_wall_tint() {
+    // The same comparisons in sequential looks (`furnace check`'s default): the right reference
+    // passes on fewer samples than the fixed test's, the 2 % red-wall tint is rejected.
+    let looks = |r: &'static dyn Renderer| Context {
+        looks: true,
+        ..ctx(r)
+    };
+    let s = spec("mitsuba/cornell-box");
+    let p = s.params_as::<image::Params>().unwrap();
+    let reference = RgbImage::load(&root("reference/mitsuba/cornell-box.exr")).unwrap();
+    let fixed_samples = (reference.width * reference.height) as u64 * s.render.spp.unwrap();
+    let ok = image::run_against(&s, p, &looks(&BuiltIn), &reference).unwrap();
+    assert!(
+        ok.p_value.unwrap() > 1e-4
+            && ok.message.contains("sequential: accepted")
+            && ok.samples < fixed_samples,
+        "{} samples: {}",
+        ok.samples,
+        ok.message
+    );
+    let wall = p
+        .regions
+        .iter()
+        .find(|r| r.name == "red wall")
+        .unwrap()
+        .pixels(reference.width, reference.height)
+        .unwrap();
+    let bad =
+        image::run_against(&s, p, &looks(&BuiltIn), &reference.tinted(wall, [1.02; 3])).unwrap();
+    assert!(
+        bad.p_value.unwrap() < 1e-4
+            && bad.message.contains("worst: red wall")
+            && bad.message.contains("sequential: rejected"),
+        "{}",
+        bad.message
+    );
+}
+
 /// Henyey–Greenstein with the asymmetry's sign flipped (wo taken as the propagation direction).
 struct FlippedHg;
 impl Renderer for FlippedHg {
