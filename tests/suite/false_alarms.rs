@@ -231,15 +231,20 @@ fn single_check_sweeps_stay_within_their_level() {
 }
 
 /// The run modes on furnace's renderer, swept over seeds: `mode-sequential-furnace.tsv`
-/// (`FILTER='furnace/*=0.?]' ALPHA=0.05 ARGS=--sequential OUT=… benches/false-alarms.sh`) and
-/// `mode-power-furnace.tsv` (the same with `ARGS='--power 0.01 --fixed'`). The runs with a false alarm
+/// (`FILTER='furnace/*=0.?]' ALPHA=0.05 ARGS=--sequential OUT=… benches/false-alarms.sh`),
+/// `mode-power-furnace.tsv` (the same with `ARGS='--power 0.01 --fixed'`) and
+/// `mode-looks-images.tsv` (`FILTER='mitsuba/*'`: the image comparisons in looks). The runs with a false alarm
 /// must be compatible with the stated family-wise rate (5 % from the tests plus at most as much
 /// again from the variance diagnosis), the p-values not piled up below 0.05, and
 /// docs/statistics.md must quote each file as it is.
 #[test]
 fn the_mode_sweeps_stay_within_their_family_rate() {
     let doc = std::fs::read_to_string(root("docs/statistics.md")).unwrap();
-    for name in ["mode-sequential-furnace.tsv", "mode-power-furnace.tsv"] {
+    for name in [
+        "mode-sequential-furnace.tsv",
+        "mode-power-furnace.tsv",
+        "mode-looks-images.tsv",
+    ] {
         let path = root(&format!("reports/false-alarms/{name}"));
         let text = std::fs::read_to_string(&path).expect("the committed sweep");
         let mut runs: BTreeMap<u64, (usize, usize)> = BTreeMap::new(); // seed → (checks, alarms)
