@@ -42,6 +42,10 @@ pub trait Kind: Send + Sync + 'static {
     /// runs, docs/statistics.md). Power targets and sequential looks (`budget.rs`) apply only
     /// then. False by default.
     const BUDGETED: bool = false;
+    /// Whether the kind spends its samples in sequential looks of its own when the run has
+    /// looks ([`Context::looks`]; image comparisons against a stored reference), which a
+    /// check's `fixed = true` turns off. False by default.
+    const OWN_LOOKS: bool = false;
     /// Which renderers the kind can judge.
     const SCOPE: Scope;
     /// Parses the kind's own keys; the common ones (scene, render settings, seed, tolerance)
@@ -100,6 +104,8 @@ pub trait DynKind: Send + Sync {
     fn ladder(&self, check: &Check) -> Vec<Rung>;
     /// [`Kind::BUDGETED`].
     fn budgeted(&self) -> bool;
+    /// [`Kind::OWN_LOOKS`].
+    fn own_looks(&self) -> bool;
 }
 
 /// The registry's handle of kind `K`.
@@ -154,6 +160,9 @@ impl<K: Kind> DynKind for Registered<K> {
     }
     fn budgeted(&self) -> bool {
         K::BUDGETED
+    }
+    fn own_looks(&self) -> bool {
+        K::OWN_LOOKS
     }
 }
 

@@ -233,12 +233,12 @@ fn expand_check(
                 "`fixed = true` keeps the check's spp as written, `power` sets it from a pilot run: give one or the other".into(),
             ))
         }
-        Some(f) if *f.get_ref() && !kind.budgeted() => {
+        Some(f) if *f.get_ref() && !kind.budgeted() && !kind.own_looks() => {
             return Err(keys.error(
                 f.span(),
                 "fixed",
                 format!(
-                    "kind {} always runs its spp as written; `fixed` applies to kinds whose spp is a sample budget",
+                    "kind {} always runs its spp as written; `fixed` applies to kinds whose spp is a sample budget or that run in sequential looks",
                     kind.name()
                 ),
             ))

@@ -141,6 +141,15 @@ fn image_compare_in_looks_passes_the_box_on_fewer_samples_and_rejects_the_wall_t
         ok.samples,
         ok.message
     );
+    // `fixed = true` on the check keeps the fixed-sample test
+    let mut fixed = s.clone();
+    fixed.fixed_spp = true;
+    let m = image::run_against(&fixed, p, &looks(&BuiltIn), &reference).unwrap();
+    assert!(
+        !m.message.contains("sequential") && m.samples == fixed_samples,
+        "{}",
+        m.message
+    );
     let wall = p
         .regions
         .iter()

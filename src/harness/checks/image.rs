@@ -447,6 +447,7 @@ impl Kind for ImageCompare {
         common::REL_TOLERANCE,
     ];
     const SCOPE: Scope = Scope::Image;
+    const OWN_LOOKS: bool = true;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         Ok(Params {
@@ -493,7 +494,7 @@ mod tests {
             n += spp as f64;
             let (t, se_t) = (sum / n, (v / n).sqrt());
             let z = (t - r) / (se_t * se_t + s_ref * s_ref).sqrt();
-            let p = statrs::function::erf::erfc(z.abs() / std::f64::consts::SQRT_2);
+            let p = 2.0 * crate::stats::normal_sf(z.abs());
             let result = RegionResult {
                 region: "r".into(),
                 channel: "R",
