@@ -105,8 +105,9 @@ fn design_at(alpha: f64) -> Result<Design, CheckError> {
 /// Šidák share of the check's level, stopping on its own; each look renders only the regions
 /// with a test still open (the whole image while its own tests are), under its own seed, and
 /// adds to the pixels' earlier samples. The reference's noise is in every look's z, so the
-/// looks' information fractions exceed the design's; the check's line gives the worst test's
-/// level and power under the fractions measured (docs/statistics.md, "Image comparisons in
+/// looks' information fractions exceed the design's: each test's last boundary is refitted to
+/// its own ([`fit`]), and the check's line gives the largest level and the smallest power at
+/// the fixed test's detection limit over the tests (docs/statistics.md, "Image comparisons in
 /// looks").
 fn in_looks(
     check: &Check,
