@@ -100,9 +100,9 @@ pub struct Context<'a> {
     /// each reference with the check's own seed (a check with its own `seed`, and the looks
     /// of a sequential test, whose increments must not share noise).
     pub shared: Option<&'a super::shared::SharedRenders>,
-    /// Whether an image comparison against a stored reference spends its samples in
-    /// sequential looks (the run's default; off under `--fixed`, in pilot and isolation runs
-    /// and in tests that build a context by hand).
+    /// Whether a kind with looks of its own ([`super::Kind::OWN_LOOKS`]: image comparisons
+    /// against a stored reference) spends its samples in sequential looks: the run's default;
+    /// off under `--fixed`, in isolation runs and in tests that build a context by hand.
     pub looks: bool,
 }
 
