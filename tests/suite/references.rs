@@ -86,6 +86,16 @@ fn ctx(renderer: &dyn Renderer) -> Context<'_> {
     }
 }
 
+/// The pixels of the Cornell regions' red wall in `reference`: the negative controls tint it.
+fn red_wall(p: &image::Params, reference: &RgbImage) -> [usize; 4] {
+    p.regions
+        .iter()
+        .find(|r| r.name == "red wall")
+        .unwrap()
+        .pixels(reference.width, reference.height)
+        .unwrap()
+}
+
 #[test]
 fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
     // The sphere pair: furnace is right (furnace.toml checks E/(1 − R) to 0.2 %), Mitsuba is
@@ -104,13 +114,7 @@ fn image_compare_rejects_the_mitsuba_sphere_and_a_two_percent_wall_tint() {
     let s = spec("mitsuba/cornell-box");
     let reference = RgbImage::load(&root("reference/mitsuba/cornell-box.exr")).unwrap();
     let p = s.params_as::<image::Params>().unwrap();
-    let wall = p
-        .regions
-        .iter()
-        .find(|r| r.name == "red wall")
-        .unwrap()
-        .pixels(reference.width, reference.height)
-        .unwrap();
+    let wall = red_wall(p, &reference);
     let tinted = reference.tinted(wall, [1.02; 3]);
     let m = image::run_against(&s, p, &ctx(&BuiltIn), &tinted).unwrap();
     assert!(
@@ -150,13 +154,7 @@ fn image_compare_in_looks_passes_the_box_on_fewer_samples_and_rejects_the_wall_t
         "{}",
         m.message
     );
-    let wall = p
-        .regions
-        .iter()
-        .find(|r| r.name == "red wall")
-        .unwrap()
-        .pixels(reference.width, reference.height)
-        .unwrap();
+    let wall = red_wall(p, &reference);
     let bad =
         image::run_against(&s, p, &looks(&BuiltIn), &reference.tinted(wall, [1.02; 3])).unwrap();
     assert!(

@@ -59,18 +59,30 @@ pub fn run_against(
         0.01,
         ctx.rel_tolerance(check.rel_tolerance),
     )?;
-    let what = format!(
+    let what = what_was_compared(&s.observer, c.reference_has_variance);
+    let mut m = regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)?;
+    m.rel_tolerance = Some(ctx.rel_tolerance(check.rel_tolerance));
+    Ok(m)
+}
+
+/// What the line says was compared: the observer, and whether the reference carried an error
+/// estimate ([`crate::harness::compare::Comparison::reference_has_variance`]).
+fn what_was_compared(observer: &Observer, reference_has_variance: bool) -> String {
+    format!(
         "observer {}, reference {}",
-        s.observer.name(),
-        if c.reference_has_variance {
+        observer.name(),
+        if reference_has_variance {
             "with variance channels"
         } else {
             "without variance channels, treated as exact"
         }
-    );
-    let mut m = regions_measurement(&c.regions, (s.width * s.height) as u64 * s.spp, &what)?;
-    m.rel_tolerance = Some(ctx.rel_tolerance(check.rel_tolerance));
-    Ok(m)
+    )
+}
+
+/// A region test's statistic on the normal scale: its t through its own two-sided p, with
+/// the sign of its difference.
+fn stage_z(r: &RegionResult) -> f64 {
+    upper_quantile((r.p / 2.0).clamp(1e-300, 0.5)).copysign(r.z)
 }
 
 /// The largest budget of a comparison in looks, as a multiple of the written spp: the
@@ -144,6 +156,9 @@ fn in_looks(
     let mut cumulative: Option<Film> = None;
     let mut samples = 0u64;
     let mut last: Vec<RegionResult> = Vec::new();
+    // the refitted designs of the tests decided at the last look, kept for their p-values
+    let mut fitted: Vec<Option<ReferenceFit>> = (0..m).map(|_| None).collect();
+    let mut reference_has_variance = reference.variance.is_some();
     let mut looks_done = 0;
     let mut rejected = false;
     for (k, &spp) in look_spp.iter().enumerate() {
@@ -173,6 +188,7 @@ fn in_looks(
             tolerance,
         )?;
         cumulative = Some(film);
+        reference_has_variance = c.reference_has_variance;
         looks_done = k + 1;
         for (j, r) in c.regions.iter().enumerate() {
             if stopped[j].is_some() {
@@ -181,13 +197,13 @@ fn in_looks(
             if !r.p.is_finite() {
                 break; // reported below as regions_measurement's error
             }
-            // the test's z on the normal scale (its t through its own p)
-            let z = upper_quantile((r.p / 2.0).clamp(1e-300, 0.5)).copysign(r.z);
+            let z = stage_z(r);
             // the last look's boundary holds the level under the test's measured fractions
             let decision = if k + 1 == look_spp.len() {
-                fit(&d, r, n_max as f64, &look_spp, s.spp)
-                    .design
-                    .decide(k, z)
+                let f = fit(&d, r, n_max as f64, &look_spp, s.spp);
+                let decision = f.design.decide(k, z);
+                fitted[j] = Some(f);
+                decision
             } else {
                 d.decide(k, z)
             };
@@ -208,16 +224,16 @@ fn in_looks(
         .iter()
         .enumerate()
         .map(|(j, r)| {
-            stopped[j].clone().unwrap_or_else(|| {
-                let z = upper_quantile((r.p / 2.0).clamp(1e-300, 0.5)).copysign(r.z);
-                (k_last, r.clone(), z)
-            })
+            stopped[j]
+                .clone()
+                .unwrap_or_else(|| (k_last, r.clone(), stage_z(r)))
         })
         .collect();
     let cum_spp = |k: usize| look_spp[..=k].iter().sum::<u64>() as f64;
     let fits: Vec<ReferenceFit> = tests
         .iter()
-        .map(|(k, r, _)| fit(&d, r, cum_spp(*k), &look_spp, s.spp))
+        .zip(fitted)
+        .map(|((k, r, _), f)| f.unwrap_or_else(|| fit(&d, r, cum_spp(*k), &look_spp, s.spp)))
         .collect();
     let staged: Vec<RegionResult> = tests
         .iter()
@@ -231,15 +247,7 @@ fn in_looks(
             ..r.clone()
         })
         .collect();
-    let what = format!(
-        "observer {}, reference {}",
-        s.observer.name(),
-        if reference.variance.is_some() {
-            "with variance channels"
-        } else {
-            "without variance channels, treated as exact"
-        }
-    );
+    let what = what_was_compared(&s.observer, reference_has_variance);
     let mut ms = regions_measurement(&staged, samples, &what)?;
     ms.rel_tolerance = Some(tolerance);
     // the worst test's level and power under its measured information fractions
