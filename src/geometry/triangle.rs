@@ -20,7 +20,7 @@ pub struct ShearedRay {
 
 impl ShearedRay {
     /// Precomputes the permutation that makes z the dominant direction axis and the shear.
-    /// Woop et al. swap x' and y' when d[kz] < 0 to keep the winding; the test here is
+    /// Woop et al. swap x' and y' when d\[kz\] < 0 to keep the winding; the test here is
     /// two-sided, and without the swap u, v, w, det and t·det change sign exactly (IEEE
     /// negation), so t and the barycentrics are the same bits.
     pub fn new(ray: Ray) -> Self {

@@ -447,14 +447,14 @@ pub struct RunOutput {
     pub status: String,
     /// Its exit code (None: ended by a signal).
     pub status_code: Option<i32>,
-    /// The last [`OUTPUT_KEPT`] bytes of its stderr (lossy UTF-8).
+    /// The last `OUTPUT_KEPT` (64 KiB) bytes of its stderr (lossy UTF-8).
     pub stderr: String,
-    /// The last [`OUTPUT_KEPT`] bytes of its stdout (lossy UTF-8).
+    /// The last `OUTPUT_KEPT` (64 KiB) bytes of its stdout (lossy UTF-8).
     pub stdout: String,
 }
 
 /// Runs `cmd` with stdin closed, stdout and stderr read to their ends but only their last
-/// [`OUTPUT_KEPT`] bytes kept, and killed after `timeout`.
+/// `OUTPUT_KEPT` (64 KiB) bytes kept, and killed after `timeout`.
 pub fn run_bounded(mut cmd: Command, timeout: Duration) -> Result<RunOutput, String> {
     let mut child = cmd
         .stdin(Stdio::null())

@@ -1,8 +1,8 @@
 //! Rendering by Metropolis light transport (integrators::mlt) over the BDPT. A path sample u
 //! gives pixel j the value F_j(u) = W·H·C_camera(u)·[j = j(u)] + Σ splats_j(u) (the camera
 //! side's film position is uniform over the W·H pixels; the light-tracing splats as in
-//! render::bdpt), so pixel j's measurement is E_u[F_j]. With I(u) = Σ_j (X + Y + Z)(F_j(u)) and
-//! b = E_u[I] from a bootstrap pass, pixel j = b·E_π[F_j/I] under the chain's stationary
+//! render::bdpt), so pixel j's measurement is E_u\[F_j\]. With I(u) = Σ_j (X + Y + Z)(F_j(u)) and
+//! b = E_u\[I\] from a bootstrap pass, pixel j = b·E_π\[F_j/I\] under the chain's stationary
 //! density π = I/b; each mutation records both the proposal and the current state weighted by
 //! their acceptance probabilities (Veach 1997, §11.3.4, expected values). Each chain is a whole
 //! independent image with its own bootstrap, so the chains' spread is the standard error.

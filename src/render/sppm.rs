@@ -21,7 +21,7 @@ const CHUNKS: u64 = 16;
 
 /// The radiance estimate from flux: (accumulated flux τ, photons emitted over the run, squared
 /// radius) → τ/(N π r²) (Hachisuka & Jensen 2009, eq. 10). A parameter of
-/// [`render_sppm_with`] so that a negative control can pass a wrong one.
+/// [`render_sppm_runs`] and [`render_sppm_radii`] so that a negative control can pass a wrong one.
 pub type DensityEstimate = fn(tau: f64, photons: f64, r2: f64) -> f64;
 
 /// τ/(N π r²): the flux over the emitted photons and the gather disc's area.

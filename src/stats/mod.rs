@@ -174,7 +174,7 @@ impl MeanVar {
     }
 
     /// Effective degrees of freedom of the variance estimate s²/n (Satterthwaite 1946,
-    /// Biometrics Bulletin 2(6), eq. 3: ν = 2·E[V]²/Var(V)): n − 1 for normal data, far fewer
+    /// Biometrics Bulletin 2(6), eq. 3: ν = 2·E\[V\]²/Var(V)): n − 1 for normal data, far fewer
     /// when a few large values make up the variance (heavy tails, rare bright paths), which
     /// is when a z test on s²/n would be anti-conservative. INFINITY when unknown.
     pub fn mean_variance_dof(&self) -> f64 {

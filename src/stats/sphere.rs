@@ -238,7 +238,7 @@ impl SphereBinning {
     /// probes, against 1152 for the fixed 32×32 rule); a bin where the two estimates differ by
     /// more than its tolerance `rel_tol`·|estimate| + `abs_tol` is split 2×2 and each cell
     /// integrated the same way against its share of the tolerance (by area), recursively (at
-    /// most [`SMOOTH_DEPTH`] levels, then the Kronrod value is kept), and
+    /// most five (`SMOOTH_DEPTH`) levels, then the Kronrod value is kept), and
     /// a bin a support edge crosses is re-integrated as in the fixed rule (`refine_edges`). The
     /// Kronrod value is kept, and its error is in practice far below the difference that
     /// triggers a split (Piessens et al. 1983, §2.2.1). Same length and layout as the fixed

@@ -1,6 +1,6 @@
 //! Every phase function of the models under test: normalisation ∫ p dω = 1 and its
 //! known mean cosine by graded quadrature, its sampling routine against p (chi-square of the
-//! scattering cosine and of φ, z test of the sampled mean cosine; [`measure_phase`]), and
+//! scattering cosine and of φ, z test of the sampled mean cosine; [`crate::harness::model::phase::measure_phase`]), and
 //! reciprocity p(wo, wi) = p(wi, wo) with pdf = p for exact sampling, over random direction
 //! pairs (deterministic, relative tolerance).
 

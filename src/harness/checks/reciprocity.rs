@@ -1,7 +1,7 @@
 //! Reciprocity: f(wo, wi) = f(wi, wo) for every BSDF (Helmholtz reciprocity; Veach 1997,
 //! §6.2, eq. 6.3), over random direction pairs on the whole sphere including grazing angles.
 //! Refractive models carry radiance, so the compared quantities are f(wo, wi)/η(wo)² and
-//! f(wi, wo)/η(wi)² (Veach 1997, §5.2; [`Bxdf::eta`]), which is plain symmetry when η = 1.
+//! f(wi, wo)/η(wi)² (Veach 1997, §5.2; [`crate::scattering::Bxdf::eta`]), which is plain symmetry when η = 1.
 //! Deterministic: passes when |f(a,b) − f(b,a)| ≤ abs_tol + rel_tol·max|f| for every pair, or
 //! for a pair over it, within four times the values' spread over one-ulp neighbours of the inputs.
 

@@ -28,7 +28,7 @@ pub enum Of {
 pub struct Params {
     /// The closed form re-checked.
     pub of: Of,
-    /// Scale factors (default [1]).
+    /// Scale factors (default `[1]`).
     pub scales: Vec<f64>,
     /// Translations (default [[0, 0, 0]]).
     pub offsets: Vec<[f64; 3]>,

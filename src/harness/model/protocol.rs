@@ -27,55 +27,55 @@ pub struct Op {
     pub reply: usize,
 }
 
-/// f(wo, wi) per wavelength: wo, wi, λ[4] → f[4].
+/// f(wo, wi) per wavelength: wo, wi, λ\[4\] → f\[4\].
 pub const BSDF_EVAL: Op = Op {
     name: "bsdf.eval",
     request: 10,
     reply: 4,
 };
-/// pdf(wo, wi): wo, wi, λ[4] → pdf.
+/// pdf(wo, wi): wo, wi, λ\[4\] → pdf.
 pub const BSDF_PDF: Op = Op {
     name: "bsdf.pdf",
     request: 10,
     reply: 1,
 };
-/// A sample: wo, u1, u2, uc, λ[4] → wi, weight[4], pdf, flags.
+/// A sample: wo, u1, u2, uc, λ\[4\] → wi, weight\[4\], pdf, flags.
 pub const BSDF_SAMPLE: Op = Op {
     name: "bsdf.sample",
     request: 10,
     reply: 9,
 };
-/// η on the side of w: w, λ[4] → η[4].
+/// η on the side of w: w, λ\[4\] → η\[4\].
 pub const BSDF_ETA: Op = Op {
     name: "bsdf.eta",
     request: 7,
     reply: 4,
 };
-/// p(wo, wi): wo, wi, λ[4] → p.
+/// p(wo, wi): wo, wi, λ\[4\] → p.
 pub const PHASE_EVAL: Op = Op {
     name: "phase.eval",
     request: 10,
     reply: 1,
 };
-/// pdf(wo, wi): wo, wi, λ[4] → pdf.
+/// pdf(wo, wi): wo, wi, λ\[4\] → pdf.
 pub const PHASE_PDF: Op = Op {
     name: "phase.pdf",
     request: 10,
     reply: 1,
 };
-/// A sample: wo, u1, u2, λ[4] → wi, weight, pdf.
+/// A sample: wo, u1, u2, λ\[4\] → wi, weight, pdf.
 pub const PHASE_SAMPLE: Op = Op {
     name: "phase.sample",
     request: 9,
     reply: 5,
 };
-/// A direction towards the emitter: p, u1, u2, uc, λ[4] → wi, radiance[4], pdf, dist, flags.
+/// A direction towards the emitter: p, u1, u2, uc, λ\[4\] → wi, radiance\[4\], pdf, dist, flags.
 pub const EMITTER_SAMPLE: Op = Op {
     name: "emitter.sample_direction",
     request: 10,
     reply: 10,
 };
-/// The density of a direction: p, wi, λ[4] → pdf.
+/// The density of a direction: p, wi, λ\[4\] → pdf.
 pub const EMITTER_PDF: Op = Op {
     name: "emitter.pdf_direction",
     request: 10,
