@@ -4,7 +4,7 @@
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
 //! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test`, `shared` → `context`, `keys` → `kind` →
 //! `model/`,
-//! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `checks/` (one file per kind) →
+//! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `looks` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `isolation`, `budget` → `runner`.
 
 pub mod adapter;
@@ -18,6 +18,7 @@ pub mod isolation;
 pub mod keys;
 pub mod kind;
 pub mod ladder;
+pub mod looks;
 pub mod manifest;
 pub mod measurement;
 pub mod model;
