@@ -286,3 +286,20 @@ fn the_glossy_efficiency_table_is_the_committed_reports() {
         close(&q[6], &r[10], "time to target");
     }
 }
+
+#[test]
+fn the_walk_through_quotes_the_lambert_kind_as_it_is() {
+    // docs/checks.md, "Adding a check kind", shows the whole lambert kind: a newcomer copies
+    // it, so it must be the file, not an older version of it.
+    let real = read("src/harness/checks/lambert.rs");
+    let checks = read("docs/checks.md");
+    let quoted = code_blocks(&checks)
+        .into_iter()
+        .find(|b| b.first().is_some_and(|l| l.starts_with("//! `lambert`")))
+        .expect("docs/checks.md quotes src/harness/checks/lambert.rs");
+    assert_eq!(
+        quoted.join("\n"),
+        real.trim_end(),
+        "docs/checks.md's copy of src/harness/checks/lambert.rs differs from the file"
+    );
+}
