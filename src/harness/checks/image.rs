@@ -9,7 +9,7 @@ use crate::harness::compare::{
     compare, regions_key, regions_measurement, whole_image, Region, RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
-use crate::harness::looks::{self, look_sizes};
+use crate::harness::looks;
 use crate::harness::region::settings_for;
 use crate::harness::{Check, CheckError, Context, Kind, Measurement, Scope};
 use crate::integrators::Strategy;
@@ -100,43 +100,48 @@ fn in_looks(
         .map_err(CheckError::Setup)?;
     let channels = CHANNELS.len();
     let tolerance = ctx.rel_tolerance(check.rel_tolerance);
-    let looks = look_sizes(s.spp, ctx.renderer.spp_step());
     let mut cumulative: Option<Film> = None;
     let mut reference_has_variance = reference.variance.is_some();
-    let looked = looks::run(ctx.alpha, looks, s.spp, "spp", |k, spp, open_tests| {
-        // a region is open while one of its channels' tests is (all at the first look)
-        let open: Vec<usize> = (0..regions.len())
-            .filter(|r| {
-                open_tests.is_empty()
-                    || open_tests[r * channels..(r + 1) * channels].contains(&true)
-            })
-            .collect();
-        let settings = RenderSettings {
-            seed: mix64(ctx.seed ^ (k as u64 + 1)),
-            spp,
-            ..s.clone()
-        };
-        let look = render_regions(ctx, scene, &settings, &rects, &open)?;
-        let spent = look.rendered_pixels() as u64 * spp;
-        let film = match cumulative.take() {
-            None => look,
-            Some(mut c) => {
-                add_samples(&mut c, &look);
-                c
-            }
-        };
-        let c = compare(
-            &RgbImage::from_film(&film),
-            reference,
-            &p.regions,
-            0.5,
-            0.01,
-            tolerance,
-        )?;
-        cumulative = Some(film);
-        reference_has_variance = c.reference_has_variance;
-        Ok((c.regions, spent))
-    })?;
+    let n_tests = regions.len() * channels;
+    let step = ctx.renderer.spp_step();
+    let looked = looks::run(
+        ctx.alpha,
+        n_tests,
+        s.spp,
+        step,
+        "spp",
+        |k, spp, open_tests| {
+            // a region is open while one of its channels' tests is
+            let open: Vec<usize> = (0..regions.len())
+                .filter(|r| open_tests[r * channels..(r + 1) * channels].contains(&true))
+                .collect();
+            let settings = RenderSettings {
+                seed: mix64(ctx.seed ^ (k as u64 + 1)),
+                spp,
+                ..s.clone()
+            };
+            let look = render_regions(ctx, scene, &settings, &rects, &open)?;
+            let spent = look.rendered_pixels() as u64 * spp;
+            let film = match cumulative.take() {
+                None => look,
+                Some(mut c) => {
+                    add_samples(&mut c, &look);
+                    c
+                }
+            };
+            let c = compare(
+                &RgbImage::from_film(&film),
+                reference,
+                &p.regions,
+                0.5,
+                0.01,
+                tolerance,
+            )?;
+            cumulative = Some(film);
+            reference_has_variance = c.reference_has_variance;
+            Ok((c.regions, spent))
+        },
+    )?;
     let mut ms = looked.measurement(&what_was_compared(&s.observer, reference_has_variance))?;
     ms.rel_tolerance = Some(tolerance);
     Ok(ms)
