@@ -17,7 +17,9 @@ pub use sppm::{render_sppm, render_sppm_each, render_sppm_radii, render_sppm_run
 use crate::film::blocks::{spans, BlockFold, Piece};
 use crate::film::partial::PartialFilm;
 use crate::film::{Film, Pixel};
-use crate::integrators::radiosity::Solution;
+use crate::integrators::radiosity::{
+    solve_with, PointFactor, RadiosityError, RadiositySettings, Solution,
+};
 use crate::integrators::PathTracer;
 use crate::math::rng::{SampleStream, Sampler};
 use crate::scene::Scene;
@@ -190,6 +192,9 @@ pub enum RenderError {
         /// Samples asked for.
         total: u64,
     },
+    /// The radiosity solve failed.
+    #[error(transparent)]
+    Radiosity(#[from] RadiosityError),
     /// The thread pool could not be built.
     #[error("cannot start {threads} worker threads: {message}")]
     Threads {
@@ -353,6 +358,23 @@ pub fn render_radiosity(
     progress: &(dyn Fn(u64) + Sync),
 ) -> Result<Film, RenderError> {
     render_whole(scene, settings, Estimator::Radiosity(solution), progress)
+}
+
+/// Solves `scene` by radiosity with the point form factor `factor` (furnace's own is
+/// [`crate::integrators::radiosity::point_to_polygon`]; a negative control passes a wrong one)
+/// on `settings`' threads, as its image is rendered, and by `settings`' deadline unless
+/// `radiosity` has its own.
+pub fn solve_radiosity(
+    scene: &Scene,
+    settings: &RenderSettings,
+    radiosity: &RadiositySettings,
+    factor: PointFactor,
+) -> Result<Solution, RenderError> {
+    let mut rs = radiosity.clone();
+    rs.deadline = rs.deadline.or(settings.deadline);
+    Ok(in_pool(settings.threads, || {
+        solve_with(scene, &rs, &settings.observer, factor)
+    })??)
 }
 
 /// What gives a camera sample its XYZ.

@@ -372,7 +372,9 @@ fn render_radiosity_image(
     exr_path: &Path,
     png_path: &Path,
 ) -> Result<i32, Failure> {
-    use furnace::integrators::radiosity::{default_patch_size, solve, RadiositySettings};
+    use furnace::integrators::radiosity::{
+        default_patch_size, point_to_polygon, RadiositySettings,
+    };
     let size = a
         .patch_size
         .unwrap_or_else(|| default_patch_size(scene.aggregate.shapes()));
@@ -382,9 +384,7 @@ fn render_radiosity_image(
             patch_size: Some(size),
             ..Default::default()
         };
-        // on the render's threads (`-j`), as the image is
-        furnace::render::in_pool(settings.threads, || solve(scene, &rs, &settings.observer))
-            .context("cannot start the worker threads")?
+        furnace::render::solve_radiosity(scene, settings, &rs, point_to_polygon)
             .context("cannot solve radiosity")
     };
     let fine = solve_at(size)?;

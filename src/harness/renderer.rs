@@ -5,9 +5,7 @@
 use crate::film::Film;
 use crate::integrators::bdpt::Bdpt;
 use crate::integrators::mlt::Mlt;
-use crate::integrators::radiosity::{
-    point_to_polygon, solve_with, PointFactor, RadiositySettings, SolveStats,
-};
+use crate::integrators::radiosity::{point_to_polygon, PointFactor, RadiositySettings, SolveStats};
 use crate::integrators::sppm::Sppm;
 use crate::render::light::{trace_light_image, LightImage};
 use crate::render::sppm::DensityEstimate;
@@ -242,14 +240,8 @@ pub fn radiosity_image(
     radiosity: &RadiositySettings,
     factor: PointFactor,
 ) -> Result<(Film, SolveStats), RendererError> {
-    let mut rs = radiosity.clone();
-    rs.deadline = rs.deadline.or(settings.deadline);
-    // on the render's threads, as the image is
-    let solution = crate::render::in_pool(settings.threads, || {
-        solve_with(scene, &rs, &settings.observer, factor)
-    })
-    .map_err(|e| RendererError(e.to_string()))?
-    .map_err(|e| RendererError(e.to_string()))?;
+    let solution = crate::render::solve_radiosity(scene, settings, radiosity, factor)
+        .map_err(|e| RendererError(e.to_string()))?;
     let film = crate::render::render_radiosity(scene, settings, &solution, &|_| {})
         .map_err(|e| RendererError(e.to_string()))?;
     Ok((film, solution.stats))
