@@ -382,7 +382,11 @@ mod tests {
                 };
                 let f = fit(&d, &r, n, &looks, written);
                 assert!(f.power >= 0.9499, "α {alpha}, ρ {rho}: power {}", f.power);
-                assert!(f.level <= alpha * 1.001, "α {alpha}, ρ {rho}: level {}", f.level);
+                assert!(
+                    f.level <= alpha * 1.001,
+                    "α {alpha}, ρ {rho}: level {}",
+                    f.level
+                );
             }
         }
     }
