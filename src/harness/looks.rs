@@ -1,8 +1,8 @@
 //! Region comparisons in sequential looks: each region × channel test of a comparison is a
 //! group-sequential test of its cumulative statistic against one fixed expected value (a
 //! stored or once-rendered reference, or a closed form), stopping on its own at the Šidák
-//! share of the check's level. Used by `image_compare` and `algorithm_agreement`; the method
-//! is in docs/statistics.md, "Image comparisons in looks".
+//! share of the check's level. Used by `image_compare`; the method is in docs/statistics.md,
+//! "Image comparisons in looks".
 
 use crate::harness::compare::{regions_measurement, RegionResult};
 use crate::harness::measurement::fmt_sig;
@@ -118,7 +118,7 @@ pub fn run(
             return Err(CheckError::Setup(format!(
                 "a look returned {} tests for {}",
                 results.len(),
-                stopped.len()
+                n_tests
             )));
         }
         for (j, r) in results.iter().enumerate() {
