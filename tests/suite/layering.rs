@@ -280,3 +280,36 @@ fn harness_rooms_use_only_rooms_below_them() {
         violations.join("\n")
     );
 }
+
+#[test]
+fn the_design_page_draws_the_harness_layers_as_enforced() {
+    // docs/design.md's diagram of the harness's rooms ("a < b < {c, d}") must list the rooms
+    // of HARNESS_LAYERS, layer by layer, so that a newcomer reads the order this file checks.
+    let design = std::fs::read_to_string(root("docs/design.md")).unwrap();
+    let start = design
+        .find("{names, outcome, error}")
+        .expect("docs/design.md draws the harness's layers");
+    let end = start + design[start..].find("```").unwrap();
+    let drawn: Vec<Vec<String>> = design[start..end]
+        .split('<')
+        .map(|layer| {
+            let mut rooms: Vec<String> = layer
+                .trim()
+                .trim_matches(|c| c == '{' || c == '}')
+                .split(',')
+                .map(|r| r.trim().trim_end_matches('/').to_string())
+                .collect();
+            rooms.sort();
+            rooms
+        })
+        .collect();
+    let enforced: Vec<Vec<String>> = HARNESS_LAYERS
+        .iter()
+        .map(|layer| {
+            let mut rooms: Vec<String> = layer.iter().map(|r| r.to_string()).collect();
+            rooms.sort();
+            rooms
+        })
+        .collect();
+    assert_eq!(drawn, enforced, "docs/design.md's harness diagram");
+}
