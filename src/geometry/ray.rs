@@ -22,12 +22,20 @@ impl Ray {
 }
 
 /// The origin for a ray leaving `sp` in direction `w`: moved along ±n just past the error
-/// box, then each component rounded one ulp away from `sp.p` (PBR 3rd ed., §3.9.5).
-#[inline]
+/// box, then each component rounded one ulp away from `sp.p` (PBR 3rd ed., §3.9.5). Inlined,
+/// so that a direction just computed reaches the side test in registers rather than through
+/// memory (docs/performance.md, "Spawned origins take the side, not the direction").
+#[inline(always)]
 pub fn offset_origin(sp: &SurfacePoint, w: Vec3) -> Vec3 {
+    offset_to_side(sp, w.dot(sp.n) < 0.0)
+}
+
+/// [`offset_origin`] to the side of `sp`'s normal (`below`: against it).
+#[inline]
+fn offset_to_side(sp: &SurfacePoint, below: bool) -> Vec3 {
     let d = sp.n.abs().dot(sp.p_error);
     let mut offset = sp.n * d;
-    if w.dot(sp.n) < 0.0 {
+    if below {
         offset = -offset;
     }
     // plain arrays: constant-size indexing without Vec3's checked Index/IndexMut
@@ -44,6 +52,7 @@ pub fn offset_origin(sp: &SurfacePoint, w: Vec3) -> Vec3 {
 }
 
 /// A ray leaving `sp` in unit direction `w`.
+#[inline(always)]
 pub fn spawn(sp: &SurfacePoint, w: Vec3) -> Ray {
     Ray {
         o: offset_origin(sp, w),
