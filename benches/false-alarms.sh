@@ -41,9 +41,10 @@ furnace=${FURNACE:-target/release/furnace}
 out=${OUT:-reports/false-alarms/pvalues.tsv}
 mkdir -p "$(dirname "$out")"
 [ -f "$out" ] || printf 'seed\tbuild\tcheck\tverdict\tp\n' > "$out"
-# the build: the commit, "-dirty" when anything but this results file differs from it
+# the build: the commit, "-dirty" when anything but the results files differs from it (so that
+# sweeps of seed ranges side by side, each into its own file, label each other clean)
 build=$(git describe --always)
-git diff --quiet HEAD -- . ":(exclude)$out" || build="$build-dirty"
+git diff --quiet HEAD -- . ":(exclude)$out" ":(exclude)reports/false-alarms" || build="$build-dirty"
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 for seed in $(seq "$first" "$last"); do
