@@ -67,7 +67,7 @@ pub struct CheckArgs {
     /// Give every check whose spp is a sample budget the spp that detects a relative bias of DELTA with 95 % probability (a pilot run at a sixteenth of its spp estimates the variance), overriding the manifests' `power`: e.g. `--power 0.002` for a nightly job.
     #[arg(long, value_name = "DELTA")]
     power: Option<f64>,
-    /// Spend each budgeted check's written spp in one go, with no sequential looks, and so each image comparison against a stored reference (by default a budgeted check's samples are spent in three looks, ¼, ½ and all of a budget about 1.13× the written one, stopping as soon as the verdict is settled, with the same false-alarm rate and the same power at the check's detection limit; docs/statistics.md).
+    /// Spend each budgeted check's written spp in one go, with no sequential looks, and likewise each image comparison against a stored reference (by default a budgeted check's samples are spent in three looks, ¼, ½ and all of a budget about 1.13× the written one, stopping as soon as the verdict is settled, with the same false-alarm rate and the same power at the check's detection limit; docs/statistics.md).
     #[arg(long)]
     fixed: bool,
     /// The sequential looks, which are the default (kept so that scripts written for it still run).
