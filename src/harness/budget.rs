@@ -11,9 +11,8 @@ use super::measurement::{fmt_sig, Measurement};
 use super::outcome::Statistic;
 use crate::math::rng::mix64;
 use crate::stats::power;
-use crate::stats::sequential::{self, upper_quantile, Design};
+use crate::stats::sequential::{self, upper_quantile, Design, LOOKS, POWER, SHAPES};
 
-pub use crate::stats::sequential::{LOOKS, POWER, SHAPES};
 /// The pilot runs at 1/PILOT_SHARE of the manifest's spp (at least 4).
 pub const PILOT_SHARE: u64 = 16;
 /// The largest factor a power target may scale a check's spp by.

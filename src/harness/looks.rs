@@ -57,9 +57,9 @@ pub fn design_at(alpha: f64) -> Result<Design, CheckError> {
 /// check's line says about the looks.
 pub struct Looked {
     /// Each test's result where it stopped (the open ones at the last look), p stage-wise.
-    pub tests: Vec<RegionResult>,
+    tests: Vec<RegionResult>,
     /// Samples spent over the looks (pixels × samples).
-    pub samples: u64,
+    samples: u64,
     /// The worst test's fixed-test standard error whose detection limit the looks detect with
     /// 95 % probability (`Measurement::power_std_error`).
     power_se: f64,

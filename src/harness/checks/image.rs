@@ -184,13 +184,10 @@ fn render_regions(
     Ok(film)
 }
 
-/// Adds `look`'s samples to `film`'s, pixel by pixel where `look` rendered.
+/// Adds `look`'s samples to `film`'s, pixel by pixel (a pixel `look` did not render holds
+/// none, and merging it changes nothing).
 fn add_samples(film: &mut Film, look: &Film) {
-    for (a, b) in film.pixels.iter_mut().zip(&look.pixels) {
-        if b.channels[1].count() > 0 {
-            a.merge(b);
-        }
-    }
+    crate::film::merge_pixels(&mut film.pixels, &look.pixels);
     film.truncated_paths += look.truncated_paths;
 }
 
