@@ -185,10 +185,11 @@ pub fn ray_xyz(
         }
         Ok(())
     };
+    // each whole nanometre's branch record serves the piece on either side of it
+    let mut right = sample(scene, ray, 360.0, max_depth)?.1;
     for i in 0..470 {
         let (a, b) = (360.0 + i as f64, 361.0 + i as f64);
-        let left = sample(scene, ray, a, max_depth)?.1;
-        let right = sample(scene, ray, b, max_depth)?.1;
+        let left = std::mem::replace(&mut right, sample(scene, ray, b, max_depth)?.1);
         if left == right {
             piece(a, b, &mut acc)?;
             continue;
