@@ -19,6 +19,9 @@ const QUADRATURE_REL_TOL: f64 = 1e-6;
 /// Absolute tolerance of the expected bin masses (probability).
 const QUADRATURE_ABS_TOL: f64 = 1e-12;
 
+/// Draws per call of the sampler (and of its pdf).
+const CHUNK: u64 = 16_384;
+
 /// Chi-square test of one sampler with `samples` draws.
 pub fn measure_sampler(
     sampler: &dyn DirectionSampler,
@@ -31,20 +34,32 @@ pub fn measure_sampler(
         phi_bins: bins[1],
     };
     let mut rng = SampleStream::new(seed, 3, 0);
-    let rows: Vec<([f64; 2], f64)> = (0..samples)
-        .map(|_| {
-            let u = rng.next_2d();
-            (u, rng.next_f64())
-        })
-        .collect();
-    let drawn: Vec<Vec3> = sampler.sample(&rows)?.into_iter().flatten().collect();
-    let counts = binning.count(drawn.iter().map(|w| w.to_array()));
-    // A sample where the claimed pdf is zero is a failure by itself, whatever the bins say.
-    let zero_pdf = sampler
-        .pdf(&drawn)?
-        .iter()
-        .filter(|p| p.is_nan() || **p <= 0.0)
-        .count();
+    let mut counts = vec![0u64; binning.n_bins() + 1];
+    let (mut drawn_total, mut zero_pdf) = (0usize, 0usize);
+    // in batches of CHUNK draws, so that the rows stay in cache and the run's memory does not
+    // grow with the sample count (the batches' counts add up to one batch's)
+    for start in (0..samples).step_by(CHUNK as usize) {
+        let rows: Vec<([f64; 2], f64)> = (start..samples.min(start + CHUNK))
+            .map(|_| {
+                let u = rng.next_2d();
+                (u, rng.next_f64())
+            })
+            .collect();
+        let drawn: Vec<Vec3> = sampler.sample(&rows)?.into_iter().flatten().collect();
+        for (c, n) in counts
+            .iter_mut()
+            .zip(binning.count(drawn.iter().map(|w| w.to_array())))
+        {
+            *c = c.saturating_add(n);
+        }
+        drawn_total += drawn.len();
+        // A sample where the claimed pdf is zero is a failure by itself, whatever the bins say.
+        zero_pdf += sampler
+            .pdf(&drawn)?
+            .iter()
+            .filter(|p| p.is_nan() || **p <= 0.0)
+            .count();
+    }
     // Adaptive Gauss–Kronrod per bin (bins split where the embedded Gauss rule disagrees by
     // more than 1e-6 of the bin's mass + 1e-12); bins cut by a hard edge (a light's
     // silhouette) are refined as such. A relative error of 1e-6 per bin moves χ² by about
@@ -75,7 +90,7 @@ pub fn measure_sampler(
     }
     Ok(match chi2_gof(&counts, &expected, 5.0) {
         Ok(c) => Measurement {
-            estimate: Some(drawn.len() as f64 / samples as f64),
+            estimate: Some(drawn_total as f64 / samples as f64),
             expected: Some(expected.iter().sum::<f64>() / samples as f64),
             statistic: Some(Statistic::ChiSquare { chi2: c.chi2, dof: c.dof }),
             p_value: Some(if zero_pdf > 0 { 0.0 } else { c.p_value }),
