@@ -124,7 +124,21 @@ struct Vertex {
     /// A Lambertian surface's reflectance at the path's wavelengths, evaluated once when the
     /// walk samples the vertex and reused by every connection through it; None elsewhere.
     reflectance: Option<SampledSpectrum>,
+    /// A surface vertex's shading frame and, in it, the unit direction towards the previous
+    /// vertex of its subpath, computed once when the walk reaches it (every connection and
+    /// density through the vertex reads them); unused at a subpath's origin.
+    local: (Frame, Vec3),
 }
+
+/// The `local` of a subpath's origin, which no connection reads.
+const NO_LOCAL: (Frame, Vec3) = (
+    Frame {
+        s: Vec3::X,
+        t: Vec3::Y,
+        n: Vec3::Z,
+    },
+    Vec3::Z,
+);
 
 impl Vertex {
     fn is_surface(&self) -> bool {
@@ -193,12 +207,8 @@ impl<'a> Setup<'a> {
 /// In the shading frame of vertex `i` of `path`: the unit direction towards vertex `i − 1` and
 /// the world direction `w`.
 fn local_dirs(path: &[Vertex], i: usize, w: Vec3) -> (Vec3, Vec3) {
-    let v = &path[i];
-    let frame = Frame::from_normal(v.sp.n);
-    (
-        frame.to_local((path[i - 1].sp.p - v.sp.p).normalize()),
-        frame.to_local(w),
-    )
+    let (frame, to_prev) = &path[i].local;
+    (*to_prev, frame.to_local(w))
 }
 
 /// True when vertex `v` is a surface that sends wavelengths different ways.
@@ -288,6 +298,7 @@ impl Bdpt {
                 return false;
             };
             let prev = path.last().expect("a subpath starts with its origin");
+            let frame = Frame::from_normal(hit.point.n);
             let mut v = Vertex {
                 on: On::Surface { shape: hit.shape },
                 sp: hit.point,
@@ -297,6 +308,7 @@ impl Bdpt {
                 delta: false,
                 dispersed_before: prev.dispersed_before || separates(scene, prev),
                 reflectance: None,
+                local: (frame, frame.to_local((prev.sp.p - hit.point.p).normalize())),
             };
             v.pdf_fwd = to_area(pdf_dir, prev.sp.p, &v);
             path.push(v);
@@ -305,7 +317,6 @@ impl Bdpt {
                 return false;
             }
             let bsdf = &scene.bsdfs[hit.shape as usize];
-            let frame = Frame::from_normal(hit.point.n);
             let wo = frame.to_local(-ray.d);
             let u_lobe = rng.next_f64();
             let u = rng.next_2d();
@@ -370,6 +381,7 @@ impl Bdpt {
             delta: false,
             dispersed_before: false,
             reflectance: None,
+            local: NO_LOCAL,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
         let pdf = setup.camera_pdf(ray.d);
@@ -423,6 +435,7 @@ impl Bdpt {
             delta: false,
             dispersed_before: false,
             reflectance: None,
+            local: NO_LOCAL,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
