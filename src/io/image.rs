@@ -294,15 +294,71 @@ pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
     let image = Image::from_layer(layer);
     let mut failure = None;
     super::located::write_atomic(path, |tmp| {
-        image.write().to_file(tmp).map_err(|e| {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image.write().to_buffered(&mut bytes).map_err(|e| {
             failure = Some(e);
             std::io::Error::other("EXR write failed")
-        })
+        })?;
+        let mut bytes = bytes.into_inner();
+        sort_header_attributes(&mut bytes);
+        fs::write(tmp, &bytes)
     })
     .map_err(|source| match failure.take() {
         Some(e) => exr_error(path, e),
         None => io_error(path, source),
     })
+}
+
+/// Puts the header attributes of a single-part OpenEXR file (`bytes`, as the `exr` crate wrote
+/// it) in order of name, as the OpenEXR library writes them: `exr` keeps the free-form ones in a
+/// `HashMap` and writes them in its iteration order, which changes from run to run, so the
+/// same image would give different files. The header keeps its length, so the chunk offsets
+/// after it stay valid. Multi-part and deep files, and anything that does not parse, are left
+/// as they are.
+fn sort_header_attributes(bytes: &mut [u8]) {
+    const MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+    const MULTIPART_OR_DEEP: u32 = 0x1000 | 0x800;
+    if bytes.len() < 8 || bytes[..4] != MAGIC {
+        return;
+    }
+    if u32::from_le_bytes([bytes[4], bytes[5], bytes[6], bytes[7]]) & MULTIPART_OR_DEEP != 0 {
+        return;
+    }
+    // each attribute: name NUL, type NUL, size (i32 LE), value; an empty name ends the header
+    let c_string_end = |from: usize| bytes[from..].iter().position(|&b| b == 0).map(|k| from + k);
+    let mut spans = Vec::new();
+    let mut at = 8;
+    let end = loop {
+        let Some(name_end) = c_string_end(at) else {
+            return;
+        };
+        if name_end == at {
+            break at;
+        }
+        let Some(type_end) = c_string_end(name_end + 1) else {
+            return;
+        };
+        let Some(size) = bytes.get(type_end + 1..type_end + 5) else {
+            return;
+        };
+        let size = i32::from_le_bytes([size[0], size[1], size[2], size[3]]);
+        let Ok(size) = usize::try_from(size) else {
+            return;
+        };
+        let next = type_end + 5 + size;
+        if next > bytes.len() {
+            return;
+        }
+        spans.push((at, name_end, next));
+        at = next;
+    };
+    let mut sorted = spans.clone();
+    sorted.sort_by(|a, b| bytes[a.0..a.1].cmp(&bytes[b.0..b.1]));
+    let header: Vec<u8> = sorted
+        .iter()
+        .flat_map(|&(start, _, next)| bytes[start..next].iter().copied())
+        .collect();
+    bytes[8..end].copy_from_slice(&header);
 }
 
 /// Read the first layer (part) of an OpenEXR file.
@@ -729,6 +785,41 @@ mod tests {
         fn drop(&mut self) {
             let _ = fs::remove_dir_all(&self.0);
         }
+    }
+
+    #[test]
+    fn the_same_image_gives_the_same_bytes_with_attributes_sorted_by_name() {
+        let scratch = Scratch::new("bytes");
+        let mut image = sample_image();
+        for k in 0..24 {
+            image
+                .attributes
+                .push((format!("furnace.k{k:02}"), format!("value {k}")));
+        }
+        let (a, b) = (scratch.file("a.exr"), scratch.file("b.exr"));
+        write_exr(&a, &image).unwrap();
+        write_exr(&b, &image).unwrap();
+        let bytes = fs::read(&a).unwrap();
+        assert_eq!(bytes, fs::read(&b).unwrap());
+        // the header's names, in file order
+        let mut names = Vec::new();
+        let mut at = 8;
+        loop {
+            let end = at + bytes[at..].iter().position(|&c| c == 0).unwrap();
+            if end == at {
+                break;
+            }
+            names.push(bytes[at..end].to_vec());
+            let type_end = end + 1 + bytes[end + 1..].iter().position(|&c| c == 0).unwrap();
+            let size = i32::from_le_bytes(bytes[type_end + 1..type_end + 5].try_into().unwrap());
+            at = type_end + 5 + size as usize;
+        }
+        assert!(names.len() > 30, "{}", names.len());
+        assert!(names.windows(2).all(|w| w[0] < w[1]));
+        assert_eq!(
+            read_exr(&a).unwrap().attributes.len(),
+            image.attributes.len()
+        );
     }
 
     fn sample_image() -> Layers {
