@@ -352,9 +352,8 @@ fn sort_header_attributes(bytes: &mut [u8]) {
         spans.push((at, name_end, next));
         at = next;
     };
-    let mut sorted = spans.clone();
-    sorted.sort_by(|a, b| bytes[a.0..a.1].cmp(&bytes[b.0..b.1]));
-    let header: Vec<u8> = sorted
+    spans.sort_by(|a, b| bytes[a.0..a.1].cmp(&bytes[b.0..b.1]));
+    let header: Vec<u8> = spans
         .iter()
         .flat_map(|&(start, _, next)| bytes[start..next].iter().copied())
         .collect();
