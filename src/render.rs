@@ -73,8 +73,7 @@ pub fn merge_runs(films: Vec<Film>) -> Option<Film> {
     let mut it = films.into_iter();
     let mut merged = it.next()?;
     for f in it {
-        crate::film::merge_pixels(&mut merged.pixels, &f.pixels);
-        merged.truncated_paths += f.truncated_paths;
+        merged.merge(&f);
     }
     Some(merged)
 }

@@ -71,6 +71,13 @@ impl Film {
         }
     }
 
+    /// Adds `other`'s samples (a film of the same size) to this one's, pixel by pixel (an
+    /// empty pixel adds nothing), and its truncated paths.
+    pub fn merge(&mut self, other: &Film) {
+        merge_pixels(&mut self.pixels, &other.pixels);
+        self.truncated_paths += other.truncated_paths;
+    }
+
     /// Pixels holding at least one sample (a render's crop leaves the others empty).
     pub fn rendered_pixels(&self) -> usize {
         self.pixels

@@ -70,7 +70,7 @@ pub fn render_sppm_each(
             each(&film);
             match &mut merged {
                 None => merged = Some(film),
-                Some(m) => crate::film::merge_pixels(&mut m.pixels, &film.pixels),
+                Some(m) => m.merge(&film),
             }
         },
     )?;

@@ -125,7 +125,7 @@ fn in_looks(
             let film = match cumulative.take() {
                 None => look,
                 Some(mut c) => {
-                    add_samples(&mut c, &look);
+                    c.merge(&look);
                     c
                 }
             };
@@ -182,13 +182,6 @@ fn render_regions(
         }
     }
     Ok(film)
-}
-
-/// Adds `look`'s samples to `film`'s, pixel by pixel (a pixel `look` did not render holds
-/// none, and merging it changes nothing).
-fn add_samples(film: &mut Film, look: &Film) {
-    crate::film::merge_pixels(&mut film.pixels, &look.pixels);
-    film.truncated_paths += look.truncated_paths;
 }
 
 /// Parameters of an image comparison.
