@@ -26,6 +26,7 @@ use crate::scene::Scene;
 use crate::spectrum::{Observer, SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::PoisonError;
 
 /// Settings for the render modules' unit tests: an 8x8 image, 1 spp, seed 3, `threads`.
 #[cfg(test)]
@@ -487,109 +488,107 @@ fn render_blocks(
                 && crop[1] < (ty + 1) * TILE
         })
         .collect();
+    // the finished tiles are copied in as they finish, so the image is held once, not also as
+    // a list of every tile's pixels (half the peak memory of a large render)
+    let pieces = std::sync::Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);
     let out_of_time = AtomicBool::new(false);
     let start = std::time::Instant::now();
     let work = || {
-        tiles
-            .par_iter()
-            .map(|&(tx, ty)| {
-                let (x0, y0) = (tx * TILE, ty * TILE);
-                let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
-                // per pixel, its n_pieces piece states in order
-                let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0) * n_pieces);
-                let mut cut = 0;
-                let mut rendered = 0u64;
-                for y in y0..y1 {
-                    for x in x0..x1 {
-                        if !in_rect(crop, x, y) {
-                            pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
-                            continue;
+        tiles.par_iter().for_each(|&(tx, ty)| {
+            let (x0, y0) = (tx * TILE, ty * TILE);
+            let (x1, y1) = ((x0 + TILE).min(w), (y0 + TILE).min(h));
+            // per pixel, its n_pieces piece states in order
+            let mut pixels = Vec::with_capacity((x1 - x0) * (y1 - y0) * n_pieces);
+            let mut cut = 0;
+            let mut rendered = 0u64;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    if !in_rect(crop, x, y) {
+                        pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
+                        continue;
+                    }
+                    rendered += 1;
+                    if out_of_time.load(Ordering::Relaxed)
+                        || settings
+                            .deadline
+                            .is_some_and(|d| std::time::Instant::now() >= d)
+                    {
+                        out_of_time.store(true, Ordering::Relaxed);
+                        pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
+                        continue;
+                    }
+                    let pixel_index = (y * w + x) as u64;
+                    let mut fold = BlockFold::new(blocks.start);
+                    for b in blocks.clone() {
+                        let mut px = Pixel::default();
+                        let first = b * BLOCK_SAMPLES;
+                        for s in first..(first + BLOCK_SAMPLES).min(settings.spp) {
+                            let mut rng = SampleStream::with_sampler(
+                                settings.sampler,
+                                settings.seed,
+                                pixel_index,
+                                s,
+                                settings.spp,
+                            );
+                            let xyz = match estimator {
+                                Estimator::PathTracer => {
+                                    let u_lambda = rng.next_f64();
+                                    let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
+                                    let [jx, jy] = rng.next_2d();
+                                    let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                                    let (l, was_cut) =
+                                        settings.integrator.trace(scene, ray, &mut wl, &mut rng);
+                                    cut += u64::from(was_cut);
+                                    response.xyz(&l, &wl)
+                                }
+                                Estimator::Radiosity(solution) => {
+                                    let [jx, jy] = rng.next_2d();
+                                    let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
+                                    scene
+                                        .aggregate
+                                        .intersect(&ray, f64::INFINITY)
+                                        .map_or([0.0; 3], |hit| {
+                                            solution.xyz_at(hit.shape, hit.point.p, -ray.d)
+                                        })
+                                }
+                            };
+                            px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
-                        rendered += 1;
-                        if out_of_time.load(Ordering::Relaxed)
-                            || settings
-                                .deadline
-                                .is_some_and(|d| std::time::Instant::now() >= d)
-                        {
-                            out_of_time.store(true, Ordering::Relaxed);
-                            pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
-                            continue;
-                        }
-                        let pixel_index = (y * w + x) as u64;
-                        let mut fold = BlockFold::new(blocks.start);
-                        for b in blocks.clone() {
-                            let mut px = Pixel::default();
-                            let first = b * BLOCK_SAMPLES;
-                            for s in first..(first + BLOCK_SAMPLES).min(settings.spp) {
-                                let mut rng = SampleStream::with_sampler(
-                                    settings.sampler,
-                                    settings.seed,
-                                    pixel_index,
-                                    s,
-                                    settings.spp,
-                                );
-                                let xyz = match estimator {
-                                    Estimator::PathTracer => {
-                                        let u_lambda = rng.next_f64();
-                                        let mut wl = Wavelengths::for_film(u_lambda, lanes, grey);
-                                        let [jx, jy] = rng.next_2d();
-                                        let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                                        let (l, was_cut) = settings
-                                            .integrator
-                                            .trace(scene, ray, &mut wl, &mut rng);
-                                        cut += u64::from(was_cut);
-                                        response.xyz(&l, &wl)
-                                    }
-                                    Estimator::Radiosity(solution) => {
-                                        let [jx, jy] = rng.next_2d();
-                                        let ray = camera.ray(x as f64 + jx, y as f64 + jy, w, h);
-                                        scene
-                                            .aggregate
-                                            .intersect(&ray, f64::INFINITY)
-                                            .map_or([0.0; 3], |hit| {
-                                                solution.xyz_at(hit.shape, hit.point.p, -ray.d)
-                                            })
-                                    }
-                                };
-                                px.add(xyz, observer.xyz_to_rgb(xyz));
-                            }
-                            fold.push(px, &merge);
-                        }
-                        if whole {
-                            pixels.push(fold.finish(&merge).unwrap_or_default());
-                        } else {
-                            pixels.extend(fold.into_pieces().into_iter().map(|p| p.state));
-                        }
+                        fold.push(px, &merge);
+                    }
+                    if whole {
+                        pixels.push(fold.finish(&merge).unwrap_or_default());
+                    } else {
+                        pixels.extend(fold.into_pieces().into_iter().map(|p| p.state));
                     }
                 }
-                truncated.fetch_add(cut, Ordering::Relaxed);
-                let n = done.fetch_add(rendered * samples, Ordering::Relaxed) + rendered * samples;
-                progress(n);
-                (tx, ty, pixels)
-            })
-            .collect::<Vec<_>>()
+            }
+            truncated.fetch_add(cut, Ordering::Relaxed);
+            {
+                let mut pieces = pieces.lock().unwrap_or_else(PoisonError::into_inner);
+                let tw = x1 - x0;
+                for (i, states) in pixels.chunks_exact(n_pieces).enumerate() {
+                    let at = (y0 + i / tw) * w + x0 + i % tw;
+                    for (piece, state) in pieces.iter_mut().zip(states) {
+                        piece[at] = *state;
+                    }
+                }
+            }
+            let n = done.fetch_add(rendered * samples, Ordering::Relaxed) + rendered * samples;
+            progress(n);
+        })
     };
-    let results = in_pool(settings.threads, work)?;
+    in_pool(settings.threads, work)?;
+    let pieces = pieces.into_inner().unwrap_or_else(PoisonError::into_inner);
     if out_of_time.load(Ordering::Relaxed) {
         let per_pixel = |p: &Pixel| p.channels[0].count();
         return Err(RenderError::OutOfTime {
             seconds: start.elapsed().as_secs_f64(),
-            done: results.iter().flat_map(|r| &r.2).map(per_pixel).sum(),
+            done: pieces.iter().flatten().map(per_pixel).sum(),
             total: ((crop[2] - crop[0]) * (crop[3] - crop[1])) as u64 * samples,
         });
-    }
-    let mut pieces = vec![vec![Pixel::default(); w * h]; n_pieces];
-    for (tx, ty, pixels) in results {
-        let (x0, y0) = (tx * TILE, ty * TILE);
-        let tw = (x0 + TILE).min(w) - x0;
-        for (i, states) in pixels.chunks_exact(n_pieces).enumerate() {
-            let at = (y0 + i / tw) * w + x0 + i % tw;
-            for (piece, state) in pieces.iter_mut().zip(states) {
-                piece[at] = *state;
-            }
-        }
     }
     Ok((pieces, truncated.load(Ordering::Relaxed)))
 }

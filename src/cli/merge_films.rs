@@ -40,8 +40,8 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
     }
     let (header, film) =
         furnace::film::partial::merge_files(&a.parts).context("cannot merge the partial films")?;
-    let code = super::render::write_film(
-        &film,
+    let written = super::render::write_film(
+        film,
         header.attributes,
         Vec::new(),
         &a.out,
@@ -50,10 +50,10 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
     )?;
     super::say!(
         "{}x{} px from {} parts; noise: mean relative variance of the Y pixel means {:.4e}",
-        film.width,
-        film.height,
+        written.width,
+        written.height,
         a.parts.len(),
-        super::render::relative_variance(&film)
+        written.relative_variance
     );
-    Ok(code)
+    Ok(written.code)
 }

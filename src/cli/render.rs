@@ -336,7 +336,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     .context("cannot render")?;
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let code = write_film(&film, attrs, runs, &exr_path, &png_path, a.exposure)?;
+    let written = write_film(film, attrs, runs, &exr_path, &png_path, a.exposure)?;
     if light {
         super::say!(
             "{}x{} px, {} light paths, {:.2} s wall, {:.3} M paths/s",
@@ -356,8 +356,8 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             total as f64 / secs / 1e6
         );
     }
-    say_noise(&film, secs, "");
-    Ok(code)
+    say_noise(written.relative_variance, secs, "");
+    Ok(written.code)
 }
 
 /// `furnace render --integrator radiosity`: solves at the patch size and at twice it, writes
@@ -413,7 +413,7 @@ fn render_radiosity_image(
     ] {
         attrs.push((k.into(), v));
     }
-    let code = write_film(&film, attrs, Vec::new(), exr_path, png_path, a.exposure)?;
+    let written = write_film(film, attrs, Vec::new(), exr_path, png_path, a.exposure)?;
     super::say!(
         "radiosity: {} patches of at most {:.4} (scene units), {} wavelength nodes, {} form factors ({:.2} s), {} Gauss-Seidel sweeps to a relative error bound {:.1e} ({:.2} s); form-factor row sums {:.6}-{:.6}",
         st.patches,
@@ -438,7 +438,7 @@ fn render_radiosity_image(
         settings.spp,
         secs
     );
-    Ok(code)
+    Ok(written.code)
 }
 
 /// Parses --bdpt-only "S,T".
@@ -515,7 +515,7 @@ fn render_bdpt_image(
             ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
+    let written = write_film(film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "bdpt: {}x{} px, {} spp in {} runs, {:.2} s wall, {:.3} M samples/s",
         settings.width,
@@ -525,8 +525,12 @@ fn render_bdpt_image(
         secs,
         total as f64 / secs / 1e6
     );
-    say_noise(&film, secs, &format!(" (from {} runs)", a.runs));
-    Ok(code)
+    say_noise(
+        written.relative_variance,
+        secs,
+        &format!(" (from {} runs)", a.runs),
+    );
+    Ok(written.code)
 }
 
 /// `furnace render --integrator mlt`.
@@ -580,7 +584,7 @@ fn render_mlt_image(
             ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
+    let written = write_film(film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "mlt: {}x{} px, {} mutations per pixel in {} chains, {:.2} s wall, {:.3} M mutations/s",
         settings.width,
@@ -590,8 +594,12 @@ fn render_mlt_image(
         secs,
         mutations as f64 / secs / 1e6
     );
-    say_noise(&film, secs, &format!(" (from {} chains)", a.chains));
-    Ok(code)
+    say_noise(
+        written.relative_variance,
+        secs,
+        &format!(" (from {} chains)", a.chains),
+    );
+    Ok(written.code)
 }
 
 /// `furnace render --integrator sppm`.
@@ -654,7 +662,7 @@ fn render_sppm_image(
             ("furnace.pixels_correlated", "true".into()),
         ],
     );
-    let code = write_film(&film, attrs, runs, exr_path, png_path, a.exposure)?;
+    let written = write_film(film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "sppm: {} runs x {} iterations x {} photons, {}x{} px, {:.2} s wall, {:.3} M photons/s",
         a.runs,
@@ -665,7 +673,7 @@ fn render_sppm_image(
         secs,
         photons as f64 / secs / 1e6
     );
-    Ok(code)
+    Ok(written.code)
 }
 
 /// Independent runs' films merged into the image, with the runs' linear R, G, B means as EXR
@@ -711,8 +719,7 @@ fn set_attrs<const N: usize>(attrs: &mut Vec<(String, String)>, pairs: [(&str, S
 /// Prints the noise and efficiency line: the mean over pixels of Var(Y pixel mean) relative to
 /// the squared image mean (`source` says where the variances come from), and
 /// 1/(relative variance × time), comparable across estimators.
-fn say_noise(film: &furnace::film::Film, secs: f64, source: &str) {
-    let rel_var = relative_variance(film);
+fn say_noise(rel_var: f64, secs: f64, source: &str) {
     super::say!(
         "noise: mean relative variance of the Y pixel means {rel_var:.4e}{source}; efficiency 1/(relative variance x time) {:.4e} /s",
         1.0 / (rel_var * secs)
@@ -813,7 +820,7 @@ fn render_external(
     let film = ext
         .render(scene, settings)
         .map_err(|e| anyhow::anyhow!("cannot render through {spec}: {e}"))?;
-    let code = write_film(&film, attrs, Vec::new(), out, png, a.exposure)?;
+    let written = write_film(film, attrs, Vec::new(), out, png, a.exposure)?;
     super::say!(
         "{}x{} px, {} spp in {k} runs through {spec}, {:.2} s wall",
         settings.width,
@@ -821,7 +828,7 @@ fn render_external(
         settings.spp,
         start.elapsed().as_secs_f64()
     );
-    Ok(code)
+    Ok(written.code)
 }
 
 /// Renders part `k` and writes it as a partial film.
@@ -921,43 +928,56 @@ fn attributes(
     attrs
 }
 
+/// What [`write_film`] reports of the film it wrote (and dropped).
+pub(super) struct Written {
+    /// The exit code: 1 when a pixel holds NaN or Inf or a path was cut, else 0.
+    pub code: i32,
+    /// Image size in pixels.
+    pub width: usize,
+    /// Image size in pixels.
+    pub height: usize,
+    /// [`relative_variance`] of the film.
+    pub relative_variance: f64,
+}
+
 /// Writes the EXR and the PNG preview, warns about non-finite pixels and cut paths, and
-/// returns the exit code (1 when either happened).
+/// returns the exit code (1 when either happened) with what the caller reports. The film is
+/// dropped once its channels and preview are taken, before the files are encoded, so that a
+/// large image is not held twice.
 pub(super) fn write_film(
-    film: &furnace::film::Film,
+    film: furnace::film::Film,
     attrs: Vec<(String, String)>,
     extra: Vec<(String, Vec<f32>)>,
     exr_path: &Path,
     png_path: &Path,
     exposure: f64,
-) -> Result<i32, Failure> {
+) -> Result<Written, Failure> {
     let bad = film.non_finite_pixels();
+    let truncated = film.truncated_paths;
+    let (width, height) = (film.width, film.height);
+    let relative_variance = relative_variance(&film);
     let mut layers = film.to_layers(attrs);
     layers.channels.extend(extra);
-    io::write_exr(exr_path, &layers)
+    let srgb = film.linear_srgb();
+    drop(film);
+    io::write_exr_owned(exr_path, layers)
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
-    io::write_png_srgb(
-        png_path,
-        film.width,
-        film.height,
-        &film.linear_srgb(),
-        exposure,
-    )
-    .with_context(|| format!("cannot write {}", png_path.display()))?;
+    io::write_png_srgb(png_path, width, height, &srgb, exposure)
+        .with_context(|| format!("cannot write {}", png_path.display()))?;
     if bad > 0 {
         eprintln!("warning: {bad} pixels hold NaN or Inf");
     }
-    if film.truncated_paths > 0 {
+    if truncated > 0 {
         eprintln!(
-            "warning: {} paths reached the path-length guard ({} events) and were cut: the scene does not let paths end (a lossless enclosure or medium), so the image is biased low",
-            film.truncated_paths,
+            "warning: {truncated} paths reached the path-length guard ({} events) and were cut: the scene does not let paths end (a lossless enclosure or medium), so the image is biased low",
             furnace::integrators::MAX_PATH_EVENTS
         );
     }
     super::say!("wrote {} and {}", exr_path.display(), png_path.display());
-    Ok(if bad > 0 || film.truncated_paths > 0 {
-        1
-    } else {
-        0
+    Ok(Written {
+        code: i32::from(bad > 0 || truncated > 0),
+        width,
+        height,
+        relative_variance,
     })
 }

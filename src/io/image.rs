@@ -239,6 +239,35 @@ fn standard_string_fields(attributes: &mut LayerAttributes) -> [&mut Option<Text
 /// * [`ImageIoError::InvalidAttribute`]: empty / NUL / over-long / duplicate / reserved name.
 /// * [`ImageIoError::Io`] or [`ImageIoError::Exr`] if writing fails.
 pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
+    let layer_attributes = check_layers(path, image)?;
+    let channels = image
+        .channels
+        .iter()
+        .map(|(name, values)| AnyChannel::new(to_text(name), FlatSamples::F32(values.clone())))
+        .collect();
+    write_channels(
+        path,
+        (image.width, image.height),
+        layer_attributes,
+        channels,
+    )
+}
+
+/// [`write_exr`] for an image the caller no longer needs: its channels are written without a
+/// copy (a 1024² film's twelve channels are 48 MiB).
+pub fn write_exr_owned(path: &Path, image: Layers) -> Result<(), ImageIoError> {
+    let layer_attributes = check_layers(path, &image)?;
+    let size = (image.width, image.height);
+    let channels = image
+        .channels
+        .into_iter()
+        .map(|(name, values)| AnyChannel::new(to_text(&name), FlatSamples::F32(values)))
+        .collect();
+    write_channels(path, size, layer_attributes, channels)
+}
+
+/// The errors [`write_exr`] lists, and the layer's attributes.
+fn check_layers(path: &Path, image: &Layers) -> Result<LayerAttributes, ImageIoError> {
     let pixel_count = exr_pixel_count(path, image.width, image.height)?;
 
     if image.channels.is_empty() {
@@ -270,21 +299,23 @@ pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
         }
     }
 
-    let layer_attributes = exr_layer_attributes(path, &image.attributes)?;
+    exr_layer_attributes(path, &image.attributes)
+}
 
-    let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = image
-        .channels
-        .iter()
-        .map(|(name, values)| AnyChannel::new(to_text(name), FlatSamples::F32(values.clone())))
-        .collect();
-
+/// Writes one layer of `channels` (checked by [`check_layers`]) atomically.
+fn write_channels(
+    path: &Path,
+    size: (usize, usize),
+    layer_attributes: LayerAttributes,
+    channels: SmallVec<[AnyChannel<FlatSamples>; 4]>,
+) -> Result<(), ImageIoError> {
     let encoding = Encoding {
         compression: exr::compression::Compression::ZIP16,
         blocks: Blocks::ScanLines,
         line_order: LineOrder::Increasing,
     };
     let layer = Layer::new(
-        (image.width, image.height),
+        size,
         layer_attributes,
         encoding,
         AnyChannels::sort(channels),
