@@ -75,28 +75,12 @@ impl FlatBoxes {
         f
     }
 
-    /// The entry and exit distances of the ray (origin `o`, reciprocal direction `inv`) through
-    /// box `i`, the exit at most `t_max`, the entry at least 0: a miss when entry > exit (and
-    /// for a NaN box, whose distances are NaN). The same operations as [`FlatBoxes::entered`]'s
-    /// lanes, so the same values.
+    /// The boxes the ray enters within [0, t_max], as bits by slot, with each box's entry
+    /// distance (at least 0) in `entries`: a zero or subnormal direction component's
+    /// reciprocal is held finite (±f64::MAX), so that no 0·inf makes a NaN. Slab tests in
+    /// [`LANES`] f64 lanes.
     #[inline(always)]
-    fn span(&self, i: usize, o: &[f64; 3], inv: &[f64; 3], t_max: f64) -> (f64, f64) {
-        let (mut tn, mut tf) = (0.0f64, t_max);
-        for a in 0..3 {
-            let t0 = (self.lo[a][i] - o[a]) * inv[a];
-            let t1 = (self.hi[a][i] - o[a]) * inv[a];
-            let (lo, hi) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-            tn = if tn > lo { tn } else { lo };
-            tf = if tf < hi { tf } else { hi };
-        }
-        (tn, tf)
-    }
-
-    /// The boxes the ray enters within [0, t_max], as bits by slot, with the ray's origin and
-    /// reciprocal direction: a zero or subnormal direction component's reciprocal is held
-    /// finite (±f64::MAX), so that no 0·inf makes a NaN. Slab tests in [`LANES`] f64 lanes.
-    #[inline(always)]
-    fn entered(&self, ray: &Ray, t_max: f64) -> (u32, [f64; 3], [f64; 3]) {
+    fn entered(&self, ray: &Ray, t_max: f64, entries: &mut [f64; FLAT_MAX]) -> u32 {
         let o = ray.o.to_array();
         let inv = ray.d.to_array().map(|d| {
             let r = 1.0 / d;
@@ -123,8 +107,9 @@ impl FlatBoxes {
             for l in 0..LANES {
                 mask |= u32::from(tn[l] <= tf[l]) << (g * LANES + l);
             }
+            entries[g * LANES..(g + 1) * LANES].copy_from_slice(&tn);
         }
-        (mask, o, inv)
+        mask
     }
 }
 
@@ -600,7 +585,8 @@ impl Aggregate {
         t_max: f64,
         skip: Skip,
     ) -> Option<(f64, Found<'a>)> {
-        let (mask, o, inv) = flat.entered(ray, t_max);
+        let mut entries = [0.0; FLAT_MAX];
+        let mask = flat.entered(ray, t_max, &mut entries);
         if mask == 0 {
             return None;
         }
@@ -610,9 +596,7 @@ impl Aggregate {
         for i in bits(mask) {
             // a hit lies beyond its padded box's entry: a box entered at or after the best
             // hit so far holds no nearer one
-            if flat.span(i, &o, &inv, t_max).0 < best_t
-                && !skip.contains(self.candidates[i].shape())
-            {
+            if entries[i] < best_t && !skip.contains(self.candidates[i].shape()) {
                 if let Some((t, found)) = self.intersect_slot(i, &sheared, best_t) {
                     best_t = t;
                     best = Some(found);
@@ -655,7 +639,7 @@ impl Aggregate {
             return self.intersect_only(only, ray, t_max, skip).is_some();
         }
         if let Some(flat) = &self.flat {
-            let (mask, _, _) = flat.entered(ray, t_max);
+            let mask = flat.entered(ray, t_max, &mut [0.0; FLAT_MAX]);
             if mask == 0 {
                 return false;
             }
