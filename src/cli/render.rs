@@ -932,9 +932,9 @@ fn attributes(
 pub(super) struct Written {
     /// The exit code: 1 when a pixel holds NaN or Inf or a path was cut, else 0.
     pub code: i32,
-    /// Image size in pixels.
+    /// Image width, pixels.
     pub width: usize,
-    /// Image size in pixels.
+    /// Image height, pixels.
     pub height: usize,
     /// [`relative_variance`] of the film.
     pub relative_variance: f64,
