@@ -685,6 +685,21 @@ mod tests {
     }
 
     #[test]
+    fn a_render_past_its_deadline_stops_with_the_samples_it_did() {
+        let scene = cornell_box();
+        let s = RenderSettings {
+            deadline: Some(std::time::Instant::now()),
+            ..settings(8, 2)
+        };
+        match render(&scene, &s, &|_| {}) {
+            Err(RenderError::OutOfTime { done, total, .. }) => {
+                assert_eq!((done, total), (0, 12 * 12 * 8));
+            }
+            other => panic!("expected OutOfTime, got {other:?}"),
+        }
+    }
+
+    #[test]
     fn a_cropped_render_is_the_whole_render_inside_and_empty_outside() {
         let scene = cornell_box();
         let whole = render(&scene, &settings(20, 2), &|_| {}).unwrap();

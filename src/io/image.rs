@@ -852,6 +852,21 @@ mod tests {
         );
     }
 
+    #[test]
+    fn the_owned_writer_writes_the_borrowing_writers_file_and_errors() {
+        let scratch = Scratch::new("owned");
+        let (a, b) = (scratch.file("a.exr"), scratch.file("b.exr"));
+        write_exr(&a, &sample_image()).unwrap();
+        write_exr_owned(&b, sample_image()).unwrap();
+        assert_eq!(fs::read(&a).unwrap(), fs::read(&b).unwrap());
+        let mut short = sample_image();
+        short.channels[0].1.pop();
+        assert!(matches!(
+            write_exr_owned(&scratch.file("short.exr"), short),
+            Err(ImageIoError::ChannelLength { .. })
+        ));
+    }
+
     fn sample_image() -> Layers {
         let names = ["R", "G", "B", "X", "Y", "Z", "variance.Y"];
         let channels = names
