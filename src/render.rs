@@ -26,7 +26,7 @@ use crate::scene::Scene;
 use crate::spectrum::{Observer, SampledSpectrum, Wavelengths, N_WAVELENGTHS};
 use rayon::prelude::*;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
-use std::sync::PoisonError;
+use std::sync::{Mutex, PoisonError};
 
 /// Settings for the render modules' unit tests: an 8x8 image, 1 spp, seed 3, `threads`.
 #[cfg(test)]
@@ -490,7 +490,7 @@ fn render_blocks(
         .collect();
     // the finished tiles are copied in as they finish, so the image is held once, not also as
     // a list of every tile's pixels (half the peak memory of a large render)
-    let pieces = std::sync::Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
+    let pieces = Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);
     let out_of_time = AtomicBool::new(false);

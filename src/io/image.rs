@@ -239,18 +239,7 @@ fn standard_string_fields(attributes: &mut LayerAttributes) -> [&mut Option<Text
 /// * [`ImageIoError::InvalidAttribute`]: empty / NUL / over-long / duplicate / reserved name.
 /// * [`ImageIoError::Io`] or [`ImageIoError::Exr`] if writing fails.
 pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
-    let layer_attributes = check_layers(path, image)?;
-    let channels = image
-        .channels
-        .iter()
-        .map(|(name, values)| AnyChannel::new(to_text(name), FlatSamples::F32(values.clone())))
-        .collect();
-    write_channels(
-        path,
-        (image.width, image.height),
-        layer_attributes,
-        channels,
-    )
+    write_exr_owned(path, image.clone())
 }
 
 /// [`write_exr`] for an image the caller no longer needs: its channels are written without a
@@ -258,12 +247,40 @@ pub fn write_exr(path: &Path, image: &Layers) -> Result<(), ImageIoError> {
 pub fn write_exr_owned(path: &Path, image: Layers) -> Result<(), ImageIoError> {
     let layer_attributes = check_layers(path, &image)?;
     let size = (image.width, image.height);
-    let channels = image
+    let channels: SmallVec<[AnyChannel<FlatSamples>; 4]> = image
         .channels
         .into_iter()
         .map(|(name, values)| AnyChannel::new(to_text(&name), FlatSamples::F32(values)))
         .collect();
-    write_channels(path, size, layer_attributes, channels)
+    let encoding = Encoding {
+        compression: exr::compression::Compression::ZIP16,
+        blocks: Blocks::ScanLines,
+        line_order: LineOrder::Increasing,
+    };
+    let layer = Layer::new(
+        size,
+        layer_attributes,
+        encoding,
+        AnyChannels::sort(channels),
+    );
+
+    create_parent_dirs(path)?;
+    let image = Image::from_layer(layer);
+    let mut failure = None;
+    super::located::write_atomic(path, |tmp| {
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image.write().to_buffered(&mut bytes).map_err(|e| {
+            failure = Some(e);
+            std::io::Error::other("EXR write failed")
+        })?;
+        let mut bytes = bytes.into_inner();
+        sort_header_attributes(&mut bytes);
+        fs::write(tmp, &bytes)
+    })
+    .map_err(|source| match failure.take() {
+        Some(e) => exr_error(path, e),
+        None => io_error(path, source),
+    })
 }
 
 /// The errors [`write_exr`] lists, and the layer's attributes.
@@ -300,44 +317,6 @@ fn check_layers(path: &Path, image: &Layers) -> Result<LayerAttributes, ImageIoE
     }
 
     exr_layer_attributes(path, &image.attributes)
-}
-
-/// Writes one layer of `channels` (checked by [`check_layers`]) atomically.
-fn write_channels(
-    path: &Path,
-    size: (usize, usize),
-    layer_attributes: LayerAttributes,
-    channels: SmallVec<[AnyChannel<FlatSamples>; 4]>,
-) -> Result<(), ImageIoError> {
-    let encoding = Encoding {
-        compression: exr::compression::Compression::ZIP16,
-        blocks: Blocks::ScanLines,
-        line_order: LineOrder::Increasing,
-    };
-    let layer = Layer::new(
-        size,
-        layer_attributes,
-        encoding,
-        AnyChannels::sort(channels),
-    );
-
-    create_parent_dirs(path)?;
-    let image = Image::from_layer(layer);
-    let mut failure = None;
-    super::located::write_atomic(path, |tmp| {
-        let mut bytes = std::io::Cursor::new(Vec::new());
-        image.write().to_buffered(&mut bytes).map_err(|e| {
-            failure = Some(e);
-            std::io::Error::other("EXR write failed")
-        })?;
-        let mut bytes = bytes.into_inner();
-        sort_header_attributes(&mut bytes);
-        fs::write(tmp, &bytes)
-    })
-    .map_err(|source| match failure.take() {
-        Some(e) => exr_error(path, e),
-        None => io_error(path, source),
-    })
 }
 
 /// Puts the header attributes of a single-part OpenEXR file (`bytes`, as the `exr` crate wrote
