@@ -90,18 +90,26 @@ impl FlatBoxes {
                 f64::MAX.copysign(r)
             }
         });
+        // each axis's entry plane by the direction's sign: lo on an axis the ray runs up, hi
+        // on one it runs down (a box has lo ≤ hi and the distance is monotonic in the plane,
+        // so this is the smaller distance of the two, bit for bit, without comparing them)
+        let (near, far) = (
+            inv.map(|r| r.is_sign_negative()).map(usize::from),
+            inv.map(|r| r.is_sign_positive()).map(usize::from),
+        );
+        let planes = [&self.lo, &self.hi];
         let mut mask = 0u32;
         for g in 0..self.groups.min(FLAT_MAX / LANES) {
             let mut tn = [0.0f64; LANES];
             let mut tf = [t_max; LANES];
             for a in 0..3 {
-                let (lo, hi) = (&self.lo[a][g * LANES..], &self.hi[a][g * LANES..]);
+                let n = &planes[near[a]][a][g * LANES..];
+                let f = &planes[far[a]][a][g * LANES..];
                 for l in 0..LANES {
-                    let t0 = (lo[l] - o[a]) * inv[a];
-                    let t1 = (hi[l] - o[a]) * inv[a];
-                    let (near, far) = if t0 < t1 { (t0, t1) } else { (t1, t0) };
-                    tn[l] = if tn[l] > near { tn[l] } else { near };
-                    tf[l] = if tf[l] < far { tf[l] } else { far };
+                    let t0 = (n[l] - o[a]) * inv[a];
+                    let t1 = (f[l] - o[a]) * inv[a];
+                    tn[l] = if tn[l] > t0 { tn[l] } else { t0 };
+                    tf[l] = if tf[l] < t1 { tf[l] } else { t1 };
                 }
             }
             for l in 0..LANES {
