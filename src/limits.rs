@@ -4,14 +4,14 @@
 /// Largest image side, pixels.
 pub const MAX_IMAGE_SIDE: u64 = 1 << 16;
 
-/// Largest image, pixels (a 4096² image): the film keeps 240 bytes per pixel (count, mean and
-/// second to fourth central sums in f64 for six channels), 4.0 GB at this size.
+/// Largest image, pixels (a 4096² image): the film keeps 200 bytes per pixel (the count, and
+/// the mean and second to fourth central sums in f64 for six channels), 3.4 GB at this size.
 pub const MAX_PIXELS: u64 = 1 << 24;
 
 /// Memory the light tracer's film state may take, bytes: while the pending nodes of the merge
-/// tree (up to 7 images of 240 bytes per pixel) and the chunks in flight (432 bytes per pixel
+/// tree (up to 7 images of 200 bytes per pixel) and the chunks in flight (392 bytes per pixel
 /// each) are held. Fewer chunks run at once when many threads would pass it; an image whose
-/// state passes it with one chunk in flight (over about 6.1 M pixels) is refused.
+/// state passes it with one chunk in flight (over about 7.2 M pixels) is refused.
 pub const MAX_LIGHT_TRACER_BYTES: u64 = 12 << 30;
 
 /// Default work budget of `furnace render`, camera or light paths (width × height × spp): about
@@ -77,7 +77,7 @@ pub fn image(width: u64, height: u64) -> Result<(), LimitError> {
             what: format!("the pixel count of a {width}x{height} image"),
             value: pixels,
             limit: MAX_PIXELS,
-            how: " (the film needs 240 bytes per pixel)".into(),
+            how: " (the film needs 200 bytes per pixel)".into(),
         });
     }
     Ok(())

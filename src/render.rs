@@ -583,7 +583,7 @@ fn render_blocks(
     in_pool(settings.threads, work)?;
     let pieces = pieces.into_inner().unwrap_or_else(PoisonError::into_inner);
     if out_of_time.load(Ordering::Relaxed) {
-        let per_pixel = |p: &Pixel| p.channels[0].count();
+        let per_pixel = Pixel::count;
         return Err(RenderError::OutOfTime {
             seconds: start.elapsed().as_secs_f64(),
             done: pieces.iter().flatten().map(per_pixel).sum(),
@@ -626,7 +626,7 @@ mod tests {
     pub(crate) fn film_bits(film: &Film) -> Vec<u64> {
         film.pixels
             .iter()
-            .flat_map(|p| &p.channels)
+            .flat_map(Pixel::channels)
             .flat_map(|m| {
                 std::iter::once(m.count()).chain(m.moments().into_iter().map(f64::to_bits))
             })

@@ -6,7 +6,6 @@
 
 use super::blocks::{check_tiling, BlockFold, Piece, Span, TilingError};
 use super::{merge_pixels, Film, Pixel};
-use crate::stats::MeanVar;
 use serde::{Deserialize, Serialize};
 use std::io::{BufRead, BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -168,10 +167,7 @@ impl PartialFilm {
             return Err(format_err(path, "header and pieces disagree"));
         }
         for (&(_, _, n), piece) in h.pieces.iter().zip(&self.pieces) {
-            let wrong = piece
-                .iter()
-                .flat_map(|p| &p.channels)
-                .any(|m| m.count() != n);
+            let wrong = piece.iter().any(|p| p.count() != n);
             if piece.len() != h.width * h.height || wrong {
                 return Err(format_err(
                     path,
@@ -186,7 +182,7 @@ impl PartialFilm {
             writeln!(out, "{header}")?;
             for piece in &self.pieces {
                 for p in piece {
-                    for m in &p.channels {
+                    for m in p.channels() {
                         for v in m.moments() {
                             out.write_all(&v.to_le_bytes())?;
                         }
@@ -304,12 +300,9 @@ impl PartFile {
             let mut v = buf
                 .chunks_exact(8)
                 .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
-            let mut px = Pixel::default();
-            for m in px.channels.iter_mut() {
-                let moments = std::array::from_fn(|_| v.next().expect("24 values"));
-                *m = MeanVar::from_moments(n, moments);
-            }
-            pixels.push(px);
+            let moments =
+                std::array::from_fn(|_| std::array::from_fn(|_| v.next().expect("24 values")));
+            pixels.push(Pixel::from_moments(n, moments));
         }
         Ok(Some(Piece {
             span: Span { start, level },

@@ -162,7 +162,7 @@ impl RgbImage {
             variance_dof: film
                 .pixels
                 .iter()
-                .map(|p| p.channels[0].count())
+                .map(crate::film::Pixel::count)
                 .filter(|n| *n > 0)
                 .min()
                 .map(|n| n as f64 - 1.0)
@@ -170,7 +170,7 @@ impl RgbImage {
             variance_variance: Some(std::array::from_fn(|c| {
                 film.pixels
                     .iter()
-                    .map(|p| p.channels[3 + c].mean_variance_variance())
+                    .map(|p| p.channel(3 + c).mean_variance_variance())
                     .collect()
             })),
             pixels_correlated: false,

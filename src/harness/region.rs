@@ -304,7 +304,7 @@ pub fn region_stats_of(
     let pixel_dof = film
         .pixels
         .get(region[1] * film.width + region[0])
-        .map_or(f64::NAN, |p| p.channels[channel].count() as f64 - 1.0);
+        .map_or(f64::NAN, |p| p.count() as f64 - 1.0);
     let retest = (!stable && !infinite)
         .then(|| {
             let raw = stability::diagnose(&resid, alpha);

@@ -13,7 +13,7 @@ use std::collections::HashMap;
 use std::fmt::Write;
 use std::sync::{Arc, Mutex, PoisonError};
 
-/// Most pixels the store keeps over a run (about 240 bytes each: 60 MiB); a film that would
+/// Most pixels the store keeps over a run (200 bytes each: 50 MiB); a film that would
 /// pass it is rendered for its check alone, with the same seed.
 pub const MAX_STORED_PIXELS: usize = 1 << 18;
 

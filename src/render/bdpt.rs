@@ -212,7 +212,7 @@ mod tests {
         let a = render_bdpt(&scene, &settings(1), &bdpt, 2, &|_| {}).unwrap();
         let b = render_bdpt(&scene, &settings(2), &bdpt, 2, &|_| {}).unwrap();
         assert_eq!(a.pixels, b.pixels);
-        assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+        assert!(a.pixels.iter().any(|p| p.channel(1).mean() > 0.0));
     }
 
     #[test]
@@ -257,7 +257,7 @@ mod tests {
             let films = render_bdpt_runs(&scene, &s, &b, 8, &|_| {}).unwrap();
             let means: Vec<f64> = films
                 .iter()
-                .map(|f| f.pixels.iter().map(|p| p.channels[1].mean()).sum::<f64>())
+                .map(|f| f.pixels.iter().map(|p| p.channel(1).mean()).sum::<f64>())
                 .collect();
             let m = means.iter().sum::<f64>() / 8.0;
             let var = means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / 7.0;

@@ -383,8 +383,11 @@ fn light_blocks<S: Sensor>(
                         pixels: r
                             .pixels
                             .iter()
-                            .map(|acc| Pixel {
-                                channels: stats_of(r.paths, acc),
+                            .map(|acc| {
+                                Pixel::from_moments(
+                                    r.paths,
+                                    stats_of(r.paths, acc).map(|m| m.moments()),
+                                )
                             })
                             .collect(),
                         regions: r.regions.iter().map(|acc| stats_of(r.paths, acc)).collect(),
@@ -446,10 +449,7 @@ mod tests {
         let films = render_light_runs(&scene, &s, 3001, 3, &|_| {}).unwrap();
         assert_eq!(films.len(), 3);
         // 1000, 1000 and 1001 paths: each pixel counts its run's paths
-        let counts: Vec<u64> = films
-            .iter()
-            .map(|f| f.pixels[0].channels[1].count())
-            .collect();
+        let counts: Vec<u64> = films.iter().map(|f| f.pixels[0].count()).collect();
         assert_eq!(counts, [1000, 1000, 1001]);
         assert!(films[0].pixels != films[1].pixels);
         assert!(render_light_runs(&scene, &s, 5, 3, &|_| {}).is_err());
@@ -500,7 +500,7 @@ mod tests {
         assert!((mean - 2.0).abs() < 4.5 * se && se < 0.01, "{mean} ± {se}");
         // every pixel within noise (a 4.5σ bound is a ~1e-5 false alarm per pixel)
         for (i, p) in img.film.pixels.iter().enumerate() {
-            let m = p.channels[1];
+            let m = p.channel(1);
             assert_eq!(m.count(), 400_000);
             assert!(
                 (m.mean() - 2.0).abs() < 4.5 * m.std_error(),

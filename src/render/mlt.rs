@@ -109,7 +109,10 @@ pub fn render_mlt_chains(
         )));
     }
     check_common(settings)?;
-    let bytes = (w as u64 * h as u64).saturating_mul(mlt.chains.saturating_mul(24 + 240));
+    let bytes = (w as u64 * h as u64).saturating_mul(
+        mlt.chains
+            .saturating_mul(24 + std::mem::size_of::<crate::film::Pixel>() as u64),
+    );
     if bytes > MAX_BYTES {
         return Err(RenderError::Settings(format!(
             "MLT would hold {:.1} GiB of chain images for {} chains of a {w}x{h} image; the limit is {} GiB",
@@ -276,7 +279,7 @@ mod tests {
         let a = render_mlt(&scene, &settings(1), &bdpt, &mlt).unwrap();
         let b = render_mlt(&scene, &settings(2), &bdpt, &mlt).unwrap();
         assert_eq!(a.pixels, b.pixels);
-        assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+        assert!(a.pixels.iter().any(|p| p.channel(1).mean() > 0.0));
     }
 
     #[test]

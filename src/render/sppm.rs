@@ -185,7 +185,9 @@ fn sppm_core(
         )));
     }
     let bytes = (w as u64 * h as u64)
-        .saturating_mul(BYTES_PER_PIXEL + kept.saturating_mul(240))
+        .saturating_mul(
+            BYTES_PER_PIXEL + kept.saturating_mul(std::mem::size_of::<crate::film::Pixel>() as u64),
+        )
         .saturating_mul(radii.len() as u64);
     if bytes > MAX_BYTES {
         return Err(RenderError::Settings(format!(
@@ -574,7 +576,7 @@ mod tests {
         let a = render_sppm(&scene, &settings(1), &sppm, 2, &|_| {}).unwrap();
         let b = render_sppm(&scene, &settings(2), &sppm, 2, &|_| {}).unwrap();
         assert_eq!(a.pixels, b.pixels);
-        assert!(a.pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+        assert!(a.pixels.iter().any(|p| p.channel(1).mean() > 0.0));
     }
 
     #[test]
@@ -603,7 +605,7 @@ mod tests {
                 }
             }
         }
-        assert!(cropped[0].pixels.iter().any(|p| p.channels[1].mean() > 0.0));
+        assert!(cropped[0].pixels.iter().any(|p| p.channel(1).mean() > 0.0));
     }
 
     #[test]

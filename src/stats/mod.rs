@@ -29,16 +29,14 @@ impl MeanVar {
     /// Adds one observation.
     pub fn push(&mut self, x: f64) {
         self.n += 1;
-        let d = x - self.mean;
-        let n = self.n as f64;
-        let dn = d / n;
-        // Pébay 2008 eq. 2.7, with the old m2 and m3 (the mean and m2 updates are Welford's).
-        let t = d * dn * (n - 1.0);
-        self.m4 +=
-            t * dn * dn * (n * n - 3.0 * n + 3.0) + 6.0 * dn * dn * self.m2 - 4.0 * dn * self.m3;
-        self.m3 += t * dn * (n - 2.0) - 3.0 * dn * self.m2;
-        self.mean += dn;
-        self.m2 += d * (x - self.mean);
+        push_moments(
+            self.n as f64,
+            x,
+            &mut self.mean,
+            &mut self.m2,
+            &mut self.m3,
+            &mut self.m4,
+        );
     }
 
     /// The statistics of `n` observations given their power sums [Σx, Σx², Σx³, Σx⁴] (f64 sums
@@ -180,6 +178,21 @@ impl MeanVar {
     pub fn mean_variance_dof(&self) -> f64 {
         satterthwaite_dof(self.mean_variance(), self.mean_variance_variance())
     }
+}
+
+/// [`MeanVar::push`]'s update of the mean and the second to fourth central sums by the `n`-th
+/// observation `x` (`n` counting it), for summaries that keep their count elsewhere (a film
+/// pixel's channels share one).
+#[inline(always)]
+pub fn push_moments(n: f64, x: f64, mean: &mut f64, m2: &mut f64, m3: &mut f64, m4: &mut f64) {
+    let d = x - *mean;
+    let dn = d / n;
+    // Pébay 2008 eq. 2.7, with the old m2 and m3 (the mean and m2 updates are Welford's).
+    let t = d * dn * (n - 1.0);
+    *m4 += t * dn * dn * (n * n - 3.0 * n + 3.0) + 6.0 * dn * dn * *m2 - 4.0 * dn * *m3;
+    *m3 += t * dn * (n - 2.0) - 3.0 * dn * *m2;
+    *mean += dn;
+    *m2 += d * (x - *mean);
 }
 
 /// ν = 2·V²/W for an estimated variance V whose own estimated variance is W (Satterthwaite

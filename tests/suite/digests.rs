@@ -15,7 +15,7 @@ fn film_digest(film: &Film) -> String {
     let mut h = furnace::math::Fnv1a::default();
     let mut eat = |x: u64| h.eat(&x.to_le_bytes());
     for p in &film.pixels {
-        for c in &p.channels {
+        for c in p.channels() {
             eat(c.count());
             eat(c.mean().to_bits());
             eat(c.variance().to_bits());

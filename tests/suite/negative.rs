@@ -746,7 +746,7 @@ impl Renderer for OnePercentBright {
     ) -> Result<Film, furnace::harness::RendererError> {
         let mut film = BuiltIn.render(scene, s)?;
         for p in &mut film.pixels {
-            let xyz = [0, 1, 2].map(|c| p.channels[c].mean() * 1.01);
+            let xyz = [0, 1, 2].map(|c| p.channel(c).mean() * 1.01);
             let mut q = furnace::film::Pixel::default();
             q.add(xyz, xyz);
             q.add(xyz, xyz);
