@@ -128,6 +128,11 @@ struct Vertex {
     /// vertex of its subpath, computed once when the walk reaches it (every connection and
     /// density through the vertex reads them); unused at a subpath's origin.
     local: (Frame, Vec3),
+    /// The heuristic's term h(pdf_rev / pdf_fwd) of moving this vertex across (zero densities
+    /// read as 1), set once both subpaths are complete ([`Bdpt::set_ratios`]): the ratio walk
+    /// reads it for every strategy whose connection leaves the vertex's densities as they
+    /// are, instead of dividing again.
+    ratio: f64,
 }
 
 /// The `local` of a subpath's origin, which no connection reads.
@@ -309,6 +314,7 @@ impl Bdpt {
                 dispersed_before: prev.dispersed_before || separates(scene, prev),
                 reflectance: None,
                 local: (frame, frame.to_local((prev.sp.p - hit.point.p).normalize())),
+                ratio: f64::NAN,
             };
             v.pdf_fwd = to_area(pdf_dir, prev.sp.p, &v);
             path.push(v);
@@ -382,6 +388,7 @@ impl Bdpt {
             dispersed_before: false,
             reflectance: None,
             local: NO_LOCAL,
+            ratio: f64::NAN,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
         let pdf = setup.camera_pdf(ray.d);
@@ -436,6 +443,7 @@ impl Bdpt {
             dispersed_before: false,
             reflectance: None,
             local: NO_LOCAL,
+            ratio: f64::NAN,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
@@ -470,6 +478,10 @@ impl Bdpt {
         let Buffers { camera, light } = buffers;
         let cut_c = self.camera_subpath(setup, ray, wl, camera_rng, camera);
         let cut_l = self.light_subpath(setup, wl, light_rng, light);
+        if matches!(self.weighting, Weighting::Mis) {
+            self.set_ratios(camera);
+            self.set_ratios(light);
+        }
         let mut l = SampledSpectrum::ZERO;
         for t in 1..=camera.len() {
             for s in 0..=light.len() {
@@ -701,8 +713,16 @@ impl Bdpt {
         to_area(pdf, v.sp.p, prev)
     }
 
+    /// Each vertex's [`Vertex::ratio`] from its densities as the walk left them.
+    fn set_ratios(&self, path: &mut [Vertex]) {
+        for v in path {
+            v.ratio = (self.heuristic)(remap0(v.pdf_rev) / remap0(v.pdf_fwd));
+        }
+    }
+
     /// The MIS weight of strategy (s, t) by the ratio walk (PBR 3rd ed., §16.3.4): the other
-    /// strategies' densities relative to this one's, one vertex moved across at a time.
+    /// strategies' densities relative to this one's, one vertex moved across at a time; the
+    /// terms of vertices the connection leaves alone come from [`Vertex::ratio`].
     fn mis_weight(
         &self,
         cam: &[Vertex],
@@ -712,37 +732,44 @@ impl Bdpt {
         rev: &Overrides,
     ) -> f64 {
         let h = self.heuristic;
-        let z_rev = |i: usize| {
-            if i + 1 == t {
-                rev.z1.unwrap_or(cam[i].pdf_rev)
-            } else if i + 2 == t {
-                rev.z2.unwrap_or(cam[i].pdf_rev)
-            } else {
-                cam[i].pdf_rev
-            }
+        // a vertex's term, with the reverse density the connection set for it if any
+        let term = |v: &Vertex, set: Option<f64>| match set {
+            Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
+            None => v.ratio,
         };
-        let y_rev = |i: usize| {
-            if i + 1 == s {
-                rev.y1.unwrap_or(lig[i].pdf_rev)
-            } else if i + 2 == s {
-                rev.y2.unwrap_or(lig[i].pdf_rev)
+        let z_term = |i: usize| {
+            let set = if i + 1 == t {
+                rev.z1
+            } else if i + 2 == t {
+                rev.z2
             } else {
-                lig[i].pdf_rev
-            }
+                None
+            };
+            term(&cam[i], set)
+        };
+        let y_term = |i: usize| {
+            let set = if i + 1 == s {
+                rev.y1
+            } else if i + 2 == s {
+                rev.y2
+            } else {
+                None
+            };
+            term(&lig[i], set)
         };
         // an emitter hit by the camera subpath is an end vertex whatever its own BSDF
         let z_delta = |i: usize| cam[i].delta && !(s == 0 && i + 1 == t);
         let mut sum = 0.0;
         let mut r = 1.0;
         for i in (1..t).rev() {
-            r *= h(remap0(z_rev(i)) / remap0(cam[i].pdf_fwd));
+            r *= z_term(i);
             if !z_delta(i) && !z_delta(i - 1) {
                 sum += r;
             }
         }
         let mut r = 1.0;
         for i in (0..s).rev() {
-            r *= h(remap0(y_rev(i)) / remap0(lig[i].pdf_fwd));
+            r *= y_term(i);
             let delta_before = if i > 0 {
                 lig[i - 1].delta
             } else {
