@@ -32,10 +32,10 @@ impl Pixel {
         self.n += 1;
         let n = self.n as f64;
         let x = [xyz[0], xyz[1], xyz[2], rgb[0], rgb[1], rgb[2]];
-        for c in 0..6 {
+        for (c, &v) in x.iter().enumerate() {
             crate::stats::push_moments(
                 n,
-                x[c],
+                v,
                 &mut self.mean[c],
                 &mut self.m2[c],
                 &mut self.m3[c],
@@ -251,8 +251,8 @@ mod tests {
         }
         let want = six(&a);
         assert_eq!(p.count(), 1000);
-        for c in 0..6 {
-            assert_eq!(p.channel(c), want[c], "channel {c}");
+        for (c, w) in want.iter().enumerate() {
+            assert_eq!(p.channel(c), *w, "channel {c}");
         }
         assert_eq!(p.channels(), want);
         // merging: each channel as MeanVar::merge merges it, the count once
