@@ -583,10 +583,9 @@ fn render_blocks(
     in_pool(settings.threads, work)?;
     let pieces = pieces.into_inner().unwrap_or_else(PoisonError::into_inner);
     if out_of_time.load(Ordering::Relaxed) {
-        let per_pixel = Pixel::count;
         return Err(RenderError::OutOfTime {
             seconds: start.elapsed().as_secs_f64(),
-            done: pieces.iter().flatten().map(per_pixel).sum(),
+            done: pieces.iter().flatten().map(Pixel::count).sum(),
             total: ((crop[2] - crop[0]) * (crop[3] - crop[1])) as u64 * samples,
         });
     }

@@ -140,14 +140,7 @@ impl Film {
     pub fn mean_variances(&self, c: usize) -> Vec<f64> {
         self.pixels
             .iter()
-            .map(|p| {
-                let m = p.channel(c);
-                if m.count() == 0 {
-                    0.0
-                } else {
-                    m.variance() / m.count() as f64
-                }
-            })
+            .map(|p| p.channel(c).mean_variance())
             .collect()
     }
 
