@@ -73,13 +73,21 @@ impl Dielectric {
         })
     }
 
-    /// f of the rough interface `g` at one index `n` (radiance-carrying).
-    fn eval_at(g: &Ggx, wo: Vec3, wi: Vec3, n: f64) -> f64 {
-        let Some(p) = Self::pair(wo, wi, n) else {
-            return 0.0;
-        };
+    /// The pair of (wo, wi) at index `n` with its o·h, i·h and Fresnel reflectance at o·h.
+    fn facet(wo: Vec3, wi: Vec3, n: f64) -> Option<(Pair, f64, f64, f64)> {
+        let p = Self::pair(wo, wi, n)?;
         let (oh, ih) = (p.o.dot(p.h), p.i.dot(p.h));
         let (f, _) = fresnel::dielectric(oh, p.eta_t / p.eta_o);
+        Some((p, oh, ih, f))
+    }
+
+    /// f of the rough interface `g` at one index `n` (radiance-carrying).
+    fn eval_at(g: &Ggx, wo: Vec3, wi: Vec3, n: f64) -> f64 {
+        Self::facet(wo, wi, n).map_or(0.0, |(p, oh, ih, f)| Self::f_of(g, &p, oh, ih, f))
+    }
+
+    /// f from a [`Self::facet`].
+    fn f_of(g: &Ggx, p: &Pair, oh: f64, ih: f64, f: f64) -> f64 {
         let dg = g.d(p.h) * g.g1(p.o, p.h) * g.g1(p.i, p.h);
         let v = if p.reflect {
             // Walter et al. 2007, eq. 20
@@ -100,11 +108,11 @@ impl Dielectric {
     /// reflection (1/(4 o·h)) or refraction (η_t² |i·h|/(η_t i·h + η_o o·h)², Walter et al.
     /// 2007, eq. 17) mapping, times the probability of choosing that lobe (F or 1 − F).
     fn pdf_at(g: &Ggx, wo: Vec3, wi: Vec3, n: f64) -> f64 {
-        let Some(p) = Self::pair(wo, wi, n) else {
-            return 0.0;
-        };
-        let (oh, ih) = (p.o.dot(p.h), p.i.dot(p.h));
-        let (f, _) = fresnel::dielectric(oh, p.eta_t / p.eta_o);
+        Self::facet(wo, wi, n).map_or(0.0, |(p, oh, ih, f)| Self::pdf_of(g, &p, oh, ih, f))
+    }
+
+    /// The pdf from a [`Self::facet`].
+    fn pdf_of(g: &Ggx, p: &Pair, oh: f64, ih: f64, f: f64) -> f64 {
         let dv = g.pdf_visible(p.o, p.h);
         let v = if p.reflect {
             f * dv / (4.0 * oh)
@@ -125,6 +133,10 @@ impl Bxdf for Dielectric {
         let Some(g) = &self.microfacet else {
             return SampledSpectrum::ZERO;
         };
+        // one index for every wavelength: one evaluation (the same bits four times over)
+        if !self.ior.is_dispersive() {
+            return SampledSpectrum::splat(Self::eval_at(g, wo, wi, self.ior.eval(wl.lambda[0])));
+        }
         SampledSpectrum(std::array::from_fn(|k| {
             Self::eval_at(g, wo, wi, self.ior.eval(wl.lambda[k]))
         }))
@@ -182,11 +194,22 @@ impl Bxdf for Dielectric {
             return None;
         }
         let wi = flip(i);
-        let pdf = Self::pdf_at(g, wo, wi, n0);
+        // the hero's facet once, for its pdf and its f
+        let (p, oh, ih, f0) = Self::facet(wo, wi, n0)?;
+        let pdf = Self::pdf_of(g, &p, oh, ih, f0);
         if pdf.is_nan() || pdf <= 0.0 {
             return None;
         }
-        let weight = self.eval(wo, wi, wl) * (wi.z.abs() / pdf);
+        let f = Self::f_of(g, &p, oh, ih, f0);
+        let f = if self.ior.is_dispersive() {
+            SampledSpectrum(std::array::from_fn(|k| match k {
+                0 => f,
+                _ => Self::eval_at(g, wo, wi, self.ior.eval(wl.lambda[k])),
+            }))
+        } else {
+            SampledSpectrum::splat(f)
+        };
+        let weight = f * (wi.z.abs() / pdf);
         Some(BsdfSample {
             wi,
             weight,
