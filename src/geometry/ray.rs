@@ -77,6 +77,27 @@ fn ulp_towards_slow(x: f64, dir: f64) -> f64 {
     }
 }
 
+/// A ray leaving `sp` in unit direction `w`.
+#[inline(always)]
+pub fn spawn(sp: &SurfacePoint, w: Vec3) -> Ray {
+    Ray {
+        o: offset_origin(sp, w),
+        d: w,
+    }
+}
+
+/// A shadow ray from `from` towards `to`, with both ends moved off their surfaces.
+/// Returns the ray and the distance at which it must stop (exclusive).
+pub fn spawn_to(from: &SurfacePoint, to: &SurfacePoint) -> (Ray, f64) {
+    let w = to.p - from.p;
+    let o = offset_origin(from, w);
+    let target = offset_origin(to, -w);
+    let v = target - o;
+    let dist = v.length();
+    // 1e-9 relative: far above f64 rounding of t, far below any geometric feature.
+    (Ray { o, d: v / dist }, dist * (1.0 - 1e-9))
+}
+
 #[cfg(test)]
 mod tests {
     use super::{nonzero_finite, ulp_towards, ulp_towards_slow};
@@ -132,25 +153,4 @@ mod tests {
             }
         }
     }
-}
-
-/// A ray leaving `sp` in unit direction `w`.
-#[inline(always)]
-pub fn spawn(sp: &SurfacePoint, w: Vec3) -> Ray {
-    Ray {
-        o: offset_origin(sp, w),
-        d: w,
-    }
-}
-
-/// A shadow ray from `from` towards `to`, with both ends moved off their surfaces.
-/// Returns the ray and the distance at which it must stop (exclusive).
-pub fn spawn_to(from: &SurfacePoint, to: &SurfacePoint) -> (Ray, f64) {
-    let w = to.p - from.p;
-    let o = offset_origin(from, w);
-    let target = offset_origin(to, -w);
-    let v = target - o;
-    let dist = v.length();
-    // 1e-9 relative: far above f64 rounding of t, far below any geometric feature.
-    (Ray { o, d: v / dist }, dist * (1.0 - 1e-9))
 }
