@@ -7,13 +7,14 @@
 //! so both estimators have the same expectation. The estimator, environment lights and what
 //! is not covered: docs/rendering.md, "`integrators::light`".
 
+use super::ReflectanceCache;
 use crate::camera::Camera;
 use crate::geometry::{ray, Ray, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::{SampleStream, Uniforms};
 use crate::math::Vec3;
-use crate::scattering::Bxdf;
+use crate::scattering::SampledBsdf;
 use crate::scene::Scene;
 use crate::spectrum::{SampledSpectrum, Wavelengths};
 
@@ -223,6 +224,7 @@ impl LightTracer {
         let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
         let mut beta = SampledSpectrum::ONE;
         let mut ray = emitted_ray(&es);
+        let mut reflectance = ReflectanceCache::default();
         // Index of the vertex the ray is about to reach = bounces its camera connection counts.
         let mut k: u32 = 1;
         while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
@@ -231,13 +233,19 @@ impl LightTracer {
             }
             let sp = hit.point;
             let bsdf = &scene.bsdfs[hit.shape as usize];
+            // a Lambertian's reflectance once per material and path (the wavelengths stay)
+            let material = scene.material_of[hit.shape as usize] as usize;
+            let known = SampledBsdf::with_reflectance(bsdf, wl, |r| {
+                reflectance.get(material, || r.sample(wl))
+            })
+            .reflectance();
             let frame = Frame::from_normal(sp.n);
             let to_prev = frame.to_local(-ray.d);
 
             // Connection to the camera: c_k = P β f(ω_cam, ω_prev) |cos θ_x| W_e cos θ_e / d².
             if let Some(c) = sensor.connect(sp.p) {
                 let to_eye = frame.to_local(-c.direction);
-                let f = bsdf.eval(to_eye, to_prev, wl);
+                let f = SampledBsdf::with_known(bsdf, wl, known).eval(to_eye, to_prev);
                 if !f.is_black() {
                     let (shadow, t_max) = ray::spawn_to(&sp, &eye_point(&c));
                     if !scene.aggregate.occluded(&shadow, t_max) {
@@ -265,7 +273,8 @@ impl LightTracer {
             // (Veach 1997, §5.2, generalised reciprocity; see `Bxdf::eta`).
             let u_lobe = rng.next_f64();
             let u_next = rng.next_2d();
-            let Some(bs) = bsdf.sample(to_prev, u_next, u_lobe, wl) else {
+            let Some(bs) = SampledBsdf::with_known(bsdf, wl, known).sample(to_prev, u_next, u_lobe)
+            else {
                 break;
             };
             beta *= bs.weight * bsdf.eta_ratio_squared(to_prev, bs.wi, wl);

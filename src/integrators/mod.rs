@@ -17,6 +17,42 @@ use crate::scattering::Bsdf;
 use crate::scene::Scene;
 use crate::spectrum::SampledSpectrum;
 
+/// Spectra at one path's wavelengths, each evaluated on first use: the wavelengths are fixed
+/// for the path, so next-event estimation at every vertex, emitters hit along the way and
+/// every vertex on the same material reuse them. Keys below `N` are kept (a light's index,
+/// a material's); larger ones are evaluated each time.
+#[derive(Debug)]
+pub(crate) struct PathSpectra<const N: usize> {
+    values: [Option<SampledSpectrum>; N],
+}
+
+impl<const N: usize> Default for PathSpectra<N> {
+    fn default() -> Self {
+        PathSpectra { values: [None; N] }
+    }
+}
+
+impl<const N: usize> PathSpectra<N> {
+    /// The spectrum under `key`, from `eval` the first time.
+    #[inline]
+    pub(crate) fn get(
+        &mut self,
+        key: usize,
+        eval: impl FnOnce() -> SampledSpectrum,
+    ) -> SampledSpectrum {
+        match self.values.get_mut(key) {
+            Some(slot) => *slot.get_or_insert_with(eval),
+            None => eval(),
+        }
+    }
+}
+
+/// Light spectra along a path, by light index.
+pub(crate) type EmissionCache = PathSpectra<4>;
+
+/// Lambertian reflectances along a path, by material index ([`Scene::material_of`]).
+pub(crate) type ReflectanceCache = PathSpectra<8>;
+
 /// The path-length guard: events (surface hits, boundary crossings, medium scatterings) after
 /// which a path is cut and counted as cut. A correct scene never comes near it (a furnace of
 /// albedo 0.999 reaches it with probability 0.999^100000 ≈ e^-100); a path that would not end

@@ -6,6 +6,7 @@
 //! free-flight sampling with one-sample spectral MIS ([`crate::media::sample_free_flight`]).
 //! Details: docs/rendering.md, "`integrators::path`".
 
+use super::{EmissionCache, ReflectanceCache};
 use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
@@ -64,38 +65,6 @@ pub fn power_heuristic(a: f64, b: f64) -> f64 {
     }
     a2 / (a2 + b2)
 }
-
-/// Spectra at one path's wavelengths, each evaluated on first use: the wavelengths are fixed
-/// for the path, so next-event estimation at every vertex, emitters hit along the way and
-/// every vertex on the same material reuse them. Keys below `N` are kept (a light's index,
-/// a material's); larger ones are evaluated each time.
-#[derive(Debug)]
-struct PathSpectra<const N: usize> {
-    values: [Option<SampledSpectrum>; N],
-}
-
-impl<const N: usize> Default for PathSpectra<N> {
-    fn default() -> Self {
-        PathSpectra { values: [None; N] }
-    }
-}
-
-impl<const N: usize> PathSpectra<N> {
-    /// The spectrum under `key`, from `eval` the first time.
-    #[inline]
-    fn get(&mut self, key: usize, eval: impl FnOnce() -> SampledSpectrum) -> SampledSpectrum {
-        match self.values.get_mut(key) {
-            Some(slot) => *slot.get_or_insert_with(eval),
-            None => eval(),
-        }
-    }
-}
-
-/// Light spectra along a path, by light index.
-type EmissionCache = PathSpectra<4>;
-
-/// Lambertian reflectances along a path, by material index ([`Scene::material_of`]).
-type ReflectanceCache = PathSpectra<8>;
 
 impl PathTracer {
     /// Weight of emission found by a BSDF-sampled ray (`prev_bsdf_pdf` None: camera ray or a

@@ -122,12 +122,14 @@ pub fn render_bdpt_runs(
                                 &mut splats,
                             );
                             cuts += u64::from(was_cut);
-                            let xyz = response.xyz(&l, &wl);
+                            // the matching functions looked up once for the sample's splats
+                            let at_wl = response.at(&wl);
+                            let xyz = at_wl.xyz(&l);
                             for (a, v) in camera_sums[k].iter_mut().zip(xyz) {
                                 *a += v;
                             }
                             for sp in &splats {
-                                let xyz = response.xyz(&sp.value, &wl);
+                                let xyz = at_wl.xyz(&sp.value);
                                 for (a, v) in splat_sums[sp.pixel].iter_mut().zip(xyz) {
                                     *a += v;
                                 }

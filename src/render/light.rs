@@ -320,8 +320,10 @@ fn light_blocks<S: Sensor>(
             // The path's sample for each pixel is the sum of its splats there (square after summing).
             splats.sort_by_key(|s| s.pixel);
             merged.clear();
+            // the matching functions looked up once for the path's splats
+            let at_wl = response.at(&wl);
             for s in &splats {
-                let xyz = response.xyz(&s.value, &wl);
+                let xyz = at_wl.xyz(&s.value);
                 let rgb = settings.observer.xyz_to_rgb(xyz);
                 let v = [xyz[0], xyz[1], xyz[2], rgb[0], rgb[1], rgb[2]];
                 match merged.last_mut() {

@@ -64,12 +64,13 @@ fn evaluate(
         splats,
     );
     let film = (w * h) as f64;
+    // the matching functions looked up once for the sample's splats
+    let at_wl = response.at(&wl);
     if !l.is_black() {
-        out.values
-            .push((pixel, response.xyz(&l, &wl).map(|v| v * film)));
+        out.values.push((pixel, at_wl.xyz(&l).map(|v| v * film)));
     }
     for sp in splats.iter() {
-        out.values.push((sp.pixel, response.xyz(&sp.value, &wl)));
+        out.values.push((sp.pixel, at_wl.xyz(&sp.value)));
     }
     out.scalar = out
         .values
