@@ -113,11 +113,11 @@ impl Sphere {
         let omc = u[0] * omc_max;
         let cos_t = 1.0 - omc;
         let sin2_t = omc * (2.0 - omc);
-        let phi = 2.0 * PI * u[1];
+        let (sin_phi, cos_phi) = warp::sin_cos_turn(u[1]);
         let sin_t = sin2_t.sqrt();
         let w = to_center / d;
         let dir =
-            Frame::from_normal(w).to_world(Vec3::new(sin_t * phi.cos(), sin_t * phi.sin(), cos_t));
+            Frame::from_normal(w).to_world(Vec3::new(sin_t * cos_phi, sin_t * sin_phi, cos_t));
         // r² − d² sin²θ = r² (1 − sin²θ / sin²θmax) ≥ 0 inside the cone
         let root = r * (1.0 - (sin2_t / sin2_max).min(1.0)).sqrt();
         let t = (d - r) * (d + r) / (d * cos_t + root);

@@ -133,6 +133,12 @@ struct Vertex {
     /// reads it for every strategy whose connection leaves the vertex's densities as they
     /// are, instead of dividing again.
     ratio: f64,
+    /// The ratio walk's sum over this vertex and those before it on its subpath, each
+    /// unmoved vertex's term the product of the ratios from it up to here (0 for the camera
+    /// and for vertices a delta neighbour keeps fixed): set with `ratio`, so a strategy's
+    /// weight multiplies its own one or two connection terms into it instead of walking the
+    /// subpath ([`Bdpt::mis_weight`]).
+    walk: f64,
 }
 
 /// The `local` of a subpath's origin, which no connection reads.
@@ -315,6 +321,7 @@ impl Bdpt {
                 reflectance: None,
                 local: (frame, frame.to_local((prev.sp.p - hit.point.p).normalize())),
                 ratio: f64::NAN,
+                walk: f64::NAN,
             };
             v.pdf_fwd = to_area(pdf_dir, prev.sp.p, &v);
             path.push(v);
@@ -389,6 +396,7 @@ impl Bdpt {
             reflectance: None,
             local: NO_LOCAL,
             ratio: f64::NAN,
+            walk: f64::NAN,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
         let pdf = setup.camera_pdf(ray.d);
@@ -444,6 +452,7 @@ impl Bdpt {
             reflectance: None,
             local: NO_LOCAL,
             ratio: f64::NAN,
+            walk: f64::NAN,
         });
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
@@ -479,8 +488,8 @@ impl Bdpt {
         let cut_c = self.camera_subpath(setup, ray, wl, camera_rng, camera);
         let cut_l = self.light_subpath(setup, wl, light_rng, light);
         if matches!(self.weighting, Weighting::Mis) {
-            self.set_ratios(camera);
-            self.set_ratios(light);
+            self.set_ratios(camera, true);
+            self.set_ratios(light, false);
         }
         let mut l = SampledSpectrum::ZERO;
         for t in 1..=camera.len() {
@@ -713,16 +722,33 @@ impl Bdpt {
         to_area(pdf, v.sp.p, prev)
     }
 
-    /// Each vertex's [`Vertex::ratio`] from its densities as the walk left them.
-    fn set_ratios(&self, path: &mut [Vertex]) {
-        for v in path {
-            v.ratio = (self.heuristic)(remap0(v.pdf_rev) / remap0(v.pdf_fwd));
+    /// Each vertex's [`Vertex::ratio`] from its densities as the walk left them, and its
+    /// [`Vertex::walk`]: W(k) = ρ_k·(m_k + W(k − 1)), where m_k is 1 when vertex k may move
+    /// (neither it nor the one before it is delta; the camera, vertex 0 of the camera
+    /// subpath, never moves; a light subpath's vertex 0 stays when it is a point light).
+    fn set_ratios(&self, path: &mut [Vertex], camera: bool) {
+        let mut walk = 0.0;
+        for k in 0..path.len() {
+            let v = &path[k];
+            let ratio = (self.heuristic)(remap0(v.pdf_rev) / remap0(v.pdf_fwd));
+            let fixed_before = match k {
+                0 => camera || matches!(v.on, On::Light { point: true, .. }),
+                _ => path[k - 1].delta,
+            };
+            let movable = f64::from(u8::from(!v.delta && !fixed_before));
+            // a term of 0 stays 0 (no 0·∞ when a ratio overflows)
+            let inner = movable + walk;
+            walk = if inner == 0.0 { 0.0 } else { ratio * inner };
+            let v = &mut path[k];
+            v.ratio = ratio;
+            v.walk = walk;
         }
     }
 
     /// The MIS weight of strategy (s, t) by the ratio walk (PBR 3rd ed., §16.3.4): the other
-    /// strategies' densities relative to this one's, one vertex moved across at a time; the
-    /// terms of vertices the connection leaves alone come from [`Vertex::ratio`].
+    /// strategies' densities relative to this one's, one vertex moved across at a time. The
+    /// connection sets the reverse densities of the last two vertices of each subpath; the
+    /// walk over the vertices before them, which keep theirs, is their [`Vertex::walk`].
     fn mis_weight(
         &self,
         cam: &[Vertex],
@@ -737,49 +763,72 @@ impl Bdpt {
             Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
             None => v.ratio,
         };
-        let z_term = |i: usize| {
-            let set = if i + 1 == t {
-                rev.z1
-            } else if i + 2 == t {
-                rev.z2
-            } else {
-                None
-            };
-            term(&cam[i], set)
-        };
-        let y_term = |i: usize| {
-            let set = if i + 1 == s {
-                rev.y1
-            } else if i + 2 == s {
-                rev.y2
-            } else {
-                None
-            };
-            term(&lig[i], set)
-        };
         // an emitter hit by the camera subpath is an end vertex whatever its own BSDF
         let z_delta = |i: usize| cam[i].delta && !(s == 0 && i + 1 == t);
-        let mut sum = 0.0;
-        let mut r = 1.0;
-        for i in (1..t).rev() {
-            r *= z_term(i);
-            if !z_delta(i) && !z_delta(i - 1) {
-                sum += r;
-            }
-        }
-        let mut r = 1.0;
-        for i in (0..s).rev() {
-            r *= y_term(i);
-            let delta_before = if i > 0 {
-                lig[i - 1].delta
-            } else {
-                matches!(lig[0].on, On::Light { point: true, .. })
+        // the last vertex's and the one before's terms (moved when `may` says), then the
+        // subpath's walk below them; the camera subpath stops above its vertex 0
+        let side =
+            |end: usize, lowest: usize, top: [(f64, bool); 2], walk: &dyn Fn(usize) -> f64| {
+                let mut sum = 0.0;
+                let mut r = 1.0;
+                for (j, (term, may)) in top.into_iter().enumerate() {
+                    if end < lowest + j + 1 {
+                        return sum;
+                    }
+                    r *= term;
+                    if may {
+                        sum += r;
+                    }
+                }
+                if end >= lowest + 3 {
+                    let below = walk(end - 3);
+                    if below != 0.0 {
+                        sum += r * below;
+                    }
+                }
+                sum
             };
-            if !lig[i].delta && !delta_before {
-                sum += r;
-            }
-        }
-        1.0 / (1.0 + sum)
+        let cam_sum = if t >= 2 {
+            let top = [
+                (
+                    term(&cam[t - 1], rev.z1),
+                    !z_delta(t - 1) && !z_delta(t - 2),
+                ),
+                match t {
+                    2 => (0.0, false),
+                    _ => (
+                        term(&cam[t - 2], rev.z2),
+                        !z_delta(t - 2) && !z_delta(t - 3),
+                    ),
+                },
+            ];
+            side(t, 1, top, &|k| cam[k].walk)
+        } else {
+            0.0
+        };
+        let lig_sum = if s >= 1 {
+            let fixed_before = |i: usize| match i {
+                0 => matches!(lig[0].on, On::Light { point: true, .. }),
+                _ => lig[i - 1].delta,
+            };
+            let top = [
+                (
+                    term(&lig[s - 1], rev.y1),
+                    !lig[s - 1].delta && !fixed_before(s - 1),
+                ),
+                match s {
+                    1 => (0.0, false),
+                    _ => (
+                        term(&lig[s - 2], rev.y2),
+                        !lig[s - 2].delta && !fixed_before(s - 2),
+                    ),
+                },
+            ];
+            side(s, 0, top, &|k| lig[k].walk)
+        } else {
+            0.0
+        };
+        1.0 / (1.0 + cam_sum + lig_sum)
     }
 }
 
@@ -797,4 +846,131 @@ struct Overrides {
 pub struct Buffers {
     camera: Vec<Vertex>,
     light: Vec<Vertex>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::math::rng::SampleStream;
+
+    /// The ratio walk vertex by vertex (PBR 3rd ed., §16.3.4), as it was before the running
+    /// sums: the reference the weights must match to rounding.
+    fn walked(cam: &[Vertex], lig: &[Vertex], s: usize, t: usize, rev: &Overrides) -> f64 {
+        let h = power_heuristic;
+        let term =
+            |v: &Vertex, set: Option<f64>| h(remap0(set.unwrap_or(v.pdf_rev)) / remap0(v.pdf_fwd));
+        let z_delta = |i: usize| cam[i].delta && !(s == 0 && i + 1 == t);
+        let mut sum = 0.0;
+        let mut r = 1.0;
+        for i in (1..t).rev() {
+            let set = [(1, rev.z1), (2, rev.z2)]
+                .into_iter()
+                .find(|(d, _)| i + d == t);
+            r *= term(&cam[i], set.and_then(|x| x.1));
+            if !z_delta(i) && !z_delta(i - 1) {
+                sum += r;
+            }
+        }
+        let mut r = 1.0;
+        for i in (0..s).rev() {
+            let set = [(1, rev.y1), (2, rev.y2)]
+                .into_iter()
+                .find(|(d, _)| i + d == s);
+            r *= term(&lig[i], set.and_then(|x| x.1));
+            let delta_before = match i {
+                0 => matches!(lig[0].on, On::Light { point: true, .. }),
+                _ => lig[i - 1].delta,
+            };
+            if !lig[i].delta && !delta_before {
+                sum += r;
+            }
+        }
+        1.0 / (1.0 + sum)
+    }
+
+    fn vertex(on: On, pdf_fwd: f64, pdf_rev: f64, delta: bool) -> Vertex {
+        Vertex {
+            on,
+            sp: SurfacePoint {
+                p: Vec3::ZERO,
+                p_error: Vec3::ZERO,
+                n: Vec3::Z,
+            },
+            beta: SampledSpectrum::ONE,
+            pdf_fwd,
+            pdf_rev,
+            delta,
+            dispersed_before: false,
+            reflectance: None,
+            local: NO_LOCAL,
+            ratio: f64::NAN,
+            walk: f64::NAN,
+        }
+    }
+
+    #[test]
+    fn running_sums_give_the_weights_of_the_vertex_by_vertex_walk() {
+        let bdpt = Bdpt {
+            max_depth: None,
+            rr_depth: None,
+            weighting: Weighting::Mis,
+            heuristic: power_heuristic,
+            geometry: geometry_term,
+        };
+        let mut rng = SampleStream::new(7, 1, 0);
+        let density = |rng: &mut SampleStream| match (rng.next_f64() * 10.0) as u32 {
+            0 => 0.0, // a delta density, read as 1
+            _ => (rng.next_f64() * 12.0 - 6.0).exp(),
+        };
+        for case in 0..2000 {
+            let (nc, nl) = (1 + case % 6, case / 6 % 6);
+            let point = case % 3 == 0;
+            let mut cam: Vec<Vertex> = (0..nc)
+                .map(|i| {
+                    let on = if i == 0 {
+                        On::Camera
+                    } else {
+                        On::Surface { shape: 0 }
+                    };
+                    let delta = i > 0 && rng.next_f64() < 0.2;
+                    vertex(on, density(&mut rng), density(&mut rng), delta)
+                })
+                .collect();
+            let mut lig: Vec<Vertex> = (0..nl)
+                .map(|i| {
+                    let on = if i == 0 {
+                        On::Light { light: 0, point }
+                    } else {
+                        On::Surface { shape: 0 }
+                    };
+                    let delta = i > 0 && rng.next_f64() < 0.2;
+                    vertex(on, density(&mut rng), density(&mut rng), delta)
+                })
+                .collect();
+            bdpt.set_ratios(&mut cam, true);
+            bdpt.set_ratios(&mut lig, false);
+            for t in 1..=nc {
+                for s in 0..=nl {
+                    if s + t < 2 {
+                        continue;
+                    }
+                    let mut set = || (rng.next_f64() < 0.8).then(|| density(&mut rng));
+                    let rev = Overrides {
+                        z1: set(),
+                        z2: set(),
+                        y1: set(),
+                        y2: set(),
+                    };
+                    let (got, want) = (
+                        bdpt.mis_weight(&cam, &lig, s, t, &rev),
+                        walked(&cam, &lig, s, t, &rev),
+                    );
+                    assert!(
+                        (got - want).abs() <= 1e-12 * want.max(1e-300) || got == want,
+                        "case {case}, s {s}, t {t}: {got} against {want}"
+                    );
+                }
+            }
+        }
+    }
 }

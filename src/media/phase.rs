@@ -2,7 +2,7 @@
 //! away from the scattering point: `wo` towards the viewer, `wi` towards the light; forward
 //! scattering means wi ≈ −wo, so the scattering angle θ has cos θ = −wo·wi.
 
-use crate::math::{frame::Frame, Vec3, PI};
+use crate::math::{frame::Frame, warp, Vec3, PI};
 
 /// A sampled phase-function direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -65,10 +65,10 @@ impl Phase for HenyeyGreenstein {
     fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
         let mu = self.sample_cos(u[0]);
         let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        let phi = 2.0 * PI * u[1];
+        let (sin_phi, cos_phi) = warp::sin_cos_turn(u[1]);
         // around the forward direction −wo
         let frame = Frame::from_normal(-wo);
-        let wi = frame.to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), mu));
+        let wi = frame.to_world(Vec3::new(sin * cos_phi, sin * sin_phi, mu));
         let pdf = self.eval_cos(mu);
         PhaseSample {
             wi,
@@ -110,8 +110,8 @@ impl Phase for Rayleigh {
     fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
         let mu = Self::sample_cos(u[0]);
         let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        let phi = 2.0 * PI * u[1];
-        let wi = Frame::from_normal(-wo).to_world(Vec3::new(sin * phi.cos(), sin * phi.sin(), mu));
+        let (sin_phi, cos_phi) = warp::sin_cos_turn(u[1]);
+        let wi = Frame::from_normal(-wo).to_world(Vec3::new(sin * cos_phi, sin * sin_phi, mu));
         PhaseSample {
             wi,
             pdf: Self::eval_cos(mu),
