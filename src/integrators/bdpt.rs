@@ -237,6 +237,17 @@ fn to_area(pdf: f64, from: Vec3, to: &Vertex) -> f64 {
     pdf * to.cos(v / d2.sqrt()) / d2
 }
 
+/// Whether vertex `k` of `path` moves across in the ratio walk: neither it nor the vertex
+/// before it is delta; the camera (vertex 0 of a camera subpath) never moves, and a light
+/// subpath's vertex 0 stays when it is a point light.
+fn movable(path: &[Vertex], k: usize, camera: bool) -> bool {
+    let fixed_before = match k {
+        0 => camera || matches!(path[0].on, On::Light { point: true, .. }),
+        _ => path[k - 1].delta,
+    };
+    !path[k].delta && !fixed_before
+}
+
 /// 0 → 1: a density that does not exist (a delta vertex) does not change a ratio.
 fn remap0(p: f64) -> f64 {
     if p == 0.0 {
@@ -724,20 +735,15 @@ impl Bdpt {
 
     /// Each vertex's [`Vertex::ratio`] from its densities as the walk left them, and its
     /// [`Vertex::walk`]: W(k) = ρ_k·(m_k + W(k − 1)), where m_k is 1 when vertex k may move
-    /// (neither it nor the one before it is delta; the camera, vertex 0 of the camera
-    /// subpath, never moves; a light subpath's vertex 0 stays when it is a point light).
+    /// ([`movable`]).
     fn set_ratios(&self, path: &mut [Vertex], camera: bool) {
         let mut walk = 0.0;
         for k in 0..path.len() {
             let v = &path[k];
             let ratio = (self.heuristic)(remap0(v.pdf_rev) / remap0(v.pdf_fwd));
-            let fixed_before = match k {
-                0 => camera || matches!(v.on, On::Light { point: true, .. }),
-                _ => path[k - 1].delta,
-            };
-            let movable = f64::from(u8::from(!v.delta && !fixed_before));
+            let m = f64::from(u8::from(movable(path, k, camera)));
             // a term of 0 stays 0 (no 0·∞ when a ratio overflows)
-            let inner = movable + walk;
+            let inner = m + walk;
             walk = if inner == 0.0 { 0.0 } else { ratio * inner };
             let v = &mut path[k];
             v.ratio = ratio;
@@ -763,68 +769,52 @@ impl Bdpt {
             Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
             None => v.ratio,
         };
-        // an emitter hit by the camera subpath is an end vertex whatever its own BSDF
-        let z_delta = |i: usize| cam[i].delta && !(s == 0 && i + 1 == t);
         // the last vertex's and the one before's terms (moved when `may` says), then the
-        // subpath's walk below them; the camera subpath stops above its vertex 0
-        let side =
-            |end: usize, lowest: usize, top: [(f64, bool); 2], walk: &dyn Fn(usize) -> f64| {
-                let mut sum = 0.0;
-                let mut r = 1.0;
-                for (j, (term, may)) in top.into_iter().enumerate() {
-                    if end < lowest + j + 1 {
-                        return sum;
-                    }
-                    r *= term;
-                    if may {
-                        sum += r;
-                    }
+        // walk of `path` below them; the camera subpath stops above its vertex 0
+        let side = |path: &[Vertex], end: usize, lowest: usize, top: [(f64, bool); 2]| {
+            let mut sum = 0.0;
+            let mut r = 1.0;
+            for (j, (term, may)) in top.into_iter().enumerate() {
+                if end < lowest + j + 1 {
+                    return sum;
                 }
-                if end >= lowest + 3 {
-                    let below = walk(end - 3);
-                    if below != 0.0 {
-                        sum += r * below;
-                    }
+                r *= term;
+                if may {
+                    sum += r;
                 }
-                sum
-            };
+            }
+            if end >= lowest + 3 {
+                let below = path[end - 3].walk;
+                if below != 0.0 {
+                    sum += r * below;
+                }
+            }
+            sum
+        };
         let cam_sum = if t >= 2 {
+            // an emitter hit by the camera subpath (s = 0) is an end vertex whatever its own
+            // BSDF, so only its predecessor can keep it from moving
+            let last_movable = (s == 0 || !cam[t - 1].delta) && !cam[t - 2].delta;
             let top = [
-                (
-                    term(&cam[t - 1], rev.z1),
-                    !z_delta(t - 1) && !z_delta(t - 2),
-                ),
+                (term(&cam[t - 1], rev.z1), last_movable),
                 match t {
                     2 => (0.0, false),
-                    _ => (
-                        term(&cam[t - 2], rev.z2),
-                        !z_delta(t - 2) && !z_delta(t - 3),
-                    ),
+                    _ => (term(&cam[t - 2], rev.z2), movable(cam, t - 2, true)),
                 },
             ];
-            side(t, 1, top, &|k| cam[k].walk)
+            side(cam, t, 1, top)
         } else {
             0.0
         };
         let lig_sum = if s >= 1 {
-            let fixed_before = |i: usize| match i {
-                0 => matches!(lig[0].on, On::Light { point: true, .. }),
-                _ => lig[i - 1].delta,
-            };
             let top = [
-                (
-                    term(&lig[s - 1], rev.y1),
-                    !lig[s - 1].delta && !fixed_before(s - 1),
-                ),
+                (term(&lig[s - 1], rev.y1), movable(lig, s - 1, false)),
                 match s {
                     1 => (0.0, false),
-                    _ => (
-                        term(&lig[s - 2], rev.y2),
-                        !lig[s - 2].delta && !fixed_before(s - 2),
-                    ),
+                    _ => (term(&lig[s - 2], rev.y2), movable(lig, s - 2, false)),
                 },
             ];
-            side(s, 0, top, &|k| lig[k].walk)
+            side(lig, s, 0, top)
         } else {
             0.0
         };
