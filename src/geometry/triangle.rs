@@ -74,7 +74,13 @@ fn intersect_pair_axis<const KZ: usize>(
     q: &[Vec3; 4],
     t_max: f64,
 ) -> Option<(f64, usize, [f64; 3])> {
-    let [a, b, c, d] = q.map(|p| shear::<KZ>(r, p));
+    // (by hand: `[T; 4]::map` compiled to an out-of-line call through its try-fold here)
+    let [a, b, c, d] = [
+        shear::<KZ>(r, q[0]),
+        shear::<KZ>(r, q[1]),
+        shear::<KZ>(r, q[2]),
+        shear::<KZ>(r, q[3]),
+    ];
     let hit = test_sheared(r, a, b, c, t_max);
     let t_max = hit.map_or(t_max, |h| h.0);
     match test_sheared(r, a, c, d, t_max) {
