@@ -15,7 +15,7 @@ Mitsuba variant, alternating renderers within each repetition, and reports media
     repetitions (each repetition runs every renderer in turn), geometric means with 95 %
     t intervals on the log ratios: the statement "ahead" needs the interval, not the median.
 Equal settings: same exported scene, box filter, max depth (furnace bounces; Mitsuba gets + 1),
-Russian roulette from depth 5 in both, 4 wavelengths per sample in both (Mitsuba's spectral
+Russian roulette from depth 5 in both (or --rr-depth), 4 wavelengths per sample in both (Mitsuba's spectral
 variants trace 4 wavelengths per path), furnace rendered with --observer mitsuba3 so both images
 use Mitsuba's colour pipeline.
 
@@ -77,6 +77,11 @@ def parse_args(argv=None):
     p.add_argument("--spp", type=int, default=64)
     p.add_argument("--max-depth", type=int, default=-1,
                    help="bounces (furnace's convention), -1 unlimited; must match the reference's (default: -1)")
+    p.add_argument("--rr-depth", type=int, default=None,
+                   help="bounces before Russian roulette starts, in both renderers (furnace's --rr-depth, "
+                        "written into Mitsuba's integrator as rr_depth: src/integrators/path.cpp at v3.9.1 "
+                        "counts it the same way, roulette first after the rr_depth-th surface's sampling); "
+                        "default: each renderer's own, 5")
     p.add_argument("--reps", type=int, default=3)
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--variants", default="scalar_spectral")
@@ -153,6 +158,16 @@ def main(argv=None):
     subprocess.run([args.furnace, "export", args.scene, "--format", "mitsuba3", "--out", xml_dir],
                    check=True, stdout=subprocess.DEVNULL)
     xml = os.path.join(xml_dir, "scene.xml")
+    if args.rr_depth is not None:
+        if args.rr_depth < 1:
+            sys.exit("--rr-depth must be at least 1 (Mitsuba refuses 0)")
+        text = open(xml).read()
+        line = '<integer name="max_depth" value="$max_depth"/>'
+        if text.count(line) != 1:
+            sys.exit(f"the export's integrator has no single {line}")
+        text = text.replace(line, line + f'\n    <integer name="rr_depth" value="{args.rr_depth}"/>')
+        with open(xml, "w") as f:
+            f.write(text)
     samples = width * height * args.spp
     variants = [v for v in args.variants.split(",") if v]
     furnaces = {"furnace": args.furnace}
@@ -188,6 +203,8 @@ def main(argv=None):
         for name, binary in furnaces.items():
             out = os.path.join(tmp, f"{name.replace(':', '-')}-{rep}.exr")
             depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
+            if args.rr_depth is not None:
+                depth += ["--rr-depth", str(args.rr_depth)]
             r = subprocess.run([binary, "render", args.scene, "--width", str(width), "--height", str(height),
                                 "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
                                 "--observer", "mitsuba3", "--out", out] + depth,
@@ -211,13 +228,15 @@ def main(argv=None):
             rows[f"mitsuba3:{v}"].append((secs, mse(None if speed_only else np.array(img))))
 
     result = {"scene": os.path.relpath(args.scene, REPO), "width": width, "height": height, "spp": args.spp,
-              "max_depth_bounces": args.max_depth, "threads": args.threads, "reps": args.reps,
+              "max_depth_bounces": args.max_depth, "rr_depth": 5 if args.rr_depth is None else args.rr_depth,
+              "threads": args.threads, "reps": args.reps,
               "reference": None if speed_only else os.path.relpath(args.reference, REPO),
               "reference_mean_variance": None if speed_only else ref_noise,
               "mitsuba": mi.__version__, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
     base = None
     print(f"CPU: {cpu_description()}")
-    print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, {args.threads} threads, "
+    print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, roulette from bounce "
+          f"{5 if args.rr_depth is None else args.rr_depth}, {args.threads} threads, "
           f"median of {args.reps} alternating runs; "
           + ("speed only (no reference)" if speed_only else f"error against {result['reference']}"))
     if speed_only:

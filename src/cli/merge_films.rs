@@ -49,7 +49,7 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
         a.exposure,
     )?;
     super::say!(
-        "{}x{} px from {} parts; noise: mean relative variance of the Y pixel means {:.4e}",
+        "{}x{} px from {} parts; noise: mean variance of the Y pixel means over the squared mean of Y {:.4e}",
         written.width,
         written.height,
         a.parts.len(),

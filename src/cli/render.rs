@@ -716,12 +716,13 @@ fn set_attrs<const N: usize>(attrs: &mut Vec<(String, String)>, pairs: [(&str, S
     }
 }
 
-/// Prints the noise and efficiency line: the mean over pixels of Var(Y pixel mean) relative to
-/// the squared image mean (`source` says where the variances come from), and
-/// 1/(relative variance × time), comparable across estimators.
+/// Prints the noise and efficiency line: the mean over pixels of Var(Y pixel mean) over the
+/// squared mean of Y (`source` says where the variances come from), and 1/(that × time),
+/// comparable across estimators. A plain MSE scaled once: bright pixels dominate it, where
+/// relMSE against a reference (`furnace compare`) weighs each pixel by its own value.
 fn say_noise(rel_var: f64, secs: f64, source: &str) {
     super::say!(
-        "noise: mean relative variance of the Y pixel means {rel_var:.4e}{source}; efficiency 1/(relative variance x time) {:.4e} /s",
+        "noise: mean variance of the Y pixel means over the squared mean of Y {rel_var:.4e}{source}; efficiency 1/(noise x time) {:.4e} /s",
         1.0 / (rel_var * secs)
     );
 }
