@@ -5,9 +5,11 @@ use super::{Vec3, INV_PI, PI};
 
 /// Cosine-weighted hemisphere direction by Malley's method: a concentric disk sample
 /// (Shirley & Chiu 1997, "A Low Distortion Map Between Disk and Square", JGT 2(3)) lifted to z.
+/// The lift takes the disk radius r as the map gives it (z = √(1 − r²)), so the square root
+/// runs beside the angle's division and series instead of after them.
 pub fn cosine_hemisphere(u: [f64; 2]) -> Vec3 {
-    let [dx, dy] = concentric_disk(u);
-    let z = (1.0 - dx * dx - dy * dy).max(0.0).sqrt();
+    let ([dx, dy], r) = concentric_disk_and_radius(u);
+    let z = (1.0 - r * r).max(0.0).sqrt();
     Vec3::new(dx, dy, z)
 }
 
@@ -22,25 +24,33 @@ pub fn cosine_hemisphere_pdf(w: Vec3) -> f64 {
 
 /// Concentric map of the unit square onto the unit disk (Shirley & Chiu 1997).
 pub fn concentric_disk(u: [f64; 2]) -> [f64; 2] {
+    concentric_disk_and_radius(u).0
+}
+
+/// [`concentric_disk`] with the point's radius r as the map sets it (|a| or |b|, exact), not
+/// recomputed from the point.
+#[inline]
+fn concentric_disk_and_radius(u: [f64; 2]) -> ([f64; 2], f64) {
     let a = 2.0 * u[0] - 1.0;
     let b = 2.0 * u[1] - 1.0;
     if a == 0.0 && b == 0.0 {
-        return [0.0, 0.0];
+        return ([0.0, 0.0], 0.0);
     }
     // φ = (π/4)(b/a) in the a-dominant wedges, π/2 − (π/4)(a/b) in the others; with
     // x = (π/4)(a/b), cos φ = sin x and sin φ = cos x, so only |x| <= π/4 is ever needed.
     if a.abs() > b.abs() {
         let (s, c) = sin_cos_quarter((PI / 4.0) * (b / a));
-        [a * c, a * s]
+        ([a * c, a * s], a.abs())
     } else {
         let (s, c) = sin_cos_quarter((PI / 4.0) * (a / b));
-        [b * s, b * c]
+        ([b * s, b * c], b.abs())
     }
 }
 
 /// (sin x, cos x) for |x| <= π/4 from their Taylor series to x^17 and x^18 (remainders below
-/// (π/4)^19/19! ≈ 1e-19 and (π/4)^20/20! ≈ 3e-21, far under an ulp), in Horner form: the
-/// general-range library call with its argument reduction costs several times more.
+/// (π/4)^19/19! ≈ 1e-19 and (π/4)^20/20! ≈ 3e-21, far under an ulp), summed by Estrin's
+/// scheme (a short dependency chain); the general-range library call with its argument
+/// reduction costs several times more.
 #[inline]
 pub fn sin_cos_quarter(x: f64) -> (f64, f64) {
     // 1/n! for n = 2..=18
@@ -55,15 +65,6 @@ pub fn sin_cos_quarter(x: f64) -> (f64, f64) {
         }
         f
     };
-    // Σ_k (−z)^k c_k by Horner's rule, from the last coefficient in
-    #[inline(always)]
-    fn alternating<const N: usize>(z: f64, c: [f64; N]) -> f64 {
-        let mut acc = c[N - 1];
-        for k in (0..N - 1).rev() {
-            acc = c[k] - z * acc;
-        }
-        acc
-    }
     // every other one, from `first`
     const fn every_other<const N: usize>(first: usize) -> [f64; N] {
         let mut c = [0.0; N];
@@ -77,8 +78,17 @@ pub fn sin_cos_quarter(x: f64) -> (f64, f64) {
     const ODD: [f64; 8] = every_other(1); // 1/3!, 1/5!, …, 1/17!
     const EVEN: [f64; 9] = every_other(0); // 1/2!, 1/4!, …, 1/18!
     let z = x * x;
-    let sin = x - x * z * alternating(z, ODD);
-    let cos = 1.0 - z * alternating(z, EVEN);
+    // Estrin's scheme (Estrin 1960, Proc. Western Joint Computer Conf., pp. 33-40) in w = −z:
+    // pairs, then pairs of pairs, three multiply-adds deep instead of Horner's eight
+    let w = -z;
+    let w2 = w * w;
+    let w4 = w2 * w2;
+    let pair = |c: &[f64], k: usize| c[k] + w * c[k + 1];
+    let odd = (pair(&ODD, 0) + w2 * pair(&ODD, 2)) + w4 * (pair(&ODD, 4) + w2 * pair(&ODD, 6));
+    let even = (pair(&EVEN, 0) + w2 * pair(&EVEN, 2))
+        + w4 * ((pair(&EVEN, 4) + w2 * pair(&EVEN, 6)) + w4 * EVEN[8]);
+    let sin = x - x * z * odd;
+    let cos = 1.0 - z * even;
     (sin, cos)
 }
 
