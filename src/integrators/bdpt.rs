@@ -241,11 +241,16 @@ fn to_area(pdf: f64, from: Vec3, to: &Vertex) -> f64 {
 /// before it is delta; the camera (vertex 0 of a camera subpath) never moves, and a light
 /// subpath's vertex 0 stays when it is a point light.
 fn movable(path: &[Vertex], k: usize, camera: bool) -> bool {
-    let fixed_before = match k {
+    !path[k].delta && !fixed_before(path, k, camera)
+}
+
+/// Whether what precedes vertex `k` keeps it from moving: a delta predecessor, or for vertex
+/// 0 the camera or a point light.
+fn fixed_before(path: &[Vertex], k: usize, camera: bool) -> bool {
+    match k {
         0 => camera || matches!(path[0].on, On::Light { point: true, .. }),
         _ => path[k - 1].delta,
-    };
-    !path[k].delta && !fixed_before
+    }
 }
 
 /// 0 → 1: a density that does not exist (a delta vertex) does not change a ratio.
@@ -769,55 +774,41 @@ impl Bdpt {
             Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
             None => v.ratio,
         };
-        // the last vertex's and the one before's terms (moved when `may` says), then the
-        // walk of `path` below them; the camera subpath stops above its vertex 0
-        let side = |path: &[Vertex], end: usize, lowest: usize, top: [(f64, bool); 2]| {
-            let mut sum = 0.0;
-            let mut r = 1.0;
-            for (j, (term, may)) in top.into_iter().enumerate() {
-                if end < lowest + j + 1 {
+        // one subpath's part of the sum over its `n` vertices: the last vertex's and the one
+        // before's terms, with the reverse densities the connection set, then the walk below
+        // them; the camera subpath stops above its vertex 0, and an emitter it hit
+        // (`emitter_end`, s = 0) is an end vertex whatever its own BSDF, so only its
+        // predecessor can keep it from moving
+        let part =
+            |path: &[Vertex], n: usize, camera: bool, set: [Option<f64>; 2], emitter_end: bool| {
+                let lowest = usize::from(camera);
+                if n <= lowest {
+                    return 0.0;
+                }
+                let last = if emitter_end {
+                    !fixed_before(path, n - 1, camera)
+                } else {
+                    movable(path, n - 1, camera)
+                };
+                let mut r = term(&path[n - 1], set[0]);
+                let mut sum = if last { r } else { 0.0 };
+                if n == lowest + 1 {
                     return sum;
                 }
-                r *= term;
-                if may {
+                r *= term(&path[n - 2], set[1]);
+                if movable(path, n - 2, camera) {
                     sum += r;
                 }
-            }
-            if end >= lowest + 3 {
-                let below = path[end - 3].walk;
-                if below != 0.0 {
-                    sum += r * below;
+                if n >= lowest + 3 {
+                    let below = path[n - 3].walk;
+                    if below != 0.0 {
+                        sum += r * below;
+                    }
                 }
-            }
-            sum
-        };
-        let cam_sum = if t >= 2 {
-            // an emitter hit by the camera subpath (s = 0) is an end vertex whatever its own
-            // BSDF, so only its predecessor can keep it from moving
-            let last_movable = (s == 0 || !cam[t - 1].delta) && !cam[t - 2].delta;
-            let top = [
-                (term(&cam[t - 1], rev.z1), last_movable),
-                match t {
-                    2 => (0.0, false),
-                    _ => (term(&cam[t - 2], rev.z2), movable(cam, t - 2, true)),
-                },
-            ];
-            side(cam, t, 1, top)
-        } else {
-            0.0
-        };
-        let lig_sum = if s >= 1 {
-            let top = [
-                (term(&lig[s - 1], rev.y1), movable(lig, s - 1, false)),
-                match s {
-                    1 => (0.0, false),
-                    _ => (term(&lig[s - 2], rev.y2), movable(lig, s - 2, false)),
-                },
-            ];
-            side(lig, s, 0, top)
-        } else {
-            0.0
-        };
+                sum
+            };
+        let cam_sum = part(cam, t, true, [rev.z1, rev.z2], s == 0);
+        let lig_sum = part(lig, s, false, [rev.y1, rev.y2], false);
         1.0 / (1.0 + cam_sum + lig_sum)
     }
 }
