@@ -4,6 +4,14 @@
 
 use crate::math::{frame::Frame, warp, Vec3, PI};
 
+/// The direction at scattering-angle cosine `mu` from the forward direction −wo, at azimuth
+/// `u` of a turn about it.
+fn scattered(wo: Vec3, mu: f64, u: f64) -> Vec3 {
+    let sin = (1.0 - mu * mu).max(0.0).sqrt();
+    let (sin_phi, cos_phi) = warp::sin_cos_turn(u);
+    Frame::from_normal(-wo).to_world(Vec3::new(sin * cos_phi, sin * sin_phi, mu))
+}
+
 /// A sampled phase-function direction.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PhaseSample {
@@ -64,15 +72,9 @@ impl Phase for HenyeyGreenstein {
 
     fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
         let mu = self.sample_cos(u[0]);
-        let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        let (sin_phi, cos_phi) = warp::sin_cos_turn(u[1]);
-        // around the forward direction −wo
-        let frame = Frame::from_normal(-wo);
-        let wi = frame.to_world(Vec3::new(sin * cos_phi, sin * sin_phi, mu));
-        let pdf = self.eval_cos(mu);
         PhaseSample {
-            wi,
-            pdf,
+            wi: scattered(wo, mu, u[1]),
+            pdf: self.eval_cos(mu),
             weight: 1.0,
         }
     }
@@ -109,11 +111,8 @@ impl Phase for Rayleigh {
     }
     fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
         let mu = Self::sample_cos(u[0]);
-        let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        let (sin_phi, cos_phi) = warp::sin_cos_turn(u[1]);
-        let wi = Frame::from_normal(-wo).to_world(Vec3::new(sin * cos_phi, sin * sin_phi, mu));
         PhaseSample {
-            wi,
+            wi: scattered(wo, mu, u[1]),
             pdf: Self::eval_cos(mu),
             weight: 1.0,
         }
