@@ -202,12 +202,12 @@ def main(argv=None):
     for rep in range(args.reps):
         for name, binary in furnaces.items():
             out = os.path.join(tmp, f"{name.replace(':', '-')}-{rep}.exr")
-            depth = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
+            depths = [] if args.max_depth < 0 else ["--max-depth", str(args.max_depth)]
             if args.rr_depth is not None:
-                depth += ["--rr-depth", str(args.rr_depth)]
+                depths += ["--rr-depth", str(args.rr_depth)]
             r = subprocess.run([binary, "render", args.scene, "--width", str(width), "--height", str(height),
                                 "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
-                                "--observer", "mitsuba3", "--out", out] + depth,
+                                "--observer", "mitsuba3", "--out", out] + depths,
                                check=True, capture_output=True, text=True)
             secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
             if speed_only:
