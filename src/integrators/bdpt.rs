@@ -769,48 +769,57 @@ impl Bdpt {
         rev: &Overrides,
     ) -> f64 {
         let h = self.heuristic;
-        // a vertex's term, with the reverse density the connection set for it if any
-        let term = |v: &Vertex, set: Option<f64>| match set {
-            Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
-            None => v.ratio,
-        };
-        // one subpath's part of the sum over its `n` vertices: the last vertex's and the one
-        // before's terms, with the reverse densities the connection set, then the walk below
-        // them; the camera subpath stops above its vertex 0, and an emitter it hit
-        // (`emitter_end`, s = 0) is an end vertex whatever its own BSDF, so only its
-        // predecessor can keep it from moving
-        let part =
-            |path: &[Vertex], n: usize, camera: bool, set: [Option<f64>; 2], emitter_end: bool| {
-                let lowest = usize::from(camera);
-                if n <= lowest {
-                    return 0.0;
-                }
-                let last = if emitter_end {
-                    !fixed_before(path, n - 1, camera)
-                } else {
-                    movable(path, n - 1, camera)
-                };
-                let mut r = term(&path[n - 1], set[0]);
-                let mut sum = if last { r } else { 0.0 };
-                if n == lowest + 1 {
-                    return sum;
-                }
-                r *= term(&path[n - 2], set[1]);
-                if movable(path, n - 2, camera) {
-                    sum += r;
-                }
-                if n >= lowest + 3 {
-                    let below = path[n - 3].walk;
-                    if below != 0.0 {
-                        sum += r * below;
-                    }
-                }
-                sum
-            };
-        let cam_sum = part(cam, t, true, [rev.z1, rev.z2], s == 0);
-        let lig_sum = part(lig, s, false, [rev.y1, rev.y2], false);
+        let cam_sum = part(h, cam, t, true, [rev.z1, rev.z2], s == 0);
+        let lig_sum = part(h, lig, s, false, [rev.y1, rev.y2], false);
         1.0 / (1.0 + cam_sum + lig_sum)
     }
+}
+
+/// One subpath's part of the MIS sum over its `n` vertices ([`Bdpt::mis_weight`]): the last
+/// vertex's and the one before's terms, with the reverse densities `set` the connection gave
+/// them, then the walk below them ([`Vertex::walk`]). The camera subpath stops above its
+/// vertex 0, and an emitter it hit (`emitter_end`, s = 0) is an end vertex whatever its own
+/// BSDF, so only its predecessor can keep it from moving. (A function, not a closure: as a
+/// closure called twice it was not inlined.)
+#[inline(always)]
+fn part(
+    h: Heuristic,
+    path: &[Vertex],
+    n: usize,
+    camera: bool,
+    set: [Option<f64>; 2],
+    emitter_end: bool,
+) -> f64 {
+    // a vertex's term, with the reverse density the connection set for it if any
+    let term = |v: &Vertex, set: Option<f64>| match set {
+        Some(pdf_rev) => h(remap0(pdf_rev) / remap0(v.pdf_fwd)),
+        None => v.ratio,
+    };
+    let lowest = usize::from(camera);
+    if n <= lowest {
+        return 0.0;
+    }
+    let last = if emitter_end {
+        !fixed_before(path, n - 1, camera)
+    } else {
+        movable(path, n - 1, camera)
+    };
+    let mut r = term(&path[n - 1], set[0]);
+    let mut sum = if last { r } else { 0.0 };
+    if n == lowest + 1 {
+        return sum;
+    }
+    r *= term(&path[n - 2], set[1]);
+    if movable(path, n - 2, camera) {
+        sum += r;
+    }
+    if n >= lowest + 3 {
+        let below = path[n - 3].walk;
+        if below != 0.0 {
+            sum += r * below;
+        }
+    }
+    sum
 }
 
 /// The reverse densities one connection sets (None: the walk's own).
