@@ -6,6 +6,7 @@ use crate::math::{frame::Frame, warp, Vec3, PI};
 
 /// The direction at scattering-angle cosine `mu` from the forward direction −wo, at azimuth
 /// `u` of a turn about it.
+#[inline(always)]
 fn scattered(wo: Vec3, mu: f64, u: f64) -> Vec3 {
     let sin = (1.0 - mu * mu).max(0.0).sqrt();
     let (sin_phi, cos_phi) = warp::sin_cos_turn(u);
