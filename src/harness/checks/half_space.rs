@@ -166,10 +166,10 @@ impl Kind for HalfSpace {
         let region = region_of(check, &s)?;
         let h = HFunction::new(albedo);
         let r_of = |mu: f64| h.reflectance(mu.clamp(0.0, 1.0));
-        let shapes = scene.aggregate.shapes();
+        let caster = witness::Caster::new(scene.aggregate.shapes());
         let expected_ray = |r: Ray| -> Result<f64, CheckError> {
             // Hits from the closed forms' own caster (closed_form::witness), not the BVH.
-            let hits = witness::hits_along(shapes, &r);
+            let hits = caster.hits_along(&r);
             let Some(h) = hits.first() else {
                 return Ok(env);
             };

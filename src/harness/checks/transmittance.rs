@@ -25,7 +25,7 @@ use crate::spectrum::{cie, Spectrum};
 /// emitter met through null boundaries and finally the first other surface or the environment,
 /// each attenuated by the absorbing segments before it. A ray with no surface ahead has left
 /// every medium (as in the path tracer).
-pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
+pub fn along(scene: &Scene, caster: &witness::Caster, camera_ray: Ray) -> Result<f64, CheckError> {
     let mut path: Vec<(u32, f64)> = Vec::new();
     // (emitted spectrum, number of path segments in front of it)
     let mut sources: Vec<(&Spectrum, usize)> = Vec::new();
@@ -33,7 +33,7 @@ pub fn along(scene: &Scene, camera_ray: Ray) -> Result<f64, CheckError> {
     let r = camera_ray;
     // Every crossing along the camera ray's line, from the closed forms' own caster
     // (closed_form::witness), with media tracked by the boundary rule, not the tracer's code.
-    let hits = witness::hits_along(scene.aggregate.shapes(), &r);
+    let hits = caster.hits_along(&r);
     let mut next = hits.iter();
     let mut t_last = 0.0;
     loop {
@@ -122,12 +122,13 @@ impl Kind for Transmittance {
         }
         let s = settings_for(check, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
         let region = region_of(check, &s)?;
+        let caster = witness::Caster::new(scene.aggregate.shapes());
         let px = per_pixel_rays(
             scene,
             s.width,
             s.height,
             region,
-            &|r| along(scene, r),
+            &|r| along(scene, &caster, r),
             FOOTPRINT_K,
         )?;
         let expected = px.iter().sum::<f64>() / px.len() as f64;

@@ -74,13 +74,13 @@ pub fn per_pixel_k(
     f: &RayClosedForm<'_>,
     k: usize,
 ) -> Result<Vec<f64>, CheckError> {
-    let shapes = scene.aggregate.shapes();
+    let caster = witness::Caster::new(scene.aggregate.shapes());
     per_pixel_rays(
         scene,
         width,
         height,
         region,
-        &|ray| f(witness::nearest_hit(shapes, &ray).as_ref(), ray.d),
+        &|ray| f(caster.nearest_hit(&ray).as_ref(), ray.d),
         k,
     )
 }

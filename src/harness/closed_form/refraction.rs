@@ -6,7 +6,7 @@
 //! sum, Fresnel equations and refraction vector.
 
 use super::footprint::per_pixel_rays_n;
-use super::witness;
+use super::witness::Caster;
 use crate::geometry::{Ray, Shape};
 use crate::harness::error::CheckError;
 use crate::lights::Light;
@@ -66,14 +66,14 @@ fn constant_env(scene: &Scene, lambda: f64) -> f64 {
 /// wavelengths are the discontinuities of the integrand).
 fn radiance(
     scene: &Scene,
+    caster: &Caster,
     ray: Ray,
     lambda: f64,
     bounces: u32,
     max_depth: u32,
     path: &mut Vec<u32>,
 ) -> Result<f64, CheckError> {
-    let shapes = scene.aggregate.shapes();
-    let Some(hit) = witness::nearest_hit(shapes, &ray) else {
+    let Some(hit) = caster.nearest_hit(&ray) else {
         path.push(0);
         return Ok(constant_env(scene, lambda));
     };
@@ -110,6 +110,7 @@ fn radiance(
             let reflected = ray.d + facing * (2.0 * cos1);
             l += f * radiance(
                 scene,
+                caster,
                 Ray {
                     o: p + reflected * nudge,
                     d: reflected,
@@ -129,6 +130,7 @@ fn radiance(
                     * r
                     * radiance(
                         scene,
+                        caster,
                         Ray {
                             o: p + refracted * nudge,
                             d: refracted,
@@ -152,12 +154,13 @@ fn radiance(
 /// Spectral radiance and the branch record of one ray at one wavelength.
 fn sample(
     scene: &Scene,
+    caster: &Caster,
     ray: Ray,
     lambda: f64,
     max_depth: u32,
 ) -> Result<(f64, Vec<u32>), CheckError> {
     let mut path = Vec::new();
-    let l = radiance(scene, ray, lambda, 0, max_depth, &mut path)?;
+    let l = radiance(scene, caster, ray, lambda, 0, max_depth, &mut path)?;
     Ok((l, path))
 }
 
@@ -166,6 +169,7 @@ fn sample(
 /// changes what it hits (located by bisection), one-sided values at every end.
 pub fn ray_xyz(
     scene: &Scene,
+    caster: &Caster,
     ray: Ray,
     max_depth: u32,
     observer: &Observer,
@@ -175,9 +179,9 @@ pub fn ray_xyz(
         let h = b - a;
         let (ea, m, eb) = (a + 1e-9 * h, 0.5 * (a + b), b - 1e-9 * h);
         let (la, lm, lb) = (
-            sample(scene, ray, ea, max_depth)?.0,
-            sample(scene, ray, m, max_depth)?.0,
-            sample(scene, ray, eb, max_depth)?.0,
+            sample(scene, caster, ray, ea, max_depth)?.0,
+            sample(scene, caster, ray, m, max_depth)?.0,
+            sample(scene, caster, ray, eb, max_depth)?.0,
         );
         let (ca, cm, cb) = (observer.cmf(ea), observer.cmf(m), observer.cmf(eb));
         for k in 0..3 {
@@ -186,10 +190,10 @@ pub fn ray_xyz(
         Ok(())
     };
     // each whole nanometre's branch record serves the piece on either side of it
-    let mut right = sample(scene, ray, 360.0, max_depth)?.1;
+    let mut right = sample(scene, caster, ray, 360.0, max_depth)?.1;
     for i in 0..470 {
         let (a, b) = (360.0 + i as f64, 361.0 + i as f64);
-        let left = std::mem::replace(&mut right, sample(scene, ray, b, max_depth)?.1);
+        let left = std::mem::replace(&mut right, sample(scene, caster, ray, b, max_depth)?.1);
         if left == right {
             piece(a, b, &mut acc)?;
             continue;
@@ -197,7 +201,7 @@ pub fn ray_xyz(
         let (mut lo, mut hi) = (a, b);
         for _ in 0..BISECTIONS {
             let mid = 0.5 * (lo + hi);
-            if sample(scene, ray, mid, max_depth)?.1 == left {
+            if sample(scene, caster, ray, mid, max_depth)?.1 == left {
                 lo = mid;
             } else {
                 hi = mid;
@@ -236,12 +240,13 @@ pub fn expectation(
             "the refraction closed form takes planar shapes (quads, meshes) only".into(),
         ));
     }
+    let caster = Caster::new(scene.aggregate.shapes());
     let px = per_pixel_rays_n(
         scene,
         width,
         height,
         region,
-        &|ray| ray_xyz(scene, ray, max_depth, observer),
+        &|ray| ray_xyz(scene, &caster, ray, max_depth, observer),
         FOOTPRINT_K,
     )?;
     Ok([0, 1, 2].map(|c| px.iter().map(|v| v[c]).collect()))

@@ -59,29 +59,158 @@ impl Eye {
     }
 }
 
-/// The nearest hit along `ray` (t > 0) among `shapes`, by testing every primitive; the hit's
-/// normal follows the scene conventions (sphere outward, parallelogram u × v, triangle
-/// (v1 − v0) × (v2 − v0), each reversed when flipped), and its `p_error` is 0 (the closed
-/// forms use positions, not ray offsets).
-pub fn nearest_hit(shapes: &[Shape], ray: &Ray) -> Option<Hit> {
-    let mut best: Option<Hit> = None;
-    for_each_hit(shapes, ray, &mut |h| {
-        if best.is_none_or(|b| h.t < b.t) {
-            best = Some(h);
-        }
-    });
-    best
+/// The scene's primitives laid out once for the brute-force caster: a parallelogram's normal,
+/// a mesh's triangles as a corner and two edges in groups of [`LANES`], so that one group's
+/// tests run side by side. Every primitive is still tested, in the scene's order, by the same
+/// arithmetic as one at a time.
+pub struct Caster<'a> {
+    shapes: &'a [Shape],
+    prepared: Vec<Prepared>,
 }
 
-/// Every hit along `ray` (t > 0, both sides of a sphere), nearest first: the whole line
-/// through the scene, for closed forms that follow a ray through media.
-pub fn hits_along(shapes: &[Shape], ray: &Ray) -> Vec<Hit> {
-    let mut all: Vec<Hit> = Vec::new();
-    for_each_hit(shapes, ray, &mut |h| all.push(h));
-    all.sort_by(|a, b| a.t.total_cmp(&b.t));
-    // a ray through an edge shared by two triangles of one mesh crosses once, not twice
-    all.dedup_by(|b, a| a.shape == b.shape && (b.t - a.t).abs() <= 1e-12 * a.t.max(1.0));
-    all
+/// Triangles tested side by side.
+const LANES: usize = 8;
+
+enum Prepared {
+    Sphere,
+    /// Normal n = u × v, |n|², and the unit normal as hits report it.
+    Quad {
+        n: Vec3,
+        nn: f64,
+        unit: Vec3,
+    },
+    /// Corner a and edges b − a, c − a of each triangle by component, the last group padded
+    /// with zero edges (a zero determinant: never a hit).
+    Mesh(Vec<TriangleGroup>),
+}
+
+struct TriangleGroup {
+    a: [[f64; LANES]; 3],
+    e1: [[f64; LANES]; 3],
+    e2: [[f64; LANES]; 3],
+}
+
+impl<'a> Caster<'a> {
+    /// The caster of `shapes`.
+    pub fn new(shapes: &'a [Shape]) -> Caster<'a> {
+        let prepared = shapes
+            .iter()
+            .map(|s| match s {
+                Shape::Sphere(_) => Prepared::Sphere,
+                Shape::Quad(q) => {
+                    let n = q.edge_u.cross(q.edge_v);
+                    let unit = n.normalize();
+                    Prepared::Quad {
+                        n,
+                        nn: n.dot(n),
+                        unit: if q.flip_normals { -unit } else { unit },
+                    }
+                }
+                Shape::Mesh(m) => {
+                    let mut groups = Vec::with_capacity(m.triangles.len().div_ceil(LANES));
+                    for chunk in m.triangles.chunks(LANES) {
+                        let mut g = TriangleGroup {
+                            a: [[0.0; LANES]; 3],
+                            e1: [[0.0; LANES]; 3],
+                            e2: [[0.0; LANES]; 3],
+                        };
+                        for (l, tri) in chunk.iter().enumerate() {
+                            let [a, b, c] = tri.map(|k| m.positions[k as usize]);
+                            let (e1, e2) = (b - a, c - a);
+                            for axis in 0..3 {
+                                g.a[axis][l] = a[axis];
+                                g.e1[axis][l] = e1[axis];
+                                g.e2[axis][l] = e2[axis];
+                            }
+                        }
+                        groups.push(g);
+                    }
+                    Prepared::Mesh(groups)
+                }
+            })
+            .collect();
+        Caster { shapes, prepared }
+    }
+
+    /// The nearest hit along `ray` (t > 0), by testing every primitive; the hit's normal
+    /// follows the scene conventions (sphere outward, parallelogram u × v, triangle
+    /// (v1 − v0) × (v2 − v0), each reversed when flipped), and its `p_error` is 0 (the closed
+    /// forms use positions, not ray offsets).
+    pub fn nearest_hit(&self, ray: &Ray) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        self.for_each_hit(ray, &mut |h| {
+            if best.is_none_or(|b| h.t < b.t) {
+                best = Some(h);
+            }
+        });
+        best
+    }
+
+    /// Every hit along `ray` (t > 0, both sides of a sphere), nearest first: the whole line
+    /// through the scene, for closed forms that follow a ray through media.
+    pub fn hits_along(&self, ray: &Ray) -> Vec<Hit> {
+        let mut all: Vec<Hit> = Vec::new();
+        self.for_each_hit(ray, &mut |h| all.push(h));
+        all.sort_by(|a, b| a.t.total_cmp(&b.t));
+        // a ray through an edge shared by two triangles of one mesh crosses once, not twice
+        all.dedup_by(|b, a| a.shape == b.shape && (b.t - a.t).abs() <= 1e-12 * a.t.max(1.0));
+        all
+    }
+
+    fn for_each_hit(&self, ray: &Ray, out: &mut dyn FnMut(Hit)) {
+        let mut emit = |t: f64, shape: usize, n: Vec3| {
+            if t > 0.0 && t.is_finite() {
+                out(Hit {
+                    t,
+                    point: SurfacePoint {
+                        p: ray.o + ray.d * t,
+                        p_error: Vec3::new(0.0, 0.0, 0.0),
+                        n,
+                    },
+                    shape: shape as u32,
+                });
+            }
+        };
+        for (i, (s, prep)) in self.shapes.iter().zip(&self.prepared).enumerate() {
+            match (s, prep) {
+                (Shape::Sphere(sp), _) => {
+                    for t in sphere_roots(sp.center, sp.radius, ray)
+                        .into_iter()
+                        .flatten()
+                    {
+                        let n = (ray.o + ray.d * t - sp.center) / sp.radius;
+                        emit(t, i, if sp.flip_normals { -n } else { n });
+                    }
+                }
+                (Shape::Quad(q), &Prepared::Quad { n, nn, unit }) => {
+                    if let Some(t) = parallelogram_t(q.corner, q.edge_u, q.edge_v, n, nn, ray) {
+                        emit(t, i, unit);
+                    }
+                }
+                (Shape::Mesh(m), Prepared::Mesh(groups)) => {
+                    for g in groups {
+                        let t = triangles_t(g, ray);
+                        // (a reduction without early exit, which stays in vector registers)
+                        if !t
+                            .iter()
+                            .fold(false, |any, &t| any | (t > 0.0 && t < f64::INFINITY))
+                        {
+                            continue;
+                        }
+                        for (l, &t) in t.iter().enumerate() {
+                            if t > 0.0 && t.is_finite() {
+                                let e1 = Vec3::new(g.e1[0][l], g.e1[1][l], g.e1[2][l]);
+                                let e2 = Vec3::new(g.e2[0][l], g.e2[1][l], g.e2[2][l]);
+                                let n = e1.cross(e2).normalize();
+                                emit(t, i, if m.flip_normals { -n } else { n });
+                            }
+                        }
+                    }
+                }
+                _ => unreachable!("prepared from the same shapes"),
+            }
+        }
+    }
 }
 
 /// The medium on the far side of a boundary crossed along `d` at a point with normal `n`:
@@ -100,51 +229,6 @@ pub fn medium_beyond(
         Some(_) if d.dot(n) == 0.0 => current,
         Some(b) if d.dot(n) > 0.0 => b.exterior,
         Some(b) => b.interior,
-    }
-}
-
-fn for_each_hit(shapes: &[Shape], ray: &Ray, out: &mut dyn FnMut(Hit)) {
-    let mut emit = |t: f64, shape: usize, n: Vec3| {
-        if t > 0.0 && t.is_finite() {
-            out(Hit {
-                t,
-                point: SurfacePoint {
-                    p: ray.o + ray.d * t,
-                    p_error: Vec3::new(0.0, 0.0, 0.0),
-                    n,
-                },
-                shape: shape as u32,
-            });
-        }
-    };
-    for (i, s) in shapes.iter().enumerate() {
-        match s {
-            Shape::Sphere(sp) => {
-                for t in sphere_roots(sp.center, sp.radius, ray)
-                    .into_iter()
-                    .flatten()
-                {
-                    let n = (ray.o + ray.d * t - sp.center) / sp.radius;
-                    emit(t, i, if sp.flip_normals { -n } else { n });
-                }
-            }
-            Shape::Quad(q) => {
-                let n = q.edge_u.cross(q.edge_v);
-                if let Some(t) = parallelogram_t(q.corner, q.edge_u, q.edge_v, n, ray) {
-                    let n = n.normalize();
-                    emit(t, i, if q.flip_normals { -n } else { n });
-                }
-            }
-            Shape::Mesh(m) => {
-                for tri in &m.triangles {
-                    let [a, b, c] = tri.map(|k| m.positions[k as usize]);
-                    if let Some(t) = triangle_t(a, b, c, ray) {
-                        let n = (b - a).cross(c - a).normalize();
-                        emit(t, i, if m.flip_normals { -n } else { n });
-                    }
-                }
-            }
-        }
     }
 }
 
@@ -171,44 +255,46 @@ fn sphere_roots(c: Vec3, r: f64, ray: &Ray) -> [Option<f64>; 2] {
     [Some(q), (q != 0.0).then(|| cterm / q)]
 }
 
-/// Hit distance of the parallelogram corner + a·u + b·v (a, b in [0, 1]) with normal n = u × v:
-/// the plane's t, then a = ((p − corner) × v)·n/|n|², b = (u × (p − corner))·n/|n|² (cross
-/// both sides of p − corner = a·u + b·v with v, resp. u, and project on n).
-fn parallelogram_t(corner: Vec3, u: Vec3, v: Vec3, n: Vec3, ray: &Ray) -> Option<f64> {
+/// Hit distance of the parallelogram corner + a·u + b·v (a, b in [0, 1]) with normal n = u × v
+/// and nn = |n|²: the plane's t, then a = ((p − corner) × v)·n/|n|², b = (u × (p − corner))·n/|n|²
+/// (cross both sides of p − corner = a·u + b·v with v, resp. u, and project on n), each tested
+/// as its numerator against [0, |n|²] rather than divided.
+fn parallelogram_t(corner: Vec3, u: Vec3, v: Vec3, n: Vec3, nn: f64, ray: &Ray) -> Option<f64> {
     let denom = n.dot(ray.d);
     if denom == 0.0 {
         return None;
     }
     let t = n.dot(corner - ray.o) / denom;
     let w = ray.o + ray.d * t - corner;
-    let nn = n.dot(n);
-    let a = w.cross(v).dot(n) / nn;
-    let b = u.cross(w).dot(n) / nn;
-    ((0.0..=1.0).contains(&a) && (0.0..=1.0).contains(&b)).then_some(t)
+    let a = w.cross(v).dot(n);
+    let b = u.cross(w).dot(n);
+    ((0.0..=nn).contains(&a) && (0.0..=nn).contains(&b)).then_some(t)
 }
 
-/// Möller & Trumbore 1997, "Fast, minimum storage ray-triangle intersection", J. Graphics
-/// Tools 2(1): barycentrics by Cramer's rule.
-fn triangle_t(a: Vec3, b: Vec3, c: Vec3, ray: &Ray) -> Option<f64> {
-    let e1 = b - a;
-    let e2 = c - a;
-    let p = ray.d.cross(e2);
-    let det = e1.dot(p);
-    if det == 0.0 {
-        return None;
+/// Hit distances of a group of triangles (NaN: a miss), each by Möller & Trumbore 1997, "Fast,
+/// minimum storage ray-triangle intersection", J. Graphics Tools 2(1): barycentrics by
+/// Cramer's rule. Every lane computes all its terms and a miss is selected out at the end, so
+/// that the lanes run side by side.
+#[inline(always)]
+fn triangles_t(g: &TriangleGroup, ray: &Ray) -> [f64; LANES] {
+    let mut out = [f64::NAN; LANES];
+    for (l, out) in out.iter_mut().enumerate() {
+        let a = Vec3::new(g.a[0][l], g.a[1][l], g.a[2][l]);
+        let e1 = Vec3::new(g.e1[0][l], g.e1[1][l], g.e1[2][l]);
+        let e2 = Vec3::new(g.e2[0][l], g.e2[1][l], g.e2[2][l]);
+        let p = ray.d.cross(e2);
+        let det = e1.dot(p);
+        let inv = 1.0 / det;
+        let s = ray.o - a;
+        let u = s.dot(p) * inv;
+        let q = s.cross(e1);
+        let v = ray.d.dot(q) * inv;
+        let t = e2.dot(q) * inv;
+        // (a NaN v passes, as `v < 0 || u + v > 1` lets it through)
+        let hit = det != 0.0 && (0.0..=1.0).contains(&u) && !(v < 0.0 || u + v > 1.0);
+        *out = if hit { t } else { f64::NAN };
     }
-    let inv = 1.0 / det;
-    let s = ray.o - a;
-    let u = s.dot(p) * inv;
-    if !(0.0..=1.0).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let v = ray.d.dot(q) * inv;
-    if v < 0.0 || u + v > 1.0 {
-        return None;
-    }
-    Some(e2.dot(q) * inv)
+    out
 }
 
 #[cfg(test)]
@@ -229,19 +315,20 @@ mod tests {
             "scenes/cornell-box.toml",
             "scenes/furnace-sphere.toml",
             "scenes/cornell-glossy.toml",
+            "tests/manifests/scenes/prism.toml",
         ] {
             let s = scene(rel);
             let (w, h) = (24, 24);
             let cam = s.camera.build(w, h).unwrap();
             let eye = Eye::new(&s.camera, w, h).unwrap();
-            let shapes = s.aggregate.shapes();
+            let caster = Caster::new(s.aggregate.shapes());
             for j in 0..h {
                 for i in 0..w {
                     let (x, y) = (i as f64 + 0.37, j as f64 + 0.61);
                     let (r0, r1) = (cam.ray(x, y, w, h), eye.ray(x, y));
                     assert!((r0.d - r1.d).length() < 1e-12, "{rel} ({i}, {j})");
                     let a = s.aggregate.intersect(&r0, f64::INFINITY);
-                    let b = nearest_hit(shapes, &r1);
+                    let b = caster.nearest_hit(&r1);
                     match (a, b) {
                         (None, None) => {}
                         (Some(a), Some(b)) => {
