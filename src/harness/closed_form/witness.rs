@@ -2,7 +2,8 @@
 //! from `camera` and `geometry` (they share only `Vec3`, the `Ray`/`Hit` records and the
 //! scene's shape data), so that a camera, intersection or BVH bug in the renderer cannot cancel
 //! between a render and the expected value it is checked against. Every ray is tested against
-//! every primitive: meant for the small scenes of closed-form checks ([`MAX_PRIMITIVES`]).
+//! every primitive, except a mesh's groups of triangles whose padded box it misses: meant for
+//! the small scenes of closed-form checks ([`MAX_PRIMITIVES`]).
 
 use crate::geometry::{Hit, Ray, Shape, SurfacePoint};
 use crate::math::Vec3;
@@ -84,10 +85,43 @@ enum Prepared {
     Mesh(Vec<TriangleGroup>),
 }
 
+#[derive(Clone)]
 struct TriangleGroup {
     a: [[f64; LANES]; 3],
     e1: [[f64; LANES]; 3],
     e2: [[f64; LANES]; 3],
+    /// The group's corners' box, and their largest coordinate magnitude.
+    lo: Vec3,
+    hi: Vec3,
+    size: f64,
+}
+
+/// The margin of a group's box, relative to the coordinates involved: a billion times an f64
+/// rounding, so that no triangle hit the test accepts lies outside it.
+const BOX_MARGIN: f64 = 1e-9;
+
+impl TriangleGroup {
+    /// Whether `ray` (t ≥ 0) meets the group's box grown by [`BOX_MARGIN`] of the larger of the
+    /// box's and the ray origin's coordinates; when it does not, no triangle of the group is
+    /// hit. A slab test (Kay & Kajiya 1986, "Ray tracing complex scenes", SIGGRAPH).
+    fn may_hit(&self, ray: &Ray) -> bool {
+        let m = BOX_MARGIN * self.size.max(ray.o.abs().max_element());
+        let (lo, hi) = ((self.lo - m).to_array(), (self.hi + m).to_array());
+        let (o, d) = (ray.o.to_array(), ray.d.to_array());
+        let (mut t0, mut t1) = (0.0f64, f64::INFINITY);
+        for k in 0..3 {
+            if d[k] == 0.0 {
+                if o[k] < lo[k] || o[k] > hi[k] {
+                    return false;
+                }
+                continue;
+            }
+            let (a, b) = ((lo[k] - o[k]) / d[k], (hi[k] - o[k]) / d[k]);
+            t0 = t0.max(a.min(b));
+            t1 = t1.min(a.max(b));
+        }
+        t0 <= t1
+    }
 }
 
 impl<'a> Caster<'a> {
@@ -113,9 +147,17 @@ impl<'a> Caster<'a> {
                             a: [[0.0; LANES]; 3],
                             e1: [[0.0; LANES]; 3],
                             e2: [[0.0; LANES]; 3],
+                            lo: Vec3::INFINITY,
+                            hi: Vec3::NEG_INFINITY,
+                            size: 0.0,
                         };
                         for (l, tri) in chunk.iter().enumerate() {
                             let [a, b, c] = tri.map(|k| m.positions[k as usize]);
+                            for v in [a, b, c] {
+                                g.lo = g.lo.min(v);
+                                g.hi = g.hi.max(v);
+                                g.size = g.size.max(v.abs().max_element());
+                            }
                             let (e1, e2) = (b - a, c - a);
                             for axis in 0..3 {
                                 g.a[axis][l] = a[axis];
@@ -188,7 +230,7 @@ impl<'a> Caster<'a> {
                     }
                 }
                 (Shape::Mesh(m), Prepared::Mesh(groups)) => {
-                    for g in groups {
+                    for g in groups.iter().filter(|g| g.may_hit(ray)) {
                         let t = triangles_t(g, ray);
                         // (a reduction without early exit, which stays in vector registers)
                         if !t
@@ -341,6 +383,60 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn group_boxes_cull_only_groups_without_hits() {
+        // Rays from near and far (to 1e6 units off), half of them aimed exactly at a triangle
+        // corner (the grazing case for a box): every group with a hit must pass its box test.
+        // Negative control: the same groups with their boxes shrunk to the first corner miss
+        // some of those hits.
+        use crate::math::rng::SampleStream;
+        use crate::math::warp::uniform_sphere;
+        let s = scene("scenes/cornell-box.toml");
+        let caster = Caster::new(s.aggregate.shapes());
+        let groups: Vec<&TriangleGroup> = caster
+            .prepared
+            .iter()
+            .filter_map(|p| match p {
+                Prepared::Mesh(g) => Some(g),
+                _ => None,
+            })
+            .flatten()
+            .collect();
+        let mut rng = SampleStream::new(11, 0, 0);
+        let (mut hits, mut missed_by_shrunk) = (0, 0);
+        for i in 0..40_000 {
+            let g = groups[i % groups.len()];
+            let far = [1.0, 1e3, 1e6][i % 3];
+            let o = (Vec3::new(rng.next_f64(), rng.next_f64(), rng.next_f64()) - 0.5) * 600.0 * far;
+            let d = if i % 2 == 0 {
+                let l = i / 2 % LANES;
+                (Vec3::new(g.a[0][l], g.a[1][l], g.a[2][l]) - o).normalize()
+            } else {
+                uniform_sphere(rng.next_2d())
+            };
+            let ray = Ray { o, d };
+            for g in &groups {
+                if triangles_t(g, &ray)
+                    .iter()
+                    .any(|t| *t > 0.0 && t.is_finite())
+                {
+                    hits += 1;
+                    assert!(g.may_hit(&ray), "a hit in a culled group: {ray:?}");
+                    let corner = Vec3::new(g.a[0][0], g.a[1][0], g.a[2][0]);
+                    let shrunk = TriangleGroup {
+                        lo: corner,
+                        hi: corner,
+                        size: 0.0,
+                        ..(*g).clone()
+                    };
+                    missed_by_shrunk += usize::from(!shrunk.may_hit(&ray));
+                }
+            }
+        }
+        assert!(hits > 10_000, "{hits}");
+        assert!(missed_by_shrunk > 1000, "{missed_by_shrunk}");
     }
 
     #[test]
