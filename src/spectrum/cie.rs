@@ -116,14 +116,30 @@ impl CieTables {
 
     /// XYZ of a spectral function of wavelength (nm), normalised as [`Self::spectrum_to_xyz`].
     pub fn function_to_xyz(&self, f: impl Fn(f64) -> f64) -> [f64; 3] {
+        self.grid_to_xyz(|i| f(Self::grid_lambda(i)))
+    }
+
+    /// [`Self::function_to_xyz`] of a function given on the table's rows: `f(i)` is its value at
+    /// [`Self::grid_lambda`]`(i)`, for i below [`Self::grid_len`].
+    pub fn grid_to_xyz(&self, f: impl Fn(usize) -> f64) -> [f64; 3] {
         let mut acc = [0.0; 3];
         for (i, c) in self.xyz.iter().enumerate() {
-            let v = f(LAMBDA_MIN + i as f64);
+            let v = f(i);
             for k in 0..3 {
                 acc[k] += v * c[k];
             }
         }
         acc.map(|a| a / self.y_integral)
+    }
+
+    /// Rows of the table (one per whole nm from [`LAMBDA_MIN`]).
+    pub fn grid_len(&self) -> usize {
+        self.xyz.len()
+    }
+
+    /// Wavelength of row `i`, nm.
+    pub fn grid_lambda(i: usize) -> f64 {
+        LAMBDA_MIN + i as f64
     }
 }
 

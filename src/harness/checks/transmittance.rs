@@ -21,14 +21,51 @@ use crate::lights::Light;
 use crate::scene::Scene;
 use crate::spectrum::{cie, Spectrum};
 
+/// A scene's spectra on the colour-matching table's rows ([`cie::CieTables::grid_lambda`]),
+/// evaluated once for a check rather than at every wavelength of every ray: each light's
+/// emitted radiance (empty for a point light) and each medium's σa.
+pub struct OnGrid {
+    lights: Vec<Vec<f64>>,
+    sigma_a: Vec<Vec<f64>>,
+}
+
+impl OnGrid {
+    /// The spectra of `scene`.
+    pub fn new(scene: &Scene) -> OnGrid {
+        let rows = |s: &Spectrum| -> Vec<f64> {
+            (0..cie::tables().grid_len())
+                .map(|i| s.eval(cie::CieTables::grid_lambda(i)))
+                .collect()
+        };
+        OnGrid {
+            lights: scene
+                .lights
+                .iter()
+                .map(|l| match l {
+                    Light::Area { radiance, .. } | Light::Environment { radiance } => {
+                        rows(radiance)
+                    }
+                    _ => Vec::new(),
+                })
+                .collect(),
+            sigma_a: scene.media.iter().map(|m| rows(&m.sigma_a)).collect(),
+        }
+    }
+}
+
 /// Y of the radiance arriving along `camera_ray` (starting in the camera's medium): every
 /// emitter met through null boundaries and finally the first other surface or the environment,
 /// each attenuated by the absorbing segments before it. A ray with no surface ahead has left
-/// every medium (as in the path tracer).
-pub fn along(scene: &Scene, caster: &witness::Caster, camera_ray: Ray) -> Result<f64, CheckError> {
+/// every medium (as in the path tracer). `grid`: the scene's spectra ([`OnGrid::new`]).
+pub fn along(
+    scene: &Scene,
+    caster: &witness::Caster,
+    grid: &OnGrid,
+    camera_ray: Ray,
+) -> Result<f64, CheckError> {
     let mut path: Vec<(u32, f64)> = Vec::new();
-    // (emitted spectrum, number of path segments in front of it)
-    let mut sources: Vec<(&Spectrum, usize)> = Vec::new();
+    // (emitting light, number of path segments in front of it)
+    let mut sources: Vec<(usize, usize)> = Vec::new();
     let mut medium = scene.camera.medium;
     let r = camera_ray;
     // Every crossing along the camera ray's line, from the closed forms' own caster
@@ -48,22 +85,20 @@ pub fn along(scene: &Scene, caster: &witness::Caster, camera_ray: Ray) -> Result
             path.push((m, h.t - t_last));
         }
         let Some(h) = hit else {
-            if let Some(env) = scene.lights.iter().find_map(|l| match l {
-                Light::Environment { radiance } => Some(radiance),
-                _ => None,
-            }) {
+            if let Some(env) = scene
+                .lights
+                .iter()
+                .position(|l| matches!(l, Light::Environment { .. }))
+            {
                 sources.push((env, path.len()));
             }
             break;
         };
-        if let Some(Light::Area {
-            radiance,
-            two_sided,
-            ..
-        }) = scene.shape_light[h.shape as usize].map(|i| &scene.lights[i as usize])
-        {
-            if *two_sided || h.point.n.dot(-r.d) > 0.0 {
-                sources.push((radiance, path.len()));
+        if let Some(li) = scene.shape_light[h.shape as usize] {
+            if let Light::Area { two_sided, .. } = &scene.lights[li as usize] {
+                if *two_sided || h.point.n.dot(-r.d) > 0.0 {
+                    sources.push((li as usize, path.len()));
+                }
             }
         }
         if !scene.bsdfs[h.shape as usize].is_null() {
@@ -77,15 +112,15 @@ pub fn along(scene: &Scene, caster: &witness::Caster, camera_ray: Ray) -> Result
         );
         t_last = h.t;
     }
-    Ok(cie::tables().function_to_xyz(|l| {
+    Ok(cie::tables().grid_to_xyz(|i| {
         sources
             .iter()
-            .map(|(le, n)| {
-                let tau: f64 = path[..*n]
+            .map(|&(li, n)| {
+                let tau: f64 = path[..n]
                     .iter()
-                    .map(|&(m, d)| scene.media[m as usize].sigma_a.eval(l) * d)
+                    .map(|&(m, d)| grid.sigma_a[m as usize][i] * d)
                     .sum();
-                le.eval(l) * (-tau).exp()
+                grid.lights[li][i] * (-tau).exp()
             })
             .sum()
     })[1])
@@ -123,12 +158,13 @@ impl Kind for Transmittance {
         let s = settings_for(check, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
         let region = region_of(check, &s)?;
         let caster = witness::Caster::new(scene.aggregate.shapes());
+        let grid = OnGrid::new(scene);
         let px = per_pixel_rays(
             scene,
             s.width,
             s.height,
             region,
-            &|r| along(scene, &caster, r),
+            &|r| along(scene, &caster, &grid, r),
             FOOTPRINT_K,
         )?;
         let expected = px.iter().sum::<f64>() / px.len() as f64;
