@@ -61,11 +61,10 @@ impl Eye {
 }
 
 /// The scene's primitives laid out once for the brute-force caster: a parallelogram's normal,
-/// a mesh's triangles as a corner and two edges in groups of [`LANES`], so that one group's
-/// tests run side by side. Every primitive is still tested, in the scene's order, by the same
-/// arithmetic as one at a time.
-pub struct Caster<'a> {
-    shapes: &'a [Shape],
+/// a mesh's triangles as a corner and two edges in groups of eight, so that one group's
+/// tests run side by side. Every primitive is tested in the scene's order, by the same
+/// arithmetic as one at a time, except the triangles of a group whose box the ray misses.
+pub struct Caster {
     prepared: Vec<Prepared>,
 }
 
@@ -73,16 +72,27 @@ pub struct Caster<'a> {
 const LANES: usize = 8;
 
 enum Prepared {
-    Sphere,
-    /// Normal n = u × v, |n|², and the unit normal as hits report it.
+    Sphere {
+        center: Vec3,
+        radius: f64,
+        flip: bool,
+    },
+    /// A corner, the edges u and v, the normal n = u × v, |n|², and the unit normal as hits
+    /// report it.
     Quad {
+        corner: Vec3,
+        u: Vec3,
+        v: Vec3,
         n: Vec3,
         nn: f64,
         unit: Vec3,
     },
     /// Corner a and edges b − a, c − a of each triangle by component, the last group padded
     /// with zero edges (a zero determinant: never a hit).
-    Mesh(Vec<TriangleGroup>),
+    Mesh {
+        groups: Vec<TriangleGroup>,
+        flip: bool,
+    },
 }
 
 #[derive(Clone)]
@@ -124,17 +134,24 @@ impl TriangleGroup {
     }
 }
 
-impl<'a> Caster<'a> {
+impl Caster {
     /// The caster of `shapes`.
-    pub fn new(shapes: &'a [Shape]) -> Caster<'a> {
+    pub fn new(shapes: &[Shape]) -> Caster {
         let prepared = shapes
             .iter()
             .map(|s| match s {
-                Shape::Sphere(_) => Prepared::Sphere,
+                Shape::Sphere(sp) => Prepared::Sphere {
+                    center: sp.center,
+                    radius: sp.radius,
+                    flip: sp.flip_normals,
+                },
                 Shape::Quad(q) => {
                     let n = q.edge_u.cross(q.edge_v);
                     let unit = n.normalize();
                     Prepared::Quad {
+                        corner: q.corner,
+                        u: q.edge_u,
+                        v: q.edge_v,
                         n,
                         nn: n.dot(n),
                         unit: if q.flip_normals { -unit } else { unit },
@@ -167,11 +184,14 @@ impl<'a> Caster<'a> {
                         }
                         groups.push(g);
                     }
-                    Prepared::Mesh(groups)
+                    Prepared::Mesh {
+                        groups,
+                        flip: m.flip_normals,
+                    }
                 }
             })
             .collect();
-        Caster { shapes, prepared }
+        Caster { prepared }
     }
 
     /// The nearest hit along `ray` (t > 0), by testing every primitive; the hit's normal
@@ -213,23 +233,31 @@ impl<'a> Caster<'a> {
                 });
             }
         };
-        for (i, (s, prep)) in self.shapes.iter().zip(&self.prepared).enumerate() {
-            match (s, prep) {
-                (Shape::Sphere(sp), _) => {
-                    for t in sphere_roots(sp.center, sp.radius, ray)
-                        .into_iter()
-                        .flatten()
-                    {
-                        let n = (ray.o + ray.d * t - sp.center) / sp.radius;
-                        emit(t, i, if sp.flip_normals { -n } else { n });
+        for (i, prep) in self.prepared.iter().enumerate() {
+            match prep {
+                &Prepared::Sphere {
+                    center,
+                    radius,
+                    flip,
+                } => {
+                    for t in sphere_roots(center, radius, ray).into_iter().flatten() {
+                        let n = (ray.o + ray.d * t - center) / radius;
+                        emit(t, i, if flip { -n } else { n });
                     }
                 }
-                (Shape::Quad(q), &Prepared::Quad { n, nn, unit }) => {
-                    if let Some(t) = parallelogram_t(q.corner, q.edge_u, q.edge_v, n, nn, ray) {
+                &Prepared::Quad {
+                    corner,
+                    u,
+                    v,
+                    n,
+                    nn,
+                    unit,
+                } => {
+                    if let Some(t) = parallelogram_t(corner, u, v, n, nn, ray) {
                         emit(t, i, unit);
                     }
                 }
-                (Shape::Mesh(m), Prepared::Mesh(groups)) => {
+                Prepared::Mesh { groups, flip } => {
                     for g in groups.iter().filter(|g| g.may_hit(ray)) {
                         let t = triangles_t(g, ray);
                         // (a reduction without early exit, which stays in vector registers)
@@ -244,12 +272,11 @@ impl<'a> Caster<'a> {
                                 let e1 = Vec3::new(g.e1[0][l], g.e1[1][l], g.e1[2][l]);
                                 let e2 = Vec3::new(g.e2[0][l], g.e2[1][l], g.e2[2][l]);
                                 let n = e1.cross(e2).normalize();
-                                emit(t, i, if m.flip_normals { -n } else { n });
+                                emit(t, i, if *flip { -n } else { n });
                             }
                         }
                     }
                 }
-                _ => unreachable!("prepared from the same shapes"),
             }
         }
     }
@@ -399,7 +426,7 @@ mod tests {
             .prepared
             .iter()
             .filter_map(|p| match p {
-                Prepared::Mesh(g) => Some(g),
+                Prepared::Mesh { groups, .. } => Some(groups),
                 _ => None,
             })
             .flatten()
