@@ -23,7 +23,7 @@ use crate::spectrum::{cie, Spectrum};
 
 /// A scene's spectra on the colour-matching table's rows ([`cie::CieTables::grid_lambda`]),
 /// evaluated once for a check rather than at every wavelength of every ray: each light's
-/// emitted radiance (empty for a point light) and each medium's σa.
+/// [`Light::spectrum`] and each medium's σa.
 pub struct OnGrid {
     lights: Vec<Vec<f64>>,
     sigma_a: Vec<Vec<f64>>,
@@ -38,16 +38,7 @@ impl OnGrid {
                 .collect()
         };
         OnGrid {
-            lights: scene
-                .lights
-                .iter()
-                .map(|l| match l {
-                    Light::Area { radiance, .. } | Light::Environment { radiance } => {
-                        rows(radiance)
-                    }
-                    _ => Vec::new(),
-                })
-                .collect(),
+            lights: scene.lights.iter().map(|l| rows(l.spectrum())).collect(),
             sigma_a: scene.media.iter().map(|m| rows(&m.sigma_a)).collect(),
         }
     }
