@@ -194,7 +194,7 @@ impl Caster {
         Caster { prepared }
     }
 
-    /// The nearest hit along `ray` (t > 0), by testing every primitive; the hit's normal
+    /// The nearest hit along `ray` (t > 0), by testing the primitives in turn; the hit's normal
     /// follows the scene conventions (sphere outward, parallelogram u × v, triangle
     /// (v1 − v0) × (v2 − v0), each reversed when flipped), and its `p_error` is 0 (the closed
     /// forms use positions, not ray offsets).
@@ -259,15 +259,7 @@ impl Caster {
                 }
                 Prepared::Mesh { groups, flip } => {
                     for g in groups.iter().filter(|g| g.may_hit(ray)) {
-                        let t = triangles_t(g, ray);
-                        // (a reduction without early exit, which stays in vector registers)
-                        if !t
-                            .iter()
-                            .fold(false, |any, &t| any | (t > 0.0 && t < f64::INFINITY))
-                        {
-                            continue;
-                        }
-                        for (l, &t) in t.iter().enumerate() {
+                        for (l, &t) in triangles_t(g, ray).iter().enumerate() {
                             if t > 0.0 && t.is_finite() {
                                 let e1 = Vec3::new(g.e1[0][l], g.e1[1][l], g.e1[2][l]);
                                 let e2 = Vec3::new(g.e2[0][l], g.e2[1][l], g.e2[2][l]);
