@@ -7,6 +7,9 @@
 # JSON records the CPU it ran on.
 #
 #   VENV=/path/to/mitsuba-venv REPS=9 benches/mitsuba-three-scenes.sh reports/bench-mitsuba-three
+#
+# With PGO=1, benches/pgo.sh's profile-guided build (built first when missing) goes first and
+# the default build runs beside it as furnace:default, so both compare with Mitsuba in one run.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?output prefix, e.g. reports/bench-mitsuba-three}
@@ -14,8 +17,14 @@ reps=${REPS:-9}
 export PATH=${VENV:+$VENV/bin:}$PATH
 export DRJIT_LIBLLVM_PATH=${DRJIT_LIBLLVM_PATH:-/usr/lib/x86_64-linux-gnu/libLLVM.so.19.1}
 [ -x target/release/furnace ] || cargo build --release
+builds=()
+if [ "${PGO:-0}" = 1 ]; then
+    [ -x target/pgo/release/furnace ] || benches/pgo.sh
+    builds=(--furnace target/pgo/release/furnace --furnace-label furnace:pgo
+        --furnace-also furnace:default=target/release/furnace)
+fi
 python3 benches/cornell-mesh/make.py
-bench() { python3 reference/mitsuba/bench.py --reps "$reps" --variants llvm_ad_spectral "$@"; }
+bench() { python3 reference/mitsuba/bench.py --reps "$reps" --variants llvm_ad_spectral "${builds[@]}" "$@"; }
 bench --spp 256 --json "$out-cornell.json"
 bench --spp 256 --scene scenes/cornell-glossy.toml --reference reference/mitsuba/cornell-glossy.exr \
     --json "$out-glossy.json"

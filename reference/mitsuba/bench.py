@@ -25,6 +25,10 @@ use Mitsuba's colour pipeline.
         python3 reference/mitsuba/bench.py --reps 5 --spp 256 --variants scalar_spectral,llvm_ad_spectral \\
         --furnace-portable target/portable/release/furnace
 
+A profile-guided build (benches/pgo.sh) goes first, with the default build beside it:
+    --furnace target/pgo/release/furnace --furnace-label furnace:pgo \\
+        --furnace-also furnace:default=target/release/furnace
+
 With `--reference none --size 256x256 --max-depth 5` it measures speed only (no error, so no
 time to equal error), at any size and depth: the issue's setting is 256x256, Mitsuba max_depth 6.
 
@@ -86,6 +90,11 @@ def parse_args(argv=None):
     p.add_argument("--threads", type=int, default=os.cpu_count() or 1)
     p.add_argument("--variants", default="scalar_spectral")
     p.add_argument("--furnace", default=os.path.join(REPO, "target", "release", "furnace"))
+    p.add_argument("--furnace-label", default="furnace",
+                   help="the name --furnace is reported under (e.g. 'furnace:pgo' for benches/pgo.sh's build)")
+    p.add_argument("--furnace-also", action="append", default=[], metavar="LABEL=PATH",
+                   help="another furnace binary (e.g. furnace:default=target/release/furnace), run in the "
+                        "same alternation and compared, like every renderer, with --furnace; repeatable")
     p.add_argument("--furnace-portable", default=None,
                    help="a second furnace binary built for baseline x86-64 (RUSTFLAGS='-C target-cpu=x86-64'; "
                         "the default build targets the building CPU, see .cargo/config.toml), run in the same "
@@ -170,9 +179,16 @@ def main(argv=None):
             f.write(text)
     samples = width * height * args.spp
     variants = [v for v in args.variants.split(",") if v]
-    furnaces = {"furnace": args.furnace}
+    furnaces = {args.furnace_label: args.furnace}
     if args.furnace_portable:
         furnaces["furnace:portable"] = args.furnace_portable
+    for extra in args.furnace_also:
+        label, sep, path = extra.partition("=")
+        if not sep or not label or not path:
+            sys.exit(f"--furnace-also takes LABEL=PATH, not {extra!r}")
+        if label in furnaces:
+            sys.exit(f"--furnace-also: the label {label!r} is taken")
+        furnaces[label] = path
     rows = {name: [] for name in furnaces}
     for v in variants:
         rows[f"mitsuba3:{v}"] = []
@@ -232,6 +248,7 @@ def main(argv=None):
               "threads": args.threads, "reps": args.reps,
               "reference": None if speed_only else os.path.relpath(args.reference, REPO),
               "reference_mean_variance": None if speed_only else ref_noise,
+              "furnace_binaries": {k: os.path.relpath(v, REPO) for k, v in furnaces.items()},
               "mitsuba": mi.__version__, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
     base = None
     print(f"CPU: {cpu_description()}")

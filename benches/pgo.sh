@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# A profile-guided (PGO) build of furnace, for this machine's CPU: an instrumented build runs a
+# training workload, LLVM merges the counts, and a second build optimises with them (code
+# layout and branch order from measured frequencies). Images are bit-identical to the default
+# build's (PGO changes no arithmetic); measured gains are in docs/performance.md, "A
+# profile-guided build". Opt-in: `cargo build --release` stays the default build.
+#
+#   benches/pgo.sh                 # writes target/pgo/release/furnace
+#   TRAIN=renders benches/pgo.sh   # train on the benchmark renders only (no default suite)
+#
+# Training: the measured Cornell Box, the glossy box and (when Python can write it) the
+# 10^5-triangle mesh box at 128x128, unlimited depth and 5 bounces, then the default suite
+# (`furnace check`, every integrator). Needs llvm-profdata of the toolchain's own LLVM:
+# `rustup component add llvm-tools`. About 6 minutes on a 2-core machine.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+train=${TRAIN:-all}
+case $train in all | renders) ;; *) echo "pgo.sh: TRAIN must be 'all' or 'renders'" >&2; exit 2 ;; esac
+host=$(rustc -vV | sed -n 's/^host: //p')
+profdata=$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-profdata
+[ -x "$profdata" ] || {
+    echo "pgo.sh: $profdata not found; install it with: rustup component add llvm-tools" >&2
+    exit 2
+}
+# RUSTFLAGS replaces .cargo/config.toml's flags, so the CPU target is repeated here.
+base=${RUSTFLAGS:--C target-cpu=native}
+raw=$PWD/target/pgo-data
+rm -rf "$raw"
+mkdir -p "$raw"
+RUSTFLAGS="$base -Cprofile-generate=$raw" cargo build --release --target-dir target/pgo-generate
+bin=target/pgo-generate/release/furnace
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+scenes=(scenes/cornell-box.toml scenes/cornell-glossy.toml)
+python3 benches/cornell-mesh/make.py >/dev/null 2>&1 && scenes+=(benches/cornell-mesh/scene.toml) ||
+    echo "pgo.sh: no mesh scene (benches/cornell-mesh/make.py needs python3); training without it" >&2
+for s in "${scenes[@]}"; do
+    "$bin" render "$s" --width 128 --height 128 --spp 32 --quiet --out "$tmp/a.exr"
+    "$bin" render "$s" --width 128 --height 128 --spp 16 --max-depth 5 --quiet --out "$tmp/b.exr"
+done
+[ "$train" = all ] && "$bin" check -q
+"$profdata" merge -o target/pgo-data/merged.profdata "$raw"
+RUSTFLAGS="$base -Cprofile-use=$raw/merged.profdata" cargo build --release --target-dir target/pgo
+echo "pgo.sh: wrote target/pgo/release/furnace (trained on: $train)"
