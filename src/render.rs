@@ -91,12 +91,55 @@ pub fn sample_blocks(spp: u64) -> u64 {
     spp.div_ceil(BLOCK_SAMPLES)
 }
 
-/// Hash of everything a render reads from `scene` (FNV-1a over its debug form, so a change in
-/// any loaded value changes it): parts of one sharded render must share it.
+/// Hash of everything a render reads from `scene`, so that a change in any loaded value
+/// changes it: parts of one sharded render must share it, and the harness keys shared
+/// reference renders and their seeds by it. FNV-1a over each field's debug form, except the
+/// aggregate: its debug form holds only sizes (two scenes with a block in different places
+/// share them) and the BVH's layout (an acceleration change would change the seeds of every
+/// shared reference), so its shapes are hashed instead: a mesh by the bits of its positions and
+/// indices, any other shape by its debug form.
 pub fn scene_fingerprint(scene: &Scene) -> String {
     use std::fmt::Write;
+    // every field by name: a field added to `Scene` fails to compile until it is hashed here
+    let Scene {
+        aggregate,
+        bsdfs,
+        material_of,
+        shape_light,
+        lights,
+        camera,
+        render,
+        media,
+        medium_names,
+        shape_media,
+    } = scene;
     let mut h = crate::math::Fnv1a::default();
-    write!(h, "{scene:?}").expect("hashing cannot fail");
+    for shape in aggregate.shapes() {
+        match shape {
+            crate::geometry::Shape::Mesh(m) => {
+                h.eat(b"mesh");
+                h.eat(&(m.positions.len() as u64).to_le_bytes());
+                for p in &m.positions {
+                    for x in p.to_array() {
+                        h.eat(&x.to_bits().to_le_bytes());
+                    }
+                }
+                h.eat(&(m.triangles.len() as u64).to_le_bytes());
+                for t in &m.triangles {
+                    for k in t {
+                        h.eat(&k.to_le_bytes());
+                    }
+                }
+                h.eat(&[m.flip_normals as u8]);
+            }
+            other => write!(h, "{other:?}").expect("hashing cannot fail"),
+        }
+    }
+    write!(
+        h,
+        "{bsdfs:?}{material_of:?}{shape_light:?}{lights:?}{camera:?}{render:?}{media:?}{medium_names:?}{shape_media:?}"
+    )
+    .expect("hashing cannot fail");
     format!("{:016x}", h.0)
 }
 
@@ -619,6 +662,23 @@ mod tests {
 
     fn cornell_box() -> Scene {
         Scene::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml")).unwrap()
+    }
+
+    #[test]
+    fn fingerprint_sees_geometry_the_debug_form_does_not() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml");
+        let text = std::fs::read_to_string(&path).unwrap();
+        let a = Scene::parse(&text, &path).unwrap();
+        assert_eq!(scene_fingerprint(&a), scene_fingerprint(&cornell_box()));
+        // the short block's top moved by a millimetre at one corner: same sizes, same camera
+        let corner = "[130.0, 165.0,  65.0], [ 82.0, 165.0, 225.0]";
+        assert_eq!(text.matches(corner).count(), 1);
+        let moved = text.replacen(corner, "[131.0, 165.0,  65.0], [ 82.0, 165.0, 225.0]", 1);
+        let b = Scene::parse(&moved, &path).unwrap();
+        // the negative control: the scene's debug form (the former fingerprint) cannot tell them
+        // apart, since the aggregate shows only its sizes
+        assert_eq!(format!("{a:?}"), format!("{b:?}"));
+        assert_ne!(scene_fingerprint(&a), scene_fingerprint(&b));
     }
 
     /// Bits of every pixel statistic, so that NaN compares equal to itself.
