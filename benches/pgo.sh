@@ -39,6 +39,10 @@ for s in "${scenes[@]}"; do
     "$bin" render "$s" --width 128 --height 128 --spp 16 --max-depth 5 --quiet --out "$tmp/b.exr"
 done
 [ "$train" = all ] && "$bin" check -q
-"$profdata" merge -o target/pgo-data/merged.profdata "$raw"
-RUSTFLAGS="$base -Cprofile-use=$raw/merged.profdata" cargo build --release --target-dir target/pgo
+"$profdata" merge -o "$raw/merged.profdata" "$raw"
+# named by its content: cargo rebuilds when its flags change, not when a file they name does,
+# so a new profile under the old name would leave the dependencies built with the old one
+sum=$(cksum <"$raw/merged.profdata" | cut -d' ' -f1)
+mv "$raw/merged.profdata" "$raw/merged-$sum.profdata"
+RUSTFLAGS="$base -Cprofile-use=$raw/merged-$sum.profdata" cargo build --release --target-dir target/pgo
 echo "pgo.sh: wrote target/pgo/release/furnace (trained on: $train)"
