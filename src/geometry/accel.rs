@@ -1,9 +1,10 @@
-//! The scene aggregate: all shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
+//! The scene aggregate: the shapes under one `obvhs` compressed wide BVH (CWBVH, 8-wide; the
 //! only home of `obvhs`). The BVH works in f32 and only culls, conservatively at any scale or
 //! offset (a frame normalised to `FRAME_EXTENT`, padded boxes, rays clipped in f64); every
 //! candidate is then intersected exactly in f64, in scene units. A scene of at most
-//! `FLAT_MAX` primitives tests every primitive's padded f64 box instead of walking. The frame,
-//! the node test and quad pairs: docs/rendering.md, "`geometry::accel`".
+//! `FLAT_MAX` primitives tests every primitive's padded f64 box instead of walking, and a few
+//! primitives beside large meshes are tested so beside the meshes' BVH. The frame, the node
+//! test and quad pairs: docs/rendering.md, "`geometry::accel`".
 
 use super::{
     mesh::TriangleMesh,
@@ -43,28 +44,41 @@ enum Candidate {
 /// test every box").
 const FLAT_MAX: usize = 32;
 
-/// Each BVH primitive's padded box in f64 (scene units), by axis and in BVH slot order, for
-/// scenes of 2 to [`FLAT_MAX`] primitives, then NaN boxes (which every ray misses) to the end
-/// of the last group of [`LANES`]. The boxes hold the f32 BVH's boxes' padding, so they too
-/// cull only rays the exact tests miss.
+/// Padded boxes in f64 (scene units), by axis, tested all at once: for a scene of 2 to
+/// [`FLAT_MAX`] primitives each BVH primitive's in BVH slot order; for a scene split between
+/// box tests and the BVH (see [`Aggregate::new`]), each primitive's outside the BVH, then the
+/// box of everything in it. NaN boxes (which every ray misses) fill the last group of
+/// [`LANES`]. The boxes hold the f32 BVH's boxes' padding, so they too cull only rays the
+/// exact tests miss.
 #[derive(Debug, Clone, PartialEq)]
 struct FlatBoxes {
     lo: [[f64; FLAT_MAX]; 3],
     hi: [[f64; FLAT_MAX]; 3],
     /// Groups of [`LANES`] boxes in use.
     groups: usize,
+    /// Index in [`Aggregate::candidates`] of slot 0's primitive.
+    base: usize,
+    /// The bit of the slot that stands for a walk of the BVH (0: every slot is a primitive).
+    walk: u32,
 }
 
 /// Boxes tested together (one AVX-512 register of f64, two of AVX2).
 const LANES: usize = 8;
 
 impl FlatBoxes {
-    /// Boxes `boxes` (at most [`FLAT_MAX`]), the rest NaN.
-    fn new(boxes: impl ExactSizeIterator<Item = (Vec3, Vec3)>) -> FlatBoxes {
+    /// Boxes `boxes` (at most [`FLAT_MAX`]), the rest NaN; slot 0 is candidate `base`, and
+    /// `walk` marks the BVH's slot.
+    fn new(
+        boxes: impl ExactSizeIterator<Item = (Vec3, Vec3)>,
+        base: usize,
+        walk: u32,
+    ) -> FlatBoxes {
         let mut f = FlatBoxes {
             lo: [[f64::NAN; FLAT_MAX]; 3],
             hi: [[f64::NAN; FLAT_MAX]; 3],
             groups: boxes.len().div_ceil(LANES),
+            base,
+            walk,
         };
         for (i, (a, b)) in boxes.take(FLAT_MAX).enumerate() {
             for axis in 0..3 {
@@ -245,6 +259,12 @@ impl std::fmt::Debug for Aggregate {
 impl Aggregate {
     /// Builds the BVH over every primitive of `shapes`.
     pub fn new(shapes: Vec<Shape>) -> Self {
+        Self::build(shapes, true)
+    }
+
+    /// [`Aggregate::new`], with the split between box tests and the BVH allowed or not (the
+    /// tests compare the two).
+    fn build(shapes: Vec<Shape>, allow_split: bool) -> Self {
         let mut prims = Vec::new();
         let mut lo = Vec3::INFINITY;
         let mut hi = Vec3::NEG_INFINITY;
@@ -297,6 +317,22 @@ impl Aggregate {
                 )
             })
             .collect();
+        // A scene of a few primitives beside large meshes (a room around a scanned object) is
+        // split: shapes of more than FLAT_MAX primitives go under the BVH, and when the others
+        // number 1 to FLAT_MAX - 1, queries test their boxes and the BVH's one box all at once,
+        // so that a ray that misses the meshes' box never walks the BVH.
+        let mut per_shape = vec![0usize; shapes.len()];
+        for &(si, _, _) in &prims {
+            per_shape[si as usize] += 1;
+        }
+        let (walked, besides): (Vec<usize>, Vec<usize>) =
+            (0..prims.len()).partition(|&i| per_shape[prims[i].0 as usize] > FLAT_MAX);
+        let split = allow_split && !walked.is_empty() && (1..FLAT_MAX).contains(&besides.len());
+        let walked = if split {
+            walked
+        } else {
+            (0..prims.len()).collect()
+        };
         // Boxes of one shape that agree to 1e-6 of the scene's extent (coincident or
         // near-coincident primitives): bundles of at least BUNDLE_MIN; `slots[j]` are the
         // primitives (indices into `prims`) behind BVH primitive j.
@@ -313,16 +349,19 @@ impl Aggregate {
         };
         let mut groups: std::collections::HashMap<([i64; 6], u32), Vec<usize>> =
             std::collections::HashMap::new();
-        for (i, b) in aabbs.iter().enumerate() {
-            groups.entry((cell(b), prims[i].0)).or_default().push(i);
+        for &i in &walked {
+            groups
+                .entry((cell(&aabbs[i]), prims[i].0))
+                .or_default()
+                .push(i);
         }
-        let mut slots: Vec<Vec<usize>> = Vec::with_capacity(aabbs.len());
+        let mut slots: Vec<Vec<usize>> = Vec::with_capacity(walked.len());
         let mut taken = vec![false; aabbs.len()];
-        for (i, b) in aabbs.iter().enumerate() {
+        for &i in &walked {
             if taken[i] {
                 continue;
             }
-            let group = &groups[&(cell(b), prims[i].0)];
+            let group = &groups[&(cell(&aabbs[i]), prims[i].0)];
             if group.len() >= BUNDLE_MIN {
                 group.iter().for_each(|&k| taken[k] = true);
                 slots.push(group.clone());
@@ -366,7 +405,7 @@ impl Aggregate {
             }
         };
         let mut bundled = Vec::new();
-        let candidates = bvh
+        let mut candidates: Vec<Candidate> = bvh
             .primitive_indices
             .iter()
             .map(|&j| match slots[j as usize].as_slice() {
@@ -384,17 +423,30 @@ impl Aggregate {
             .collect();
         let depth = cwbvh_depth(&bvh);
         let child_boxes = bvh.nodes.iter().map(ChildBoxes::decode).collect();
-        let flat = (2..=FLAT_MAX)
-            .contains(&bvh.primitive_indices.len())
-            .then(|| {
-                FlatBoxes::new(bvh.primitive_indices.iter().map(|&j| {
-                    let members = &slots[j as usize];
-                    let (a, b) = members.iter().fold(boxes[members[0]], |(a, b), &k| {
-                        (a.min(boxes[k].0), b.max(boxes[k].1))
-                    });
-                    (a - pad, b + pad)
-                }))
+        let padded = |members: &[usize]| {
+            let (a, b) = members.iter().fold(boxes[members[0]], |(a, b), &k| {
+                (a.min(boxes[k].0), b.max(boxes[k].1))
             });
+            (a - pad, b + pad)
+        };
+        let flat = if split {
+            let base = candidates.len();
+            candidates.extend(besides.iter().map(|&i| candidate(i)));
+            let mut flat_boxes: Vec<_> = besides.iter().map(|&i| padded(&[i])).collect();
+            flat_boxes.push(padded(&walked));
+            Some(FlatBoxes::new(
+                flat_boxes.into_iter(),
+                base,
+                1 << besides.len(),
+            ))
+        } else {
+            (2..=FLAT_MAX)
+                .contains(&bvh.primitive_indices.len())
+                .then(|| {
+                    let slot_boxes = bvh.primitive_indices.iter();
+                    FlatBoxes::new(slot_boxes.map(|&j| padded(&slots[j as usize])), 0, 0)
+                })
+        };
         Aggregate {
             shapes,
             candidates,
@@ -553,7 +605,10 @@ impl Aggregate {
     pub fn intersect_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<Hit> {
         let (best_t, best) = match (self.candidates.as_slice(), &self.flat) {
             ([only], _) => self.intersect_only(only, ray, t_max, skip)?,
-            (_, Some(flat)) => self.intersect_flat(flat, ray, t_max, skip)?,
+            (_, Some(flat)) if flat.walk == 0 => {
+                self.intersect_flat::<false>(flat, ray, t_max, skip)?
+            }
+            (_, Some(flat)) => self.intersect_flat::<true>(flat, ray, t_max, skip)?,
             _ => self.intersect_walk(ray, t_max, skip)?,
         };
         let (point, shape) = match best {
@@ -588,7 +643,7 @@ impl Aggregate {
     /// nearest hit so far, in slot order (the walk's hits; only a tie within rounding between
     /// two primitives, at an edge they share, may resolve differently).
     #[inline(always)]
-    fn intersect_flat<'a>(
+    fn intersect_flat<'a, const SPLIT: bool>(
         &'a self,
         flat: &FlatBoxes,
         ray: &Ray,
@@ -606,11 +661,23 @@ impl Aggregate {
         for i in bits(mask) {
             // a hit lies beyond its padded box's entry: a box entered at or after the best
             // hit so far holds no nearer one
-            if entries[i] < best_t && !skip.contains(self.candidates[i].shape()) {
-                if let Some((t, found)) = self.intersect_slot(i, &sheared, best_t) {
-                    best_t = t;
-                    best = Some(found);
+            if entries[i] >= best_t {
+                continue;
+            }
+            // (without SPLIT, slot i is candidate i and no slot walks: the loop of a small
+            // scene stays as it was)
+            let hit = if SPLIT && flat.walk >> i & 1 == 1 {
+                self.intersect_walk_beside(ray, best_t, skip)
+            } else {
+                let c = &self.candidates[if SPLIT { flat.base + i } else { i }];
+                if skip.contains(c.shape()) {
+                    continue;
                 }
+                self.intersect_candidate(c, &sheared, best_t)
+            };
+            if let Some((t, found)) = hit {
+                best_t = t;
+                best = Some(found);
             }
         }
         best.map(|found| (best_t, found))
@@ -648,17 +715,53 @@ impl Aggregate {
         if let [only] = self.candidates.as_slice() {
             return self.intersect_only(only, ray, t_max, skip).is_some();
         }
-        if let Some(flat) = &self.flat {
-            let mask = flat.entered(ray, t_max, &mut [0.0; FLAT_MAX]);
-            if mask == 0 {
-                return false;
-            }
-            let sheared = ShearedRay::new(*ray);
-            return bits(mask).any(|i| {
-                !skip.contains(self.candidates[i].shape())
-                    && self.intersect_slot(i, &sheared, t_max).is_some()
-            });
+        match &self.flat {
+            Some(flat) if flat.walk == 0 => self.occluded_flat::<false>(flat, ray, t_max, skip),
+            Some(flat) => self.occluded_flat::<true>(flat, ray, t_max, skip),
+            None => self.occluded_walk(ray, t_max, skip),
         }
+    }
+
+    /// [`Aggregate::occluded_except`] for a small or split scene (see
+    /// [`Aggregate::intersect_flat`]).
+    #[inline(always)]
+    fn occluded_flat<const SPLIT: bool>(
+        &self,
+        flat: &FlatBoxes,
+        ray: &Ray,
+        t_max: f64,
+        skip: Skip,
+    ) -> bool {
+        let mask = flat.entered(ray, t_max, &mut [0.0; FLAT_MAX]);
+        if mask == 0 {
+            return false;
+        }
+        let sheared = ShearedRay::new(*ray);
+        bits(mask).any(|i| {
+            if SPLIT && flat.walk >> i & 1 == 1 {
+                return self.occluded_walk_beside(ray, t_max, skip);
+            }
+            let c = &self.candidates[if SPLIT { flat.base + i } else { i }];
+            !skip.contains(c.shape()) && self.intersect_candidate(c, &sheared, t_max).is_some()
+        })
+    }
+
+    /// [`Aggregate::intersect_walk`] from a split scene's box loop, kept out of line so that
+    /// the loop of scenes that never walk stays as small as it was.
+    #[inline(never)]
+    fn intersect_walk_beside(&self, ray: &Ray, t_max: f64, skip: Skip) -> Option<(f64, Found<'_>)> {
+        self.intersect_walk(ray, t_max, skip)
+    }
+
+    /// [`Aggregate::occluded_walk`] from a split scene's box loop, out of line likewise.
+    #[inline(never)]
+    fn occluded_walk_beside(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
+        self.occluded_walk(ray, t_max, skip)
+    }
+
+    /// True when the BVH holds something on the ray with 0 < t < t_max.
+    #[inline(always)]
+    fn occluded_walk(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
         let Some((bray, _)) = self.clip(ray, t_max) else {
             return false;
         };
@@ -1314,19 +1417,71 @@ mod tests {
         ]
     }
 
+    /// A UV sphere of 2 · 12 · 7 = 168 triangles (more than [`FLAT_MAX`] BVH primitives after
+    /// pairing), as a mesh.
+    fn ball(center: Vec3, radius: f64) -> Shape {
+        let (rings, segments) = (8u32, 12u32);
+        let mut p = vec![center + Vec3::Y * radius];
+        for r in 1..rings {
+            let theta = std::f64::consts::PI * r as f64 / rings as f64;
+            for k in 0..segments {
+                let phi = std::f64::consts::TAU * k as f64 / segments as f64;
+                let (st, ct) = theta.sin_cos();
+                p.push(center + Vec3::new(st * phi.cos(), ct, st * phi.sin()) * radius);
+            }
+        }
+        p.push(center - Vec3::Y * radius);
+        let at = |r: u32, k: u32| 1 + (r - 1) * segments + k % segments;
+        let bottom = p.len() as u32 - 1;
+        let mut t = Vec::new();
+        for k in 0..segments {
+            t.push([0, at(1, k + 1), at(1, k)]);
+            t.push([bottom, at(rings - 1, k), at(rings - 1, k + 1)]);
+        }
+        for r in 1..rings - 1 {
+            for k in 0..segments {
+                t.push([at(r, k), at(r, k + 1), at(r + 1, k + 1)]);
+                t.push([at(r, k), at(r + 1, k + 1), at(r + 1, k)]);
+            }
+        }
+        Shape::Mesh(TriangleMesh::new(p, t, false))
+    }
+
     #[test]
     fn small_scenes_testing_every_box_hit_as_the_bvh_walk_hits() {
         // the flat box loop against the walk it replaces, at ordinary and extreme scales and
         // offsets: rays from inside and outside the room, bounded and unbounded, with and
-        // without a skipped shape, and shadow rays between hits as the renderer casts them
+        // without a skipped shape, and shadow rays between hits as the renderer casts them;
+        // then the room with a ball of 168 triangles, split (the room's boxes and the ball's
+        // BVH tested at once) against the same scene walked whole
         let mut s = SampleStream::new(12, 0, 0);
         let (mut hits, mut shadow, mut ties) = (0, 0, 0);
-        for (scale, shift) in [(1.0, 0.0), (1e-5, 0.0), (1e4, 1e7), (3.0, -2e3)] {
-            let a = Aggregate::new(room(scale, Vec3::splat(shift)));
-            assert!((2..=FLAT_MAX).contains(&a.candidates.len()), "{:?}", a);
+        let scales = [(1.0, 0.0), (1e-5, 0.0), (1e4, 1e7), (3.0, -2e3)];
+        for (split, (scale, shift)) in [false, true]
+            .into_iter()
+            .flat_map(|x| scales.map(|y| (x, y)))
+        {
+            let mut shapes = room(scale, Vec3::splat(shift));
+            if split {
+                shapes.push(ball(
+                    Vec3::new(0.5, 0.35, 0.3) * scale + shift,
+                    0.12 * scale,
+                ));
+            }
+            let a = Aggregate::new(shapes.clone());
+            let walk = if split {
+                let whole = Aggregate::build(shapes, false);
+                assert!(whole.flat.is_none() && whole.candidates.len() > FLAT_MAX);
+                let f = a.flat.as_ref().unwrap();
+                assert_eq!(f.walk.count_ones(), 1, "{a:?}");
+                whole
+            } else {
+                assert!((2..=FLAT_MAX).contains(&a.candidates.len()), "{:?}", a);
+                let mut walk = a.clone();
+                walk.flat = None;
+                walk
+            };
             assert!(a.flat.is_some());
-            let mut walk = a.clone();
-            walk.flat = None;
             let (c, r) = a.bounding_sphere();
             for k in 0..6_000 {
                 let mut o = c + warp::uniform_sphere(s.next_2d()) * r * [0.3, 0.6, 1.5][k % 3];
@@ -1380,7 +1535,7 @@ mod tests {
             }
         }
         assert!(
-            hits > 10_000 && shadow > 5_000 && ties < 20,
+            hits > 20_000 && shadow > 10_000 && ties < 40,
             "{hits} hits, {shadow} shadow rays, {ties} ties"
         );
     }
