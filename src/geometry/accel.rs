@@ -89,6 +89,17 @@ impl FlatBoxes {
         f
     }
 
+    /// The index in [`Aggregate::candidates`] of slot `i`'s primitive (slot i itself where no
+    /// slot walks: the compiler then drops the offset).
+    #[inline(always)]
+    fn candidate<const SPLIT: bool>(&self, i: usize) -> usize {
+        if SPLIT {
+            self.base + i
+        } else {
+            i
+        }
+    }
+
     /// The boxes the ray enters within [0, t_max], as bits by slot, with each box's entry
     /// distance (at least 0) in `entries`: a zero or subnormal direction component's
     /// reciprocal is held finite (±f64::MAX), so that no 0·inf makes a NaN. Slab tests in
@@ -669,7 +680,7 @@ impl Aggregate {
             let hit = if SPLIT && flat.walk >> i & 1 == 1 {
                 self.intersect_walk_beside(ray, best_t, skip)
             } else {
-                let c = &self.candidates[if SPLIT { flat.base + i } else { i }];
+                let c = &self.candidates[flat.candidate::<SPLIT>(i)];
                 if skip.contains(c.shape()) {
                     continue;
                 }
@@ -741,7 +752,7 @@ impl Aggregate {
             if SPLIT && flat.walk >> i & 1 == 1 {
                 return self.occluded_walk_beside(ray, t_max, skip);
             }
-            let c = &self.candidates[if SPLIT { flat.base + i } else { i }];
+            let c = &self.candidates[flat.candidate::<SPLIT>(i)];
             !skip.contains(c.shape()) && self.intersect_candidate(c, &sheared, t_max).is_some()
         })
     }
