@@ -151,22 +151,25 @@ fn radiance(
     }
 }
 
-/// Spectral radiance and the branch record of one ray at one wavelength.
+/// Spectral radiance of one ray at one wavelength, with its branch record in `path` (cleared
+/// first, so one buffer serves every call).
 fn sample(
     scene: &Scene,
     caster: &Caster,
     ray: Ray,
     lambda: f64,
     max_depth: u32,
-) -> Result<(f64, Vec<u32>), CheckError> {
-    let mut path = Vec::new();
-    let l = radiance(scene, caster, ray, lambda, 0, max_depth, &mut path)?;
-    Ok((l, path))
+    path: &mut Vec<u32>,
+) -> Result<f64, CheckError> {
+    path.clear();
+    radiance(scene, caster, ray, lambda, 0, max_depth, path)
 }
 
 /// XYZ of one camera ray: ∫ L(λ) (x̄, ȳ, z̄)(λ) dλ / ∫ ȳ over 360–830 nm, by Simpson's rule on
 /// 1 nm pieces (the tables are linear on each, L smooth), each piece split where a branch
-/// changes what it hits (located by bisection), one-sided values at every end.
+/// changes what it hits (located by bisection), one-sided values at the ends of a split piece.
+/// A piece whose two ends hit the same shapes is smooth: its ends' values are the whole
+/// nanometres' own, computed once for the pieces on either side.
 pub fn ray_xyz(
     scene: &Scene,
     caster: &Caster,
@@ -175,40 +178,51 @@ pub fn ray_xyz(
     observer: &Observer,
 ) -> Result<[f64; 3], CheckError> {
     let mut acc = [0.0; 3];
-    let piece = |a: f64, b: f64, acc: &mut [f64; 3]| -> Result<(), CheckError> {
+    let mut path = Vec::new();
+    let piece = |a: f64, b: f64, acc: &mut [f64; 3], path: &mut Vec<u32>| {
         let h = b - a;
         let (ea, m, eb) = (a + 1e-9 * h, 0.5 * (a + b), b - 1e-9 * h);
-        let (la, lm, lb) = (
-            sample(scene, caster, ray, ea, max_depth)?.0,
-            sample(scene, caster, ray, m, max_depth)?.0,
-            sample(scene, caster, ray, eb, max_depth)?.0,
-        );
+        let l = [
+            sample(scene, caster, ray, ea, max_depth, path)?,
+            sample(scene, caster, ray, m, max_depth, path)?,
+            sample(scene, caster, ray, eb, max_depth, path)?,
+        ];
         let (ca, cm, cb) = (observer.cmf(ea), observer.cmf(m), observer.cmf(eb));
         for k in 0..3 {
-            acc[k] += h / 6.0 * (la * ca[k] + 4.0 * lm * cm[k] + lb * cb[k]);
+            acc[k] += h / 6.0 * (l[0] * ca[k] + 4.0 * l[1] * cm[k] + l[2] * cb[k]);
         }
-        Ok(())
+        Ok::<(), CheckError>(())
     };
-    // each whole nanometre's branch record serves the piece on either side of it
-    let mut right = sample(scene, caster, ray, 360.0, max_depth)?.1;
+    // each whole nanometre's value and branch record serve the pieces on either side of it
+    let mut right = Vec::new();
+    let mut l_right = sample(scene, caster, ray, 360.0, max_depth, &mut right)?;
+    let mut left = Vec::new();
     for i in 0..470 {
         let (a, b) = (360.0 + i as f64, 361.0 + i as f64);
-        let left = std::mem::replace(&mut right, sample(scene, caster, ray, b, max_depth)?.1);
+        std::mem::swap(&mut left, &mut right);
+        let l_left = l_right;
+        l_right = sample(scene, caster, ray, b, max_depth, &mut right)?;
         if left == right {
-            piece(a, b, &mut acc)?;
+            let m = 0.5 * (a + b);
+            let l_mid = sample(scene, caster, ray, m, max_depth, &mut path)?;
+            let (ca, cm, cb) = (observer.cmf(a), observer.cmf(m), observer.cmf(b));
+            for k in 0..3 {
+                acc[k] += (l_left * ca[k] + 4.0 * l_mid * cm[k] + l_right * cb[k]) / 6.0;
+            }
             continue;
         }
         let (mut lo, mut hi) = (a, b);
         for _ in 0..BISECTIONS {
             let mid = 0.5 * (lo + hi);
-            if sample(scene, caster, ray, mid, max_depth)?.1 == left {
+            sample(scene, caster, ray, mid, max_depth, &mut path)?;
+            if path == left {
                 lo = mid;
             } else {
                 hi = mid;
             }
         }
-        piece(a, lo, &mut acc)?;
-        piece(hi, b, &mut acc)?;
+        piece(a, lo, &mut acc, &mut path)?;
+        piece(hi, b, &mut acc, &mut path)?;
     }
     Ok(acc.map(|v| v / observer.y_integral()))
 }
