@@ -549,6 +549,18 @@ impl Aggregate {
         }
     }
 
+    /// Whether candidate `c` has a hit with 0 < t < t_max (a shadow ray's question): a
+    /// primitive tested through its shape skips the surface point it would not use.
+    #[inline(always)]
+    fn hits_candidate(&self, c: &Candidate, ray: &ShearedRay, t_max: f64) -> bool {
+        match c {
+            &Candidate::Other { shape, prim } => {
+                self.shapes[shape as usize].hits_primitive(prim as usize, ray, t_max)
+            }
+            c => self.intersect_candidate(c, ray, t_max).is_some(),
+        }
+    }
+
     /// The nearest member of a bundle (never inlined: bundles are rare).
     #[inline(never)]
     fn intersect_bundle(
@@ -733,7 +745,8 @@ impl Aggregate {
     /// [`Aggregate::occluded`] ignoring the shapes in `skip`.
     pub fn occluded_except(&self, ray: &Ray, t_max: f64, skip: Skip) -> bool {
         if let [only] = self.candidates.as_slice() {
-            return self.intersect_only(only, ray, t_max, skip).is_some();
+            return !skip.contains(only.shape())
+                && self.hits_candidate(only, &ShearedRay::new(*ray), t_max);
         }
         match &self.flat {
             Some(flat) if flat.walk == 0 => self.occluded_flat::<false>(flat, ray, t_max, skip),
@@ -762,7 +775,7 @@ impl Aggregate {
                 return self.occluded_walk_beside(ray, t_max, skip);
             }
             let c = &self.candidates[flat.candidate::<SPLIT>(i)];
-            !skip.contains(c.shape()) && self.intersect_candidate(c, &sheared, t_max).is_some()
+            !skip.contains(c.shape()) && self.hits_candidate(c, &sheared, t_max)
         })
     }
 
@@ -791,9 +804,10 @@ impl Aggregate {
                 return f32::INFINITY;
             }
             // below any tmax the traversal can hold, so it stops
-            match self.intersect_slot(i, &sheared, t_max) {
-                Some(_) => f32::NEG_INFINITY,
-                None => f32::INFINITY,
+            if self.hits_candidate(&self.candidates[i], &sheared, t_max) {
+                f32::NEG_INFINITY
+            } else {
+                f32::INFINITY
             }
         })
     }

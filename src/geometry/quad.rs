@@ -52,6 +52,14 @@ impl Quad {
     /// Nearest hit with 0 < t < t_max: ray–plane distance, then (u, v) from the plane point
     /// by the dual basis w = n/(n·n): u = w·(h × e_v), v = w·(e_u × h) with h = p − corner.
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<(f64, SurfacePoint)> {
+        let (t, u, v) = self.hit(ray, t_max)?;
+        Some((t, self.surface_point(u, v)))
+    }
+
+    /// [`Quad::intersect`]'s hit as (t, u, v), without its surface point (what a shadow ray
+    /// needs).
+    #[inline]
+    pub fn hit(&self, ray: &Ray, t_max: f64) -> Option<(f64, f64, f64)> {
         let n = self.cross();
         let denom = n.dot(ray.d);
         if denom == 0.0 {
@@ -68,10 +76,7 @@ impl Quad {
         let w = n / n.length_squared();
         let u = w.dot(h.cross(self.edge_v));
         let v = w.dot(self.edge_u.cross(h));
-        if !((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v)) {
-            return None;
-        }
-        Some((t, self.surface_point(u, v)))
+        ((0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v)).then_some((t, u, v))
     }
 
     /// The point at (u, v), recomputed on the plane; error bound γ(7) of the summands

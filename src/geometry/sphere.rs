@@ -41,6 +41,14 @@ impl Sphere {
     /// Intersection", Ray Tracing Gems ch. 7, eq. 10) and the roots the stable pair
     /// q = b + sign(b)√Δ, t = c/q, q (Press et al., *Numerical Recipes* §5.6).
     pub fn intersect(&self, ray: &Ray, t_max: f64) -> Option<(f64, SurfacePoint)> {
+        let t = self.hit_t(ray, t_max)?;
+        Some((t, self.surface_point(ray.at(t))))
+    }
+
+    /// The t of [`Sphere::intersect`]'s hit, without its surface point (what a shadow ray
+    /// needs).
+    #[inline]
+    pub fn hit_t(&self, ray: &Ray, t_max: f64) -> Option<f64> {
         let f = ray.o - self.center;
         let b = -f.dot(ray.d);
         let l = f + ray.d * b; // f minus its projection on d
@@ -56,10 +64,7 @@ impl Sphere {
             std::mem::swap(&mut t0, &mut t1);
         }
         let t = if t0 > 0.0 { t0 } else { t1 };
-        if !(t > 0.0 && t < t_max) {
-            return None;
-        }
-        Some((t, self.surface_point(ray.at(t))))
+        (t > 0.0 && t < t_max).then_some(t)
     }
 
     /// Re-projects `p` onto the sphere and attaches its error bound (PBR 3rd ed. §3.9.4:
