@@ -24,6 +24,11 @@ profdata=$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-profdata
 }
 # RUSTFLAGS replaces .cargo/config.toml's flags, so the CPU target is repeated here.
 base=${RUSTFLAGS:--C target-cpu=native}
+# the sources the two builds compile: a profile trained on one tree and used on another
+# loses every changed function's counts (rustc's hash-mismatch warnings), so an edit while
+# this runs stops it instead of writing a build that is not the tree's profile-guided one
+sources() { find src Cargo.toml Cargo.lock .cargo -type f -print0 | sort -z | xargs -0 cksum | cksum; }
+before=$(sources)
 raw=$PWD/target/pgo-data
 rm -rf "$raw"
 mkdir -p "$raw"
@@ -44,5 +49,14 @@ done
 # so a new profile under the old name would leave the dependencies built with the old one
 sum=$(cksum <"$raw/merged.profdata" | cut -d' ' -f1)
 mv "$raw/merged.profdata" "$raw/merged-$sum.profdata"
+if [ "$(sources)" != "$before" ]; then
+    echo "pgo.sh: the sources changed during training (src/, Cargo.toml, Cargo.lock or .cargo/); run it again on a tree that stays put" >&2
+    exit 1
+fi
 RUSTFLAGS="$base -Cprofile-use=$raw/merged-$sum.profdata" cargo build --release --target-dir target/pgo
+if [ "$(sources)" != "$before" ]; then
+    rm -f target/pgo/release/furnace
+    echo "pgo.sh: the sources changed during the profile-guided build; removed it, run again on a tree that stays put" >&2
+    exit 1
+fi
 echo "pgo.sh: wrote target/pgo/release/furnace (trained on: $train)"
