@@ -187,9 +187,9 @@ pub fn ray_xyz(
             sample(scene, caster, ray, m, max_depth, path)?,
             sample(scene, caster, ray, eb, max_depth, path)?,
         ];
-        let (ca, cm, cb) = (observer.cmf(ea), observer.cmf(m), observer.cmf(eb));
+        let s = simpson_sums(observer, [ea, m, eb], l);
         for k in 0..3 {
-            acc[k] += h / 6.0 * (l[0] * ca[k] + 4.0 * l[1] * cm[k] + l[2] * cb[k]);
+            acc[k] += h / 6.0 * s[k];
         }
         Ok::<(), CheckError>(())
     };
@@ -205,9 +205,9 @@ pub fn ray_xyz(
         if left == right {
             let m = 0.5 * (a + b);
             let l_mid = sample(scene, caster, ray, m, max_depth, &mut path)?;
-            let (ca, cm, cb) = (observer.cmf(a), observer.cmf(m), observer.cmf(b));
+            let s = simpson_sums(observer, [a, m, b], [l_left, l_mid, l_right]);
             for k in 0..3 {
-                acc[k] += (l_left * ca[k] + 4.0 * l_mid * cm[k] + l_right * cb[k]) / 6.0;
+                acc[k] += s[k] / 6.0;
             }
             continue;
         }
@@ -225,6 +225,13 @@ pub fn ray_xyz(
         piece(hi, b, &mut acc, &mut path)?;
     }
     Ok(acc.map(|v| v / observer.y_integral()))
+}
+
+/// Simpson's weighted sum L(a)·c̄(a) + 4·L(m)·c̄(m) + L(b)·c̄(b) of one piece, per matching
+/// function, from its ends and midpoint `lambda` (nm) and the radiances `l` there.
+fn simpson_sums(observer: &Observer, lambda: [f64; 3], l: [f64; 3]) -> [f64; 3] {
+    let [ca, cm, cb] = lambda.map(|x| observer.cmf(x));
+    std::array::from_fn(|k| l[0] * ca[k] + 4.0 * l[1] * cm[k] + l[2] * cb[k])
 }
 
 /// The expected XYZ of every pixel of `region` (row-major), each averaged over its footprint,
