@@ -8,7 +8,7 @@
 //! "`integrators::bdpt`".
 
 use crate::camera::Camera;
-use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::integrators::light::{emitted_ray, Emission, PinholeSensor, Sensor};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
@@ -103,6 +103,16 @@ enum On {
     },
     /// A surface point of shape `shape`.
     Surface { shape: u32 },
+}
+
+/// The planar shape vertex `v` lies on (a surface's, or an area light origin's), which a
+/// shadow ray from or to it may skip ([`super::planar`]).
+fn vertex_plane(scene: &Scene, v: &Vertex) -> Option<u32> {
+    match v.on {
+        On::Camera | On::Light { point: true, .. } => None,
+        On::Light { light, .. } => super::emitter_plane(scene, &scene.lights[light as usize]),
+        On::Surface { shape } => super::planar(scene, shape),
+    }
 }
 
 /// One subpath vertex: its throughput and its area densities in both directions.
@@ -298,12 +308,14 @@ pub type Splat = crate::integrators::light::Splat;
 impl Bdpt {
     /// Random walk from `ray` appending vertices to `path` (whose last vertex is where `ray`
     /// starts) until `max_vertices`; `adjoint` for a light subpath (importance transport: the
-    /// η² of refraction, Veach §5.2). True when the path-length guard cut it.
+    /// η² of refraction, Veach §5.2); `leaving` the planar shape `ray` leaves (see
+    /// [`super::planar`]). True when the path-length guard cut it.
     #[allow(clippy::too_many_arguments)]
     fn walk(
         &self,
         scene: &Scene,
         mut ray: Ray,
+        mut leaving: Option<u32>,
         mut beta: SampledSpectrum,
         mut pdf_dir: f64,
         adjoint: bool,
@@ -321,7 +333,8 @@ impl Bdpt {
             if path.len() > super::MAX_PATH_EVENTS as usize {
                 return true;
             }
-            let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) else {
+            let skip = Skip::shapes(leaving, None);
+            let Some(hit) = scene.aggregate.intersect_except(&ray, f64::INFINITY, skip) else {
                 return false;
             };
             let prev = path.last().expect("a subpath starts with its origin");
@@ -377,6 +390,7 @@ impl Bdpt {
                 return false;
             }
             ray = ray::spawn(&hit.point, frame.to_world(bs.wi));
+            leaving = super::planar(scene, hit.shape);
             pdf_dir = pdf_next;
             if self.rr_depth.is_some_and(|d| cur as u32 >= d)
                 && !super::roulette(&mut beta, eta_scale, u_rr)
@@ -419,6 +433,7 @@ impl Bdpt {
         self.walk(
             setup.scene,
             ray,
+            None,
             SampledSpectrum::ONE,
             pdf,
             false,
@@ -473,9 +488,16 @@ impl Bdpt {
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
         let beta = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
+        // a ray from a point on a planar emitter leaves its plane
+        let leaving = if es.delta_position {
+            None
+        } else {
+            super::emitter_plane(scene, light)
+        };
         self.walk(
             scene,
             emitted_ray(&es),
+            leaving,
             beta,
             es.pdf_dir,
             true,
@@ -588,7 +610,8 @@ impl Bdpt {
                 n: c.direction,
             };
             let (shadow, t_max) = ray::spawn_to(&y.sp, &eye);
-            if scene.aggregate.occluded(&shadow, t_max) {
+            let skip = Skip::shapes(vertex_plane(scene, y), None);
+            if scene.aggregate.occluded_except(&shadow, t_max, skip) {
                 return None;
             }
             let g = (self.geometry)(y.cos(to_eye), 1.0, d2);
@@ -611,7 +634,8 @@ impl Bdpt {
             let fz = self.vertex_f(setup, cam, t - 1, w, true, wl)?;
             let fy = self.vertex_f(setup, lig, s - 1, -w, false, wl)?;
             let (shadow, t_max) = ray::spawn_to(&z.sp, &y.sp);
-            if scene.aggregate.occluded(&shadow, t_max) {
+            let skip = Skip::shapes(vertex_plane(scene, z), vertex_plane(scene, y));
+            if scene.aggregate.occluded_except(&shadow, t_max, skip) {
                 return None;
             }
             let g = (self.geometry)(z.cos(w), y.cos(w), d2);

@@ -9,7 +9,7 @@
 
 use super::ReflectanceCache;
 use crate::camera::Camera;
-use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::{SampleStream, Uniforms};
@@ -205,7 +205,8 @@ impl LightTracer {
                 let le = area_radiance(*two_sided, es.point.n, to_eye, || radiance.sample(wl));
                 if !le.is_black() {
                     let (shadow, t_max) = ray::spawn_to(&es.point, &eye_point(&c));
-                    if !scene.aggregate.occluded(&shadow, t_max) {
+                    let skip = Skip::shapes(super::emitter_plane(scene, light), None);
+                    if !scene.aggregate.occluded_except(&shadow, t_max, skip) {
                         let g = es.point.n.dot(to_eye).abs() * c.importance_cos
                             / (c.distance * c.distance);
                         splats.push(Splat {
@@ -224,10 +225,20 @@ impl LightTracer {
         let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
         let mut beta = SampledSpectrum::ONE;
         let mut ray = emitted_ray(&es);
+        // the planar shape `ray` leaves (see super::planar)
+        let mut leaving = if es.delta_position {
+            None
+        } else {
+            super::emitter_plane(scene, light)
+        };
         let mut reflectance = ReflectanceCache::default();
         // Index of the vertex the ray is about to reach = bounces its camera connection counts.
         let mut k: u32 = 1;
-        while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
+        while let Some(hit) =
+            scene
+                .aggregate
+                .intersect_except(&ray, f64::INFINITY, Skip::shapes(leaving, None))
+        {
             if k > super::MAX_PATH_EVENTS {
                 return true;
             }
@@ -248,7 +259,8 @@ impl LightTracer {
                 let f = SampledBsdf::with_known(bsdf, wl, known).eval(to_eye, to_prev);
                 if !f.is_black() {
                     let (shadow, t_max) = ray::spawn_to(&sp, &eye_point(&c));
-                    if !scene.aggregate.occluded(&shadow, t_max) {
+                    let skip = Skip::shapes(super::planar(scene, hit.shape), None);
+                    if !scene.aggregate.occluded_except(&shadow, t_max, skip) {
                         let g = to_eye.z.abs() * c.importance_cos / (c.distance * c.distance);
                         splats.push(Splat {
                             pixel: c.pixel,
@@ -282,6 +294,7 @@ impl LightTracer {
                 break;
             }
             ray = ray::spawn(&sp, frame.to_world(bs.wi));
+            leaving = super::planar(scene, hit.shape);
 
             // Russian roulette after the k-th bounce, as in PathTracer.
             let u_rr = rng.next_f64();

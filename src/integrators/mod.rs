@@ -53,6 +53,26 @@ pub(crate) type EmissionCache = PathSpectra<4>;
 /// Lambertian reflectances along a path, by material index ([`Scene::material_of`]).
 pub(crate) type ReflectanceCache = PathSpectra<8>;
 
+/// `shape` when it is planar: a ray spawned from a point on it (its origin moved to the side
+/// the ray runs to) or a shadow ray ending on it (that end moved to the ray's side) cannot meet
+/// it, so a query may skip it ([`crate::geometry::Skip`]; the path tracer's argument, used by
+/// every integrator).
+#[inline]
+pub(crate) fn planar(scene: &Scene, shape: u32) -> Option<u32> {
+    scene.aggregate.shapes()[shape as usize]
+        .is_planar()
+        .then_some(shape)
+}
+
+/// The planar shape of area light `light`, if it has one ([`planar`]).
+#[inline]
+pub(crate) fn emitter_plane(scene: &Scene, light: &Light) -> Option<u32> {
+    match light {
+        Light::Area { shape, .. } => planar(scene, *shape),
+        _ => None,
+    }
+}
+
 /// The path-length guard: events (surface hits, boundary crossings, medium scatterings) after
 /// which a path is cut and counted as cut. A correct scene never comes near it (a furnace of
 /// albedo 0.999 reaches it with probability 0.999^100000 ≈ e^-100); a path that would not end

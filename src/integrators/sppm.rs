@@ -9,7 +9,7 @@
 //! loop, the visible-point grid and the film are in render::sppm.
 
 use super::light::{emitted_ray, Emission};
-use crate::geometry::{ray, Ray, SurfacePoint};
+use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
@@ -143,8 +143,11 @@ pub fn camera_path(
 ) -> (SampledSpectrum, Option<VisiblePoint>) {
     let mut le = SampledSpectrum::ZERO;
     let mut beta = SampledSpectrum::ONE;
+    // the planar shape `ray` leaves (see super::planar)
+    let mut leaving = None;
     for _ in 0..MAX_CHAIN {
-        let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) else {
+        let skip = Skip::shapes(leaving, None);
+        let Some(hit) = scene.aggregate.intersect_except(&ray, f64::INFINITY, skip) else {
             return (le, None);
         };
         let sp = hit.point;
@@ -179,6 +182,7 @@ pub fn camera_path(
             return (le, None);
         }
         ray = ray::spawn(&sp, frame.to_world(bs.wi));
+        leaving = super::planar(scene, hit.shape);
     }
     // cut by the chain guard: counted as no visible point (64 specular bounces in a row
     // carry no measurable light in a real scene)
@@ -209,9 +213,9 @@ pub fn trace_photon(
     deposit: &mut impl FnMut(&PhotonHit),
 ) -> bool {
     let Some(Emission {
+        light,
         sample: es,
         select_pdf,
-        ..
     }) = Emission::sample(scene, wl, rng)
     else {
         return false;
@@ -220,8 +224,18 @@ pub fn trace_photon(
     let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
     let mut beta = SampledSpectrum::ONE;
     let mut ray = emitted_ray(&es);
+    // the planar shape `ray` leaves (see super::planar)
+    let mut leaving = if es.delta_position {
+        None
+    } else {
+        super::emitter_plane(scene, light)
+    };
     let mut bounces: u32 = 0;
-    while let Some(hit) = scene.aggregate.intersect(&ray, f64::INFINITY) {
+    while let Some(hit) =
+        scene
+            .aggregate
+            .intersect_except(&ray, f64::INFINITY, Skip::shapes(leaving, None))
+    {
         if bounces > super::MAX_PATH_EVENTS {
             return true;
         }
@@ -247,6 +261,7 @@ pub fn trace_photon(
             break;
         }
         ray = ray::spawn(&sp, frame.to_world(bs.wi));
+        leaving = super::planar(scene, hit.shape);
         bounces += 1;
         // unbiased roulette on the throughput, as the light tracer's
         let u = rng.next_f64();
