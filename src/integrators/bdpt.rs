@@ -10,6 +10,7 @@
 use crate::camera::Camera;
 use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::integrators::light::{emitted_ray, Emission, PinholeSensor, Sensor};
+use crate::integrators::ReflectanceCache;
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::Uniforms;
@@ -105,16 +106,6 @@ enum On {
     Surface { shape: u32 },
 }
 
-/// The planar shape vertex `v` lies on (a surface's, or an area light origin's), which a
-/// shadow ray from or to it may skip ([`super::planar`]).
-fn vertex_plane(scene: &Scene, v: &Vertex) -> Option<u32> {
-    match v.on {
-        On::Camera | On::Light { point: true, .. } => None,
-        On::Light { light, .. } => super::emitter_plane(scene, &scene.lights[light as usize]),
-        On::Surface { shape } => super::planar(scene, shape),
-    }
-}
-
 /// One subpath vertex: its throughput and its area densities in both directions.
 #[derive(Debug, Clone, Copy)]
 struct Vertex {
@@ -134,6 +125,9 @@ struct Vertex {
     /// A Lambertian surface's reflectance at the path's wavelengths, evaluated once when the
     /// walk samples the vertex and reused by every connection through it; None elsewhere.
     reflectance: Option<SampledSpectrum>,
+    /// The planar shape the vertex lies on (a surface's, or an area light origin's), which a
+    /// ray from or to it skips ([`super::planar`]); None elsewhere.
+    plane: Option<u32>,
     /// A surface vertex's shading frame and, in it, the unit direction towards the previous
     /// vertex of its subpath, computed once when the walk reaches it (every connection and
     /// density through the vertex reads them); unused at a subpath's origin.
@@ -326,6 +320,8 @@ impl Bdpt {
     ) -> bool {
         // a camera subpath's η² of refraction, undone for roulette (see super::roulette)
         let mut eta_scale = SampledSpectrum::ONE;
+        // a Lambertian's reflectance once per material and subpath (the wavelengths stay)
+        let mut reflectances = ReflectanceCache::default();
         loop {
             if path.len() >= max_vertices {
                 return false;
@@ -348,6 +344,7 @@ impl Bdpt {
                 delta: false,
                 dispersed_before: prev.dispersed_before || separates(scene, prev),
                 reflectance: None,
+                plane: super::planar(scene, hit.shape),
                 local: (frame, frame.to_local((prev.sp.p - hit.point.p).normalize())),
                 ratio: f64::NAN,
                 walk: f64::NAN,
@@ -363,7 +360,10 @@ impl Bdpt {
             let u_lobe = rng.next_f64();
             let u = rng.next_2d();
             let u_rr = rng.next_f64();
-            let sampled = SampledBsdf::new(bsdf, wl);
+            let material = scene.material_of[hit.shape as usize] as usize;
+            let sampled = SampledBsdf::with_reflectance(bsdf, wl, |r| {
+                reflectances.get(material, || r.sample(wl))
+            });
             path[cur].reflectance = sampled.reflectance();
             let Some(bs) = sampled.sample(wo, u, u_lobe) else {
                 return false;
@@ -390,7 +390,7 @@ impl Bdpt {
                 return false;
             }
             ray = ray::spawn(&hit.point, frame.to_world(bs.wi));
-            leaving = super::planar(scene, hit.shape);
+            leaving = path[cur].plane;
             pdf_dir = pdf_next;
             if self.rr_depth.is_some_and(|d| cur as u32 >= d)
                 && !super::roulette(&mut beta, eta_scale, u_rr)
@@ -424,6 +424,7 @@ impl Bdpt {
             delta: false,
             dispersed_before: false,
             reflectance: None,
+            plane: None,
             local: NO_LOCAL,
             ratio: f64::NAN,
             walk: f64::NAN,
@@ -469,6 +470,12 @@ impl Bdpt {
             .position(|l| std::ptr::eq(l, light))
             .expect("the light is the scene's") as u32;
         let le = light.spectrum().sample(wl);
+        // a ray from a point on a planar emitter leaves its plane
+        let plane = if es.delta_position {
+            None
+        } else {
+            super::emitter_plane(scene, light)
+        };
         path.push(Vertex {
             on: On::Light {
                 light: index,
@@ -481,6 +488,7 @@ impl Bdpt {
             delta: false,
             dispersed_before: false,
             reflectance: None,
+            plane,
             local: NO_LOCAL,
             ratio: f64::NAN,
             walk: f64::NAN,
@@ -488,16 +496,10 @@ impl Bdpt {
         let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
         let beta = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
-        // a ray from a point on a planar emitter leaves its plane
-        let leaving = if es.delta_position {
-            None
-        } else {
-            super::emitter_plane(scene, light)
-        };
         self.walk(
             scene,
             emitted_ray(&es),
-            leaving,
+            plane,
             beta,
             es.pdf_dir,
             true,
@@ -610,7 +612,7 @@ impl Bdpt {
                 n: c.direction,
             };
             let (shadow, t_max) = ray::spawn_to(&y.sp, &eye);
-            let skip = Skip::shapes(vertex_plane(scene, y), None);
+            let skip = Skip::shapes(y.plane, None);
             if scene.aggregate.occluded_except(&shadow, t_max, skip) {
                 return None;
             }
@@ -634,7 +636,7 @@ impl Bdpt {
             let fz = self.vertex_f(setup, cam, t - 1, w, true, wl)?;
             let fy = self.vertex_f(setup, lig, s - 1, -w, false, wl)?;
             let (shadow, t_max) = ray::spawn_to(&z.sp, &y.sp);
-            let skip = Skip::shapes(vertex_plane(scene, z), vertex_plane(scene, y));
+            let skip = Skip::shapes(z.plane, y.plane);
             if scene.aggregate.occluded_except(&shadow, t_max, skip) {
                 return None;
             }
@@ -916,6 +918,7 @@ mod tests {
             delta,
             dispersed_before: false,
             reflectance: None,
+            plane: None,
             local: NO_LOCAL,
             ratio: f64::NAN,
             walk: f64::NAN,
