@@ -469,7 +469,9 @@ impl Bdpt {
             .iter()
             .position(|l| std::ptr::eq(l, light))
             .expect("the light is the scene's") as u32;
-        let le = light.spectrum().sample(wl);
+        // the light's spectrum at `wl`: Emission::sample returns only a non-black emission,
+        // which is that spectrum (area_radiance passes it through on the emitting side)
+        let le = es.emitted;
         // a ray from a point on a planar emitter leaves its plane
         let plane = if es.delta_position {
             None
