@@ -122,6 +122,22 @@ impl Context<'_> {
         }
     }
 
+    /// The per-pixel values of a closed form: from the run's shared store when the check uses
+    /// it ([`super::shared::SharedRenders::closed_form`]; `request` names the closed form and
+    /// what it depends on but the scene), else computed here. They depend on no seed, so
+    /// they are the same either way.
+    pub fn closed_form(
+        &self,
+        scene: &crate::scene::Scene,
+        request: &str,
+        compute: impl FnOnce() -> Result<Vec<f64>, CheckError>,
+    ) -> Result<std::sync::Arc<Vec<f64>>, CheckError> {
+        match self.shared {
+            Some(shared) => shared.closed_form(scene, request, compute),
+            None => Ok(std::sync::Arc::new(compute()?)),
+        }
+    }
+
     /// The relative tolerance of a region test against its expected value: the check's
     /// `stated` model tolerance plus, for a renderer whose images carry more rounding than
     /// furnace's f64 film, the excess of its allowance ([`Renderer::image_rounding`]).

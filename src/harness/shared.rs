@@ -2,8 +2,10 @@
 //! estimator against the same path-traced image (the same scene and settings), it is rendered
 //! once. Its seed comes from the run's seed and what is rendered, never from a check, so a
 //! check's numbers are the same whether the image came from the store or was rendered for it
-//! alone (past the memory cap it is).
+//! alone (past the memory cap it is). Closed forms computed per pixel (a convergence
+//! ladder's reference) are kept the same way: they depend on no seed.
 
+use super::error::CheckError;
 use super::renderer::{Renderer, RendererError};
 use crate::film::Film;
 use crate::math::rng::mix64;
@@ -17,9 +19,16 @@ use std::sync::{Arc, Mutex, PoisonError};
 /// pass it is rendered for its check alone, with the same seed.
 pub const MAX_STORED_PIXELS: usize = 1 << 18;
 
+/// Most closed-form values the store keeps over a run (8 MiB); past it a closed form is
+/// computed for its check alone.
+pub const MAX_STORED_VALUES: usize = 1 << 20;
+
 /// One request's film once rendered (None while the first asker renders it, or after its
 /// render failed: the next asker renders it again).
 type Slot = Arc<Mutex<Option<Arc<Film>>>>;
+
+/// One request's closed-form values once computed (as [`Slot`]).
+type ValuesSlot = Arc<Mutex<Option<Arc<Vec<f64>>>>>;
 
 /// One run's store of shared reference images.
 #[derive(Debug)]
@@ -29,6 +38,10 @@ pub struct SharedRenders {
     films: Mutex<HashMap<String, Slot>>,
     /// Pixels of the films kept.
     stored: Mutex<usize>,
+    /// Closed-form values by request.
+    values: Mutex<HashMap<String, ValuesSlot>>,
+    /// Closed-form values kept.
+    stored_values: Mutex<usize>,
 }
 
 impl SharedRenders {
@@ -38,7 +51,40 @@ impl SharedRenders {
             run_seed,
             films: Mutex::new(HashMap::new()),
             stored: Mutex::new(0),
+            values: Mutex::new(HashMap::new()),
+            stored_values: Mutex::new(0),
         }
+    }
+
+    /// The values `compute` gives for `request` (which names the closed form and everything
+    /// it depends on but the scene) on `scene`: computed once per run and request, so the
+    /// checks asking for it get the same values; a failed computation is not kept.
+    pub fn closed_form(
+        &self,
+        scene: &Scene,
+        request: &str,
+        compute: impl FnOnce() -> Result<Vec<f64>, CheckError>,
+    ) -> Result<Arc<Vec<f64>>, CheckError> {
+        let key = format!("{request}\n{}", crate::render::scene_fingerprint(scene));
+        let slot = {
+            let mut values = self.values.lock().unwrap_or_else(PoisonError::into_inner);
+            values.entry(key).or_default().clone()
+        };
+        // the first asker computes while later ones wait for its values
+        let mut kept = slot.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(v) = kept.as_ref() {
+            return Ok(v.clone());
+        }
+        let computed = Arc::new(compute()?);
+        let mut stored = self
+            .stored_values
+            .lock()
+            .unwrap_or_else(PoisonError::into_inner);
+        if stored.saturating_add(computed.len()) <= MAX_STORED_VALUES {
+            *stored += computed.len();
+            *kept = Some(computed.clone());
+        }
+        Ok(computed)
     }
 
     /// `renderer`'s image of `scene` with `settings`, whose seed is replaced by one derived
@@ -162,5 +208,38 @@ mod tests {
         assert!(fresh.render(&BuiltIn, &scene, &past).is_err());
         let ok = fresh.render(&BuiltIn, &scene, &settings(1)).unwrap();
         assert_eq!(*ok, *a);
+    }
+
+    #[test]
+    fn a_closed_form_is_computed_once_per_request_and_scene_and_failures_are_not_kept() {
+        let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
+        let other = Scene::load(Path::new("scenes/cornell-glossy.toml")).unwrap();
+        let store = SharedRenders::new(7);
+        let calls = std::cell::Cell::new(0);
+        let compute = || {
+            calls.set(calls.get() + 1);
+            Ok(vec![1.0, 2.0])
+        };
+        let a = store.closed_form(&scene, "r", compute).unwrap();
+        let b = store.closed_form(&scene, "r", compute).unwrap();
+        assert!(Arc::ptr_eq(&a, &b));
+        assert_eq!(calls.get(), 1);
+        // another request or another scene is computed anew
+        store.closed_form(&scene, "s", compute).unwrap();
+        store.closed_form(&other, "r", compute).unwrap();
+        assert_eq!(calls.get(), 3);
+        // a failure is passed on and not kept
+        let failed = store.closed_form(&scene, "t", || Err(CheckError::Setup("no".into())));
+        assert!(failed.is_err());
+        assert_eq!(
+            *store.closed_form(&scene, "t", compute).unwrap(),
+            vec![1.0, 2.0]
+        );
+        // past the cap the values are computed for the asker alone
+        *store.stored_values.lock().unwrap() = MAX_STORED_VALUES - 1;
+        let c = store.closed_form(&scene, "u", compute).unwrap();
+        let d = store.closed_form(&scene, "u", compute).unwrap();
+        assert!(!Arc::ptr_eq(&c, &d));
+        assert_eq!(c, d);
     }
 }

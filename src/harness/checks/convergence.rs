@@ -59,21 +59,30 @@ pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckE
             s.sampler = p.sampler;
             let region = region_of(check, &s)?;
             if reference.is_none() {
-                let px = if p.of == Of::Emission {
-                    emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)?
-                } else if p.of == Of::Furnace {
+                let px = if p.of == Of::Furnace {
                     // A uniform enclosure: every pixel reads the closed form.
                     let (v, _) = furnace_expectation(scene, depth)?;
                     vec![v; (region[2] - region[0]) * (region[3] - region[1])]
                 } else {
-                    per_pixel_k(
-                        scene,
-                        s.width,
-                        s.height,
-                        region,
-                        &|h, d| reflected(scene, h, d),
-                        REFERENCE_K,
-                    )?
+                    // the ladders of one scene (one per sampler or estimator) share it
+                    let request = format!(
+                        "convergence reference {:?}, {}x{}, region {region:?}, k {REFERENCE_K}",
+                        p.of, s.width, s.height
+                    );
+                    let px = ctx.closed_form(scene, &request, || match p.of {
+                        Of::Emission => {
+                            emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)
+                        }
+                        _ => per_pixel_k(
+                            scene,
+                            s.width,
+                            s.height,
+                            region,
+                            &|h, d| reflected(scene, h, d),
+                            REFERENCE_K,
+                        ),
+                    })?;
+                    px.to_vec()
                 };
                 let mean = px.iter().sum::<f64>() / px.len() as f64;
                 reference = Some((px, mean));
