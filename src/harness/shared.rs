@@ -30,7 +30,7 @@ type Slot = Arc<Mutex<Option<Arc<Film>>>>;
 /// One request's closed-form values once computed (as [`Slot`]).
 type ValuesSlot = Arc<Mutex<Option<Arc<Vec<f64>>>>>;
 
-/// One run's store of shared reference images.
+/// One run's store of shared reference images and closed-form values.
 #[derive(Debug)]
 pub struct SharedRenders {
     run_seed: u64,

@@ -125,8 +125,8 @@ struct Vertex {
     /// A Lambertian surface's reflectance at the path's wavelengths, evaluated once when the
     /// walk samples the vertex and reused by every connection through it; None elsewhere.
     reflectance: Option<SampledSpectrum>,
-    /// The planar shape the vertex lies on (a surface's, or an area light origin's), which a
-    /// ray from or to it skips ([`super::planar`]); None elsewhere.
+    /// The planar shape the vertex lies on (a surface's, or a planar area light's at a light
+    /// origin), which a ray from or to it skips ([`super::planar`]); None elsewhere.
     plane: Option<u32>,
     /// A surface vertex's shading frame and, in it, the unit direction towards the previous
     /// vertex of its subpath, computed once when the walk reaches it (every connection and
@@ -638,7 +638,13 @@ impl Bdpt {
             let fz = self.vertex_f(setup, cam, t - 1, w, true, wl)?;
             let fy = self.vertex_f(setup, lig, s - 1, -w, false, wl)?;
             let (shadow, t_max) = ray::spawn_to(&z.sp, &y.sp);
-            let skip = Skip::shapes(z.plane, y.plane);
+            // both ends on one plane: `spawn_to` moves them to opposite sides of it when the
+            // segment is not exactly in it, so the segment crosses it and nothing is skipped
+            let skip = if z.plane.is_some() && z.plane == y.plane {
+                Skip::NONE
+            } else {
+                Skip::shapes(z.plane, y.plane)
+            };
             if scene.aggregate.occluded_except(&shadow, t_max, skip) {
                 return None;
             }

@@ -252,6 +252,7 @@ impl LightTracer {
             .reflectance();
             let frame = Frame::from_normal(sp.n);
             let to_prev = frame.to_local(-ray.d);
+            let plane = super::planar(scene, hit.shape);
 
             // Connection to the camera: c_k = P β f(ω_cam, ω_prev) |cos θ_x| W_e cos θ_e / d².
             if let Some(c) = sensor.connect(sp.p) {
@@ -259,7 +260,7 @@ impl LightTracer {
                 let f = SampledBsdf::with_known(bsdf, wl, known).eval(to_eye, to_prev);
                 if !f.is_black() {
                     let (shadow, t_max) = ray::spawn_to(&sp, &eye_point(&c));
-                    let skip = Skip::shapes(super::planar(scene, hit.shape), None);
+                    let skip = Skip::shapes(plane, None);
                     if !scene.aggregate.occluded_except(&shadow, t_max, skip) {
                         let g = to_eye.z.abs() * c.importance_cos / (c.distance * c.distance);
                         splats.push(Splat {
@@ -294,7 +295,7 @@ impl LightTracer {
                 break;
             }
             ray = ray::spawn(&sp, frame.to_world(bs.wi));
-            leaving = super::planar(scene, hit.shape);
+            leaving = plane;
 
             // Russian roulette after the k-th bounce, as in PathTracer.
             let u_rr = rng.next_f64();

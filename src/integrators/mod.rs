@@ -54,9 +54,11 @@ pub(crate) type EmissionCache = PathSpectra<4>;
 pub(crate) type ReflectanceCache = PathSpectra<8>;
 
 /// `shape` when it is planar: a ray spawned from a point on it (its origin moved to the side
-/// the ray runs to) or a shadow ray ending on it (that end moved to the ray's side) cannot meet
-/// it, so a query may skip it ([`crate::geometry::Skip`]; the path tracer's argument, used by
-/// every integrator).
+/// the ray runs to), or a shadow ray from a point off its plane ending on it (that end moved
+/// to the ray's side), cannot meet it, so a query may skip it ([`crate::geometry::Skip`]; the
+/// path tracer's argument, for BDPT, the light tracer and SPPM). A segment between two points
+/// of one plane is the exception: `spawn_to` moves its ends to opposite sides of the plane
+/// unless the segment lies exactly in it.
 #[inline]
 pub(crate) fn planar(scene: &Scene, shape: u32) -> Option<u32> {
     scene.aggregate.shapes()[shape as usize]
@@ -126,6 +128,37 @@ pub fn surfaces_only(scene: &Scene, dispersion: Option<&str>) -> Option<String> 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_segment_between_two_points_of_one_tilted_plane_can_cross_it() {
+        // why BDPT skips no shape when both ends of a connection lie on one plane: off
+        // exactly in-plane, `spawn_to` moves the two ends to opposite sides of it
+        use crate::geometry::quad::Quad;
+        use crate::geometry::{ray, Aggregate, Shape, Skip};
+        use crate::math::Vec3;
+        let quad = Quad {
+            corner: Vec3::new(-0.7, 0.3, 1.9),
+            edge_u: Vec3::new(1.3, 0.4, -0.2),
+            edge_v: Vec3::new(-0.1, 0.9, 1.1),
+            flip_normals: false,
+        };
+        let shapes = Aggregate::new(vec![Shape::Quad(quad.clone())]);
+        let (mut crossed, mut pairs) = (0, 0);
+        for i in 0..40 {
+            for j in 0..40 {
+                let u = |k: usize| (k as f64 * 0.618_034 + 0.1) % 1.0;
+                let z = quad.sample([u(i), u(i + 7)]);
+                let y = quad.sample([u(j + 13), u(j + 29)]);
+                if z.p == y.p {
+                    continue;
+                }
+                let (shadow, t_max) = ray::spawn_to(&z, &y);
+                pairs += 1;
+                crossed += usize::from(shapes.occluded_except(&shadow, t_max, Skip::NONE));
+            }
+        }
+        assert!(crossed > 0, "no crossing among {pairs} pairs");
+    }
 
     #[test]
     fn roulette_undoes_the_radiance_scaling_of_refraction() {
