@@ -131,6 +131,11 @@ impl PathTracer {
                         }
                         _ => None,
                     };
+                    // (a point on the planar emitter itself skips it too: the segment then
+                    // joins two points of one plane and may cross it (see super::planar), but
+                    // its geometry term is zero up to rounding, so what the skip lets through
+                    // is of the order of rounding squared; not testing that case keeps the
+                    // loop as it is, measured 0.4 % fewer instructions than with it)
                     let skip = Skip::shapes(leaving, emitter);
                     scene.aggregate.occluded_except(&shadow, t_max, skip)
                 }
