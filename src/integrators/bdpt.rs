@@ -429,7 +429,13 @@ impl Bdpt {
             ratio: f64::NAN,
             walk: f64::NAN,
         });
-        let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
+        let mut max = self.max_depth.map_or(usize::MAX, |d| d as usize + 2);
+        if let Weighting::Only { t, .. } = self.weighting {
+            // one strategy reads only the subpath's first t vertices (its own stream, so
+            // the vertices drawn are the same, and the last one's connection is the same:
+            // a BSDF is all delta lobes or none)
+            max = max.min(t as usize);
+        }
         let pdf = setup.camera_pdf(ray.d);
         self.walk(
             setup.scene,
@@ -495,7 +501,11 @@ impl Bdpt {
             ratio: f64::NAN,
             walk: f64::NAN,
         });
-        let max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
+        let mut max = self.max_depth.map_or(usize::MAX, |d| d as usize + 1);
+        if let Weighting::Only { s, .. } = self.weighting {
+            // one strategy reads only the subpath's first s vertices (as the camera's)
+            max = max.min(s as usize);
+        }
         // after y₀: L_e |cos θ₀|/(p_sel p_A p_ω) (Veach eq. 10.7)
         let beta = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
         self.walk(
