@@ -131,8 +131,8 @@ mod tests {
 
     #[test]
     fn a_segment_between_two_points_of_one_tilted_plane_can_cross_it() {
-        // why BDPT skips no shape when both ends of a connection lie on one plane: off
-        // exactly in-plane, `spawn_to` moves the two ends to opposite sides of it
+        // why BDPT skips no shape when both ends of a connection lie on one plane: unless the
+        // segment lies exactly in the plane, `spawn_to` moves its ends to opposite sides
         use crate::geometry::quad::Quad;
         use crate::geometry::{ray, Aggregate, Shape, Skip};
         use crate::math::Vec3;
