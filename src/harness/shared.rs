@@ -23,25 +23,64 @@ pub const MAX_STORED_PIXELS: usize = 1 << 18;
 /// computed for its check alone.
 pub const MAX_STORED_VALUES: usize = 1 << 20;
 
-/// One request's film once rendered (None while the first asker renders it, or after its
-/// render failed: the next asker renders it again).
-type Slot = Arc<Mutex<Option<Arc<Film>>>>;
+/// One request's value once made (None while the first asker makes it, or after it failed:
+/// the next asker makes it again).
+type Slot<T> = Arc<Mutex<Option<Arc<T>>>>;
 
-/// One request's closed-form values once computed (as [`Slot`]).
-type ValuesSlot = Arc<Mutex<Option<Arc<Vec<f64>>>>>;
+/// Values kept by request over a run, each made once: the first asker makes it while later
+/// ones wait for it, a failure is not kept, and a value that would take the units kept past
+/// `cap` is made for its asker alone.
+#[derive(Debug)]
+struct Kept<T> {
+    slots: Mutex<HashMap<String, Slot<T>>>,
+    /// Units (pixels, values) kept.
+    stored: Mutex<usize>,
+    cap: usize,
+}
+
+impl<T> Kept<T> {
+    fn new(cap: usize) -> Self {
+        Kept {
+            slots: Mutex::new(HashMap::new()),
+            stored: Mutex::new(0),
+            cap,
+        }
+    }
+
+    /// The value under `key`, from `make` the first time; `units` is what it takes of the cap.
+    fn get<E>(
+        &self,
+        key: String,
+        make: impl FnOnce() -> Result<T, E>,
+        units: impl FnOnce(&T) -> usize,
+    ) -> Result<Arc<T>, E> {
+        let slot = {
+            let mut slots = self.slots.lock().unwrap_or_else(PoisonError::into_inner);
+            slots.entry(key).or_default().clone()
+        };
+        let mut kept = slot.lock().unwrap_or_else(PoisonError::into_inner);
+        if let Some(v) = kept.as_ref() {
+            return Ok(v.clone());
+        }
+        let made = Arc::new(make()?);
+        let n = units(&made);
+        let mut stored = self.stored.lock().unwrap_or_else(PoisonError::into_inner);
+        if stored.saturating_add(n) <= self.cap {
+            *stored += n;
+            *kept = Some(made.clone());
+        }
+        Ok(made)
+    }
+}
 
 /// One run's store of shared reference images and closed-form values.
 #[derive(Debug)]
 pub struct SharedRenders {
     run_seed: u64,
-    /// By request.
-    films: Mutex<HashMap<String, Slot>>,
-    /// Pixels of the films kept.
-    stored: Mutex<usize>,
-    /// Closed-form values by request.
-    values: Mutex<HashMap<String, ValuesSlot>>,
-    /// Closed-form values kept.
-    stored_values: Mutex<usize>,
+    /// Films by request, counted in pixels.
+    films: Kept<Film>,
+    /// Closed-form values by request, counted in values.
+    values: Kept<Vec<f64>>,
 }
 
 impl SharedRenders {
@@ -49,10 +88,8 @@ impl SharedRenders {
     pub fn new(run_seed: u64) -> Self {
         SharedRenders {
             run_seed,
-            films: Mutex::new(HashMap::new()),
-            stored: Mutex::new(0),
-            values: Mutex::new(HashMap::new()),
-            stored_values: Mutex::new(0),
+            films: Kept::new(MAX_STORED_PIXELS),
+            values: Kept::new(MAX_STORED_VALUES),
         }
     }
 
@@ -66,25 +103,7 @@ impl SharedRenders {
         compute: impl FnOnce() -> Result<Vec<f64>, CheckError>,
     ) -> Result<Arc<Vec<f64>>, CheckError> {
         let key = format!("{request}\n{}", crate::render::scene_fingerprint(scene));
-        let slot = {
-            let mut values = self.values.lock().unwrap_or_else(PoisonError::into_inner);
-            values.entry(key).or_default().clone()
-        };
-        // the first asker computes while later ones wait for its values
-        let mut kept = slot.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(v) = kept.as_ref() {
-            return Ok(v.clone());
-        }
-        let computed = Arc::new(compute()?);
-        let mut stored = self
-            .stored_values
-            .lock()
-            .unwrap_or_else(PoisonError::into_inner);
-        if stored.saturating_add(computed.len()) <= MAX_STORED_VALUES {
-            *stored += computed.len();
-            *kept = Some(computed.clone());
-        }
-        Ok(computed)
+        self.values.get(key, compute, Vec::len)
     }
 
     /// `renderer`'s image of `scene` with `settings`, whose seed is replaced by one derived
@@ -103,22 +122,8 @@ impl SharedRenders {
             ..settings.clone()
         };
         let pixels = s.width.saturating_mul(s.height);
-        let slot = {
-            let mut films = self.films.lock().unwrap_or_else(PoisonError::into_inner);
-            films.entry(key).or_default().clone()
-        };
-        // the first asker renders while later ones wait for its film
-        let mut film = slot.lock().unwrap_or_else(PoisonError::into_inner);
-        if let Some(f) = film.as_ref() {
-            return Ok(f.clone());
-        }
-        let rendered = Arc::new(renderer.render(scene, &s)?);
-        let mut stored = self.stored.lock().unwrap_or_else(PoisonError::into_inner);
-        if stored.saturating_add(pixels) <= MAX_STORED_PIXELS {
-            *stored += pixels;
-            *film = Some(rendered.clone());
-        }
-        Ok(rendered)
+        self.films
+            .get(key, || renderer.render(scene, &s), |_| pixels)
     }
 
     /// The request's key and the seed it is rendered with.
@@ -188,14 +193,14 @@ mod tests {
         };
         let e = store.render(&BuiltIn, &scene, &more).unwrap();
         assert!(!Arc::ptr_eq(&a, &e));
-        assert_eq!(*store.stored.lock().unwrap(), 72);
+        assert_eq!(*store.films.stored.lock().unwrap(), 72);
     }
 
     #[test]
     fn past_the_cap_films_are_rendered_alone_and_failures_are_not_kept() {
         let scene = Scene::load(Path::new("scenes/cornell-box.toml")).unwrap();
         let store = SharedRenders::new(7);
-        *store.stored.lock().unwrap() = MAX_STORED_PIXELS - 10;
+        *store.films.stored.lock().unwrap() = MAX_STORED_PIXELS - 10;
         let a = store.render(&BuiltIn, &scene, &settings(1)).unwrap();
         let b = store.render(&BuiltIn, &scene, &settings(1)).unwrap();
         assert!(!Arc::ptr_eq(&a, &b), "kept past the cap");
@@ -236,7 +241,7 @@ mod tests {
             vec![1.0, 2.0]
         );
         // past the cap the values are computed for the asker alone
-        *store.stored_values.lock().unwrap() = MAX_STORED_VALUES - 1;
+        *store.values.stored.lock().unwrap() = MAX_STORED_VALUES - 1;
         let c = store.closed_form(&scene, "u", compute).unwrap();
         let d = store.closed_form(&scene, "u", compute).unwrap();
         assert!(!Arc::ptr_eq(&c, &d));
