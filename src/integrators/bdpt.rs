@@ -9,7 +9,7 @@
 
 use crate::camera::Camera;
 use crate::geometry::{ray, Ray, Skip, SurfacePoint};
-use crate::integrators::light::{emitted_ray, Emission, PinholeSensor, Sensor};
+use crate::integrators::light::{emitted_plane, emitted_ray, Emission, PinholeSensor, Sensor};
 use crate::integrators::ReflectanceCache;
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
@@ -478,12 +478,7 @@ impl Bdpt {
         // the light's spectrum at `wl`: Emission::sample returns only a non-black emission,
         // which is that spectrum (area_radiance passes it through on the emitting side)
         let le = es.emitted;
-        // a ray from a point on a planar emitter leaves its plane
-        let plane = if es.delta_position {
-            None
-        } else {
-            super::emitter_plane(scene, light)
-        };
+        let plane = emitted_plane(scene, light, &es);
         path.push(Vertex {
             on: On::Light {
                 light: index,

@@ -166,6 +166,20 @@ pub fn emitted_ray(es: &crate::lights::EmissionSample) -> Ray {
     }
 }
 
+/// The planar shape [`emitted_ray`] leaves, which it cannot meet ([`super::planar`]): a planar
+/// area light's; None for a ray from a point light's position.
+pub fn emitted_plane(
+    scene: &Scene,
+    light: &Light,
+    es: &crate::lights::EmissionSample,
+) -> Option<u32> {
+    if es.delta_position {
+        None
+    } else {
+        super::emitter_plane(scene, light)
+    }
+}
+
 impl LightTracer {
     /// Traces one light path at wavelengths `wl` and appends its contributions to `splats`
     /// (unordered; several may land in one pixel). Environment light enters through the disk
@@ -225,12 +239,7 @@ impl LightTracer {
         let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
         let mut beta = SampledSpectrum::ONE;
         let mut ray = emitted_ray(&es);
-        // the planar shape `ray` leaves (see super::planar)
-        let mut leaving = if es.delta_position {
-            None
-        } else {
-            super::emitter_plane(scene, light)
-        };
+        let mut leaving = emitted_plane(scene, light, &es);
         let mut reflectance = ReflectanceCache::default();
         // Index of the vertex the ray is about to reach = bounces its camera connection counts.
         let mut k: u32 = 1;

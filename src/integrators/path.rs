@@ -125,12 +125,7 @@ impl PathTracer {
                 Some(target) => {
                     let (shadow, t_max) = ray::spawn_to(at, target);
                     // a planar emitter cannot shadow a point on itself
-                    let emitter = match light {
-                        Light::Area { shape, .. } if shapes[*shape as usize].is_planar() => {
-                            Some(*shape)
-                        }
-                        _ => None,
-                    };
+                    let emitter = super::emitter_plane(scene, light);
                     // (a point on the planar emitter itself skips it too: the segment then
                     // joins two points of one plane and may cross it (see super::planar), but
                     // its geometry term is zero up to rounding, so what the skip lets through

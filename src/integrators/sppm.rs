@@ -8,7 +8,7 @@
 //! variance both vanish as iterations grow. This file holds the two path kinds; the iteration
 //! loop, the visible-point grid and the film are in render::sppm.
 
-use super::light::{emitted_ray, Emission};
+use super::light::{emitted_plane, emitted_ray, Emission};
 use crate::geometry::{ray, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
@@ -224,12 +224,7 @@ pub fn trace_photon(
     let power = es.emitted * (es.cos_theta / (select_pdf * es.pdf_pos * es.pdf_dir));
     let mut beta = SampledSpectrum::ONE;
     let mut ray = emitted_ray(&es);
-    // the planar shape `ray` leaves (see super::planar)
-    let mut leaving = if es.delta_position {
-        None
-    } else {
-        super::emitter_plane(scene, light)
-    };
+    let mut leaving = emitted_plane(scene, light, &es);
     let mut bounces: u32 = 0;
     while let Some(hit) =
         scene
