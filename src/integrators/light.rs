@@ -168,7 +168,7 @@ pub fn emitted_ray(es: &crate::lights::EmissionSample) -> Ray {
 
 /// The planar shape [`emitted_ray`] leaves, which it cannot meet ([`super::planar`]): a planar
 /// area light's; None for a ray from a point light's position.
-pub fn emitted_plane(
+pub(crate) fn emitted_plane(
     scene: &Scene,
     light: &Light,
     es: &crate::lights::EmissionSample,
