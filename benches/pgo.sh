@@ -23,7 +23,7 @@ profdata=$(rustc --print sysroot)/lib/rustlib/$host/bin/llvm-profdata
     exit 2
 }
 # RUSTFLAGS replaces .cargo/config.toml's flags, so the CPU target is repeated here.
-base=${RUSTFLAGS:--C target-cpu=native}
+base=${RUSTFLAGS:--C target-cpu=native -C target-feature=-avx512f}
 # the sources the two builds compile: a profile trained on one tree and used on another
 # loses every changed function's counts (rustc's hash-mismatch warnings), so an edit while
 # this runs stops it instead of writing a build that is not the tree's profile-guided one
