@@ -91,7 +91,12 @@ impl TriangleMesh {
 
     /// True when every vertex lies on the plane of the first triangle, to 1e-12 of the mesh's
     /// extent (the rounding of its coordinates). A segment ending on such a mesh from a point
-    /// off its plane meets the plane only at that end, so the mesh cannot shadow it.
+    /// off its plane meets the plane only at that end, so the mesh cannot shadow it. The
+    /// integrators also skip the mesh for a ray leaving it, whose origin moves off the plane
+    /// by only a few ulps: a triangle raised by up to the tolerance could still catch such a
+    /// ray, if it runs so close to the plane that it has climbed less than the tolerance when
+    /// it reaches that triangle, and the skip treats that grazing ray as leaving the plane the
+    /// mesh stands for.
     pub fn is_planar(&self) -> bool {
         self.planar
     }
