@@ -50,6 +50,16 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 REPO = os.path.normpath(os.path.join(HERE, "..", ".."))
 
 
+def furnace_build(binary):
+    """What `furnace --version` says of a binary: its version and the vector code it was built
+    for (a build may leave out extensions the CPU has, as the default build does AVX-512)."""
+    try:
+        out = subprocess.run([binary, "--version"], capture_output=True, text=True, timeout=30)
+    except OSError as e:
+        return f"unknown ({e})"
+    return out.stdout.strip() or f"unknown (exit {out.returncode})"
+
+
 def cpu_description():
     """The CPU as the kernel reports it: model name, family/model/stepping and the vector
     extensions that decide how wide Mitsuba's LLVM back end and furnace's native build go."""
@@ -249,9 +259,12 @@ def main(argv=None):
               "reference": None if speed_only else os.path.relpath(args.reference, REPO),
               "reference_mean_variance": None if speed_only else ref_noise,
               "furnace_binaries": {k: os.path.relpath(v, REPO) for k, v in furnaces.items()},
+              "furnace_builds": {k: furnace_build(v) for k, v in furnaces.items()},
               "mitsuba": mi.__version__, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
     base = None
     print(f"CPU: {cpu_description()}")
+    for k, v in result["furnace_builds"].items():
+        print(f"{k}: {v}")
     print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, roulette from bounce "
           f"{5 if args.rr_depth is None else args.rr_depth}, {args.threads} threads, "
           f"median of {args.reps} alternating runs; "

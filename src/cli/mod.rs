@@ -21,7 +21,7 @@ use std::path::{Path, PathBuf};
 
 /// furnace: a predictive-rendering validation harness and spectral reference renderer.
 #[derive(Debug, Parser)]
-#[command(name = "furnace", version, about)]
+#[command(name = "furnace", version, long_version = long_version(), about)]
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -31,6 +31,36 @@ pub struct Cli {
     /// Print nothing on stdout (no check lines, summaries or progress bars); errors and warnings still go to stderr and the exit code still tells. `check --format json` keeps its JSON lines.
     #[arg(short, long, global = true)]
     quiet: bool,
+}
+
+/// `--version`'s text: the version, then the architecture and the vector extensions this binary
+/// was compiled to use (they set its speed, not its numbers: see docs/performance.md, "The
+/// default build targets the building machine's CPU"), so that a timing can name its build.
+fn long_version() -> &'static str {
+    static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    TEXT.get_or_init(|| {
+        let vector: Vec<&str> = [
+            ("sse4.2", cfg!(target_feature = "sse4.2")),
+            ("avx", cfg!(target_feature = "avx")),
+            ("avx2", cfg!(target_feature = "avx2")),
+            ("fma", cfg!(target_feature = "fma")),
+            ("avx512f", cfg!(target_feature = "avx512f")),
+            ("neon", cfg!(target_feature = "neon")),
+        ]
+        .into_iter()
+        .filter_map(|(name, on)| on.then_some(name))
+        .collect();
+        format!(
+            "{} ({}, vector code: {})",
+            env!("CARGO_PKG_VERSION"),
+            std::env::consts::ARCH,
+            if vector.is_empty() {
+                "none beyond the baseline".to_string()
+            } else {
+                vector.join(" ")
+            }
+        )
+    })
 }
 
 /// Whether `--quiet` was given, set once before any command runs.

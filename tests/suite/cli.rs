@@ -10,6 +10,29 @@ fn furnace() -> Command {
 }
 
 #[test]
+fn version_names_the_vector_code_the_binary_was_built_for() {
+    let out = furnace().arg("--version").output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(text.starts_with("furnace "), "{text}");
+    assert!(text.contains(std::env::consts::ARCH), "{text}");
+    // the tests are built with the binary's flags, so they agree on its features
+    let avx2 = text.contains(" avx2");
+    assert_eq!(avx2, cfg!(target_feature = "avx2"), "{text}");
+    assert_eq!(
+        text.contains("avx512f"),
+        cfg!(target_feature = "avx512f"),
+        "{text}"
+    );
+    // `-V` stays the short form
+    let short = furnace().arg("-V").output().unwrap();
+    assert_eq!(
+        String::from_utf8(short.stdout).unwrap().trim(),
+        format!("furnace {}", env!("CARGO_PKG_VERSION"))
+    );
+}
+
+#[test]
 fn render_help_documents_every_option() {
     let out = furnace().args(["render", "--help"]).output().unwrap();
     assert!(out.status.success());
