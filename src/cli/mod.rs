@@ -39,26 +39,11 @@ pub struct Cli {
 fn long_version() -> &'static str {
     static TEXT: std::sync::OnceLock<String> = std::sync::OnceLock::new();
     TEXT.get_or_init(|| {
-        let vector: Vec<&str> = [
-            ("sse4.2", cfg!(target_feature = "sse4.2")),
-            ("avx", cfg!(target_feature = "avx")),
-            ("avx2", cfg!(target_feature = "avx2")),
-            ("fma", cfg!(target_feature = "fma")),
-            ("avx512f", cfg!(target_feature = "avx512f")),
-            ("neon", cfg!(target_feature = "neon")),
-        ]
-        .into_iter()
-        .filter_map(|(name, on)| on.then_some(name))
-        .collect();
         format!(
             "{} ({}, vector code: {})",
             env!("CARGO_PKG_VERSION"),
             std::env::consts::ARCH,
-            if vector.is_empty() {
-                "none beyond the baseline".to_string()
-            } else {
-                vector.join(" ")
-            }
+            furnace::harness::machine::vector_code()
         )
     })
 }

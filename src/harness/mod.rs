@@ -2,7 +2,7 @@
 //! judge, and the runner that applies the family-wise error correction.
 //!
 //! Rooms, each using only those listed before it (`tests/suite/layering.rs` enforces it):
-//! `names`, `outcome`, `error` → `measurement`, `shard` → `renderer` → `under_test`, `shared` → `context`, `keys` → `kind` →
+//! `names`, `outcome`, `error`, `machine` → `measurement`, `shard` → `renderer` → `under_test`, `shared` → `context`, `keys` → `kind` →
 //! `model/`,
 //! `closed_form/`, `region`, `compare`, `adapter`, `ladder` → `looks` → `checks/` (one file per kind) →
 //! `registry` → `manifest` → `isolation`, `budget` → `runner`.
@@ -19,6 +19,7 @@ pub mod keys;
 pub mod kind;
 pub mod ladder;
 pub mod looks;
+pub mod machine;
 pub mod manifest;
 pub mod measurement;
 pub mod model;

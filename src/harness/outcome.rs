@@ -196,6 +196,11 @@ pub struct RunReport {
     /// Total wall time, seconds.
     #[serde(deserialize_with = "nan_if_null")]
     pub seconds: f64,
+    /// Where `seconds` was measured: the CPU and the vector code furnace was built for
+    /// ([`crate::harness::machine::description`]); empty when not recorded (runs before
+    /// 2026-12-07).
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub machine: String,
     /// Set when this run is one shard of a suite (`furnace check --shard K/N`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub shard: Option<ShardInfo>,

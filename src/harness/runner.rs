@@ -177,6 +177,7 @@ pub fn run_with(
         power: opts.power,
         outcomes,
         seconds: start.elapsed().as_secs_f64(),
+        machine: crate::harness::machine::description(),
         shard: opts.shard.as_ref().map(|p| ShardInfo {
             index: p.shard.index,
             count: p.shard.count,

@@ -216,14 +216,53 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
         outcomes,
         // the jobs ran side by side: the run took as long as its longest shard
         seconds: parts.iter().map(|(_, r)| r.seconds).fold(0.0, f64::max),
+        machine: machines(parts),
         shard: None,
         ..first.clone()
     })
 }
 
+/// The distinct machines the shards ran on, in shard order, joined by " | " (the jobs of a CI
+/// matrix may land on different CPUs; a shard without a record adds nothing).
+fn machines(parts: &[(String, RunReport)]) -> String {
+    let mut seen: Vec<&str> = Vec::new();
+    for (_, r) in parts {
+        if !r.machine.is_empty() && !seen.contains(&r.machine.as_str()) {
+            seen.push(&r.machine);
+        }
+    }
+    seen.join(" | ")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_merge_names_each_distinct_machine_once_in_shard_order() {
+        let run = |machine: &str| RunReport {
+            furnace_version: "0.1.0".into(),
+            renderer: "furnace 0.1.0".into(),
+            manifests: vec![],
+            seed: 1,
+            family_alpha: 0.01,
+            correction: "sidak".into(),
+            stochastic_tests: 0,
+            looks: String::new(),
+            power: None,
+            outcomes: vec![],
+            seconds: 1.0,
+            machine: machine.into(),
+            shard: None,
+        };
+        let parts: Vec<(String, RunReport)> = ["B", "", "A", "B"]
+            .iter()
+            .map(|m| (format!("{m}.json"), run(m)))
+            .collect();
+        assert_eq!(machines(&parts), "B | A");
+        assert_eq!(machines(&parts[1..2]), "");
+        assert_eq!(machines(&parts[..1]), "B");
+    }
 
     #[test]
     fn specs_parse_and_bad_ones_are_named() {

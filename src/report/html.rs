@@ -330,6 +330,9 @@ fn run_table(run: &Value) -> Markup {
             "; family-wise false-alarm rate " (num(&run["family_alpha"]))
             " (" (run["correction"].as_str().unwrap_or("")) ", " (num(&run["stochastic_tests"]))
             " stochastic tests); renderer " (renderer)
+            @if let Some(machine) = run["machine"].as_str().filter(|m| !m.is_empty()) {
+                "; times measured on " (machine)
+            }
         }
         table {
             tr {

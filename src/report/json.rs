@@ -35,6 +35,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `power` | number (absent without `--power`) | relative | The power target δ that set every budgeted check's spp: the relative bias each detects with 95 % probability. |
 | `outcomes` | array of outcome | — | One object per check, in run order (below). |
 | `seconds` | number or null | s | Total wall time of the run. |
+| `machine` | string (absent in files written before 2026-12-07) | — | Where the times were measured: the CPU as the kernel names it (model, x86 family/model/stepping), the logical CPUs the run could use, and the vector extensions this furnace binary was compiled for (the default build leaves out AVX-512 even where the CPU has it). A merged run lists each distinct machine of its shards. |
 | `shard` | object (absent unless sharded) | — | Set by `furnace check --shard K/N`: `index` (K), `count` (N) and `suite` (every check name of the whole suite, in run order), which `furnace merge` uses to check that its inputs make one run. A merged run has no `shard` and its `seconds` is the longest shard's. |
 
 ### Outcome
@@ -170,6 +171,7 @@ mod tests {
             "stochastic_tests",
             "outcomes",
             "seconds",
+            "machine",
         ];
         assert_eq!(run.len(), expected_run_keys.len());
         let mut keys: Vec<&str> = run.keys().map(String::as_str).collect();

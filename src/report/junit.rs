@@ -36,6 +36,9 @@ pub fn to_junit(r: &RunReport) -> Result<String, quick_junit::SerializeError> {
     property("family_alpha", &text::sig(r.family_alpha, 6, true));
     property("correction", &r.correction);
     property("stochastic_tests", &r.stochastic_tests.to_string());
+    if !r.machine.is_empty() {
+        property("machine", &r.machine);
+    }
     suite.add_test_cases(r.outcomes.iter().map(testcase));
     let mut report = Report::new("furnace");
     report.set_time(duration(r.seconds));
@@ -463,6 +466,7 @@ mod tests {
             power: None,
             outcomes,
             seconds: f64::NEG_INFINITY,
+            machine: "\u{7}<cpu>".into(),
             shard: None,
         };
         let p = parse(&to_junit(&r).unwrap());

@@ -133,6 +133,7 @@ pub(crate) mod fixture {
                 skipped(),
             ],
             seconds: 5.2013,
+            machine: "Test CPU (family 1 model 2 stepping 3), 2 logical CPUs; furnace built for x86_64 with sse4.2 avx avx2 fma".into(),
             shard: None,
         }
     }

@@ -278,6 +278,9 @@ pub fn summary(r: &RunReport) -> String {
         seconds(r.seconds),
         r.seed
     ));
+    if !r.machine.is_empty() {
+        lines.push(format!("machine: {}", one_line(&r.machine)));
+    }
     if t.unstable + t.errors > 0 {
         lines.push(format!(
             "(of the failures: {} unstable, {} {})",

@@ -129,7 +129,7 @@ fn third_party_crates_stay_in_their_homes() {
 /// rooms of a lower layer, so the harness has no import circle; check kinds (`checks/`) do not
 /// use each other.
 const HARNESS_LAYERS: [&[&str]; 13] = [
-    &["names", "outcome", "error"],
+    &["names", "outcome", "error", "machine"],
     &["measurement", "shard"],
     &["renderer"],
     &["under_test", "shared"],
@@ -287,7 +287,7 @@ fn the_design_page_draws_the_harness_layers_as_enforced() {
     // of HARNESS_LAYERS, layer by layer, so that a newcomer reads the order this file checks.
     let design = std::fs::read_to_string(root("docs/design.md")).unwrap();
     let start = design
-        .find("{names, outcome, error}")
+        .find("{names, outcome, error, machine}")
         .expect("docs/design.md draws the harness's layers");
     let end = start + design[start..].find("```").unwrap();
     let drawn: Vec<Vec<String>> = design[start..end]
