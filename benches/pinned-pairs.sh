@@ -2,9 +2,9 @@
 # Two furnace builds rendering the same scene at the same time, pinned to CPUs 0 and 1 and
 # swapped each round: on a noisy 2-vCPU VM both runs of a round see the same host, so their
 # ratio spreads far less than that of runs one after the other. Prints each round's whole-process
-# times and B/A, then the geometric mean of B/A with its 95 % t interval; the two images are
-# compared bit for bit. Needs taskset (util-linux) and at least 2 CPUs; runs of a few seconds
-# each resolve a few per cent.
+# times and B/A (after the CPU and both builds' `furnace --version`), then the geometric mean
+# of B/A with its 95 % t interval; the two images are compared bit for bit. Needs taskset
+# (util-linux) and at least 2 CPUs; runs of a few seconds each resolve a few per cent.
 #
 #   benches/pinned-pairs.sh A B SCENE ROUNDS [render options...]
 #   benches/pinned-pairs.sh /tmp/furnace-before target/release/furnace scenes/cornell-box.toml 10 \
@@ -23,6 +23,12 @@ run() { # binary cpu tag
     e=$(date +%s.%N)
     echo "$s $e" >"$tmp/$3.t"
 }
+# the machine and the builds, so that the figures below can be quoted with them
+cpu=$(awk -F': ' '/^model name/ {m = $2} /^cpu family/ {f = $2} /^model\t/ {n = $2}
+    /^$/ {exit} END {printf "%s (family %s model %s)", m, f, n}' /proc/cpuinfo 2>/dev/null || true)
+echo "CPU: ${cpu:-unknown}, $(nproc) logical CPUs"
+echo "A: $a: $("$a" --version 2>/dev/null || echo '?')"
+echo "B: $b: $("$b" --version 2>/dev/null || echo '?')"
 echo "round A_seconds B_seconds B/A"
 for i in $(seq "$rounds"); do
     ca=$(((i + 1) % 2)) cb=$((i % 2))
