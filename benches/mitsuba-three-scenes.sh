@@ -10,6 +10,8 @@
 #
 # With PGO=1, benches/pgo.sh's profile-guided build (built first when missing) goes first and
 # the default build runs beside it as furnace:default, so both compare with Mitsuba in one run.
+# With LLVM_AVX2=1, Mitsuba's LLVM variant also runs with its JIT limited to AVX2 (bench.py
+# --llvm-avx2): on a CPU with AVX-512, the same core with only Mitsuba's vector width changed.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 out=${1:?output prefix, e.g. reports/bench-mitsuba-three}
@@ -24,6 +26,7 @@ if [ "${PGO:-0}" = 1 ]; then
         --furnace-also furnace:default=target/release/furnace)
 fi
 python3 benches/cornell-mesh/make.py
+if [ "${LLVM_AVX2:-0}" = 1 ]; then builds+=(--llvm-avx2); fi
 bench() { python3 reference/mitsuba/bench.py --reps "$reps" --variants llvm_ad_spectral "${builds[@]}" "$@"; }
 bench --spp 256 --json "$out-cornell.json"
 bench --spp 256 --scene scenes/cornell-glossy.toml --reference reference/mitsuba/cornell-glossy.exr \

@@ -32,10 +32,18 @@ A profile-guided build (benches/pgo.sh) goes first, with the default build besid
 With `--reference none --size 256x256 --max-depth 5` it measures speed only (no error, so no
 time to equal error), at any size and depth: the issue's setting is 256x256, Mitsuba max_depth 6.
 
+With --llvm-avx2, each LLVM variant also runs with its JIT limited to AVX2 (8 lanes of f32
+instead of AVX-512's 16; the same CPU model for tuning, every AVX-512 feature off), in a worker
+process (Dr.Jit takes one target per process), in the same alternation, reported as
+'mitsuba3:VARIANT:avx2': the same core with only the vector width changed. It sets the target
+through Dr.Jit's C++ entry point jit_llvm_set_target (drjit-core as shipped with Mitsuba
+3.9.1), since Python does not expose it.
+
 Writes the results as JSON (--json) and prints a table.
 """
 
 import argparse
+import ctypes
 import json
 import os
 import platform
@@ -80,6 +88,70 @@ def cpu_description():
             f"{os.cpu_count()} logical CPUs, vector: {' '.join(vector) or 'none'}")
 
 
+class LlvmJit:
+    """Dr.Jit's LLVM back end's target: which CPU and vector width its kernels are compiled
+    for. drjit-core's C++ functions (Itanium-mangled names, as in the 3.9.1 wheel):
+    jit_llvm_target_cpu(), jit_llvm_target_features(), jit_llvm_vector_width() and
+    jit_llvm_set_target(cpu, features, width)."""
+
+    def __init__(self, dr):
+        path = os.path.join(os.path.dirname(dr.__file__), "libdrjit-core.so")
+        try:
+            lib = ctypes.CDLL(path)
+            self._cpu = lib._Z19jit_llvm_target_cpuv
+            self._features = lib._Z24jit_llvm_target_featuresv
+            self._width = lib._Z21jit_llvm_vector_widthv
+            self._set = lib._Z19jit_llvm_set_targetPKcS0_j
+        except (OSError, AttributeError) as e:
+            raise RuntimeError(f"this Dr.Jit ({path}) does not expose its LLVM target the way "
+                               f"drjit-core 3.9.1 does ({e}); --llvm-avx2 needs Mitsuba 3.9.1") from e
+        self._cpu.restype = ctypes.c_char_p
+        self._features.restype = ctypes.c_char_p
+        self._width.restype = ctypes.c_uint32
+        self._set.argtypes = [ctypes.c_char_p, ctypes.c_char_p, ctypes.c_uint32]
+
+    def describe(self):
+        """The target as 'cpu, N lanes' (after the back end has started: set_variant)."""
+        return f"{self._cpu().decode()}, {self._width()} lanes"
+
+    def limit_to_avx2(self):
+        """The same CPU model (for scheduling), every AVX-512 feature off, 8 lanes. Before the
+        first kernel: Dr.Jit does not take a second target in one process."""
+        features = ",".join("-" + f[1:] if f.startswith("+avx512") or f == "+evex512" else f
+                            for f in self._features().decode().split(","))
+        self._set(self._cpu(), features.encode(), 8)
+
+
+def llvm_worker(argv):
+    """A worker rendering one LLVM variant with its JIT limited to AVX2 (see --llvm-avx2):
+    argv = variant, scene XML, spp, width, height, Mitsuba max_depth, threads. Prints its
+    target, then for each line 'seed path' on stdin renders, saves the image (numpy .npy) to
+    path and prints the render's seconds."""
+    import drjit as dr
+    import mitsuba as mi
+    import numpy as np
+    variant, xml, spp, width, height, max_depth, threads = argv
+    spp, width, height, max_depth, threads = map(int, (spp, width, height, max_depth, threads))
+    mi.set_variant(variant)
+    jit = LlvmJit(dr)
+    jit.limit_to_avx2()
+    dr.set_thread_count(threads)
+    scene = mi.load_file(xml, spp=spp, width=width, height=height, max_depth=max_depth)
+    dr.eval(mi.render(scene, spp=spp, seed=999))  # warm-up (JIT)
+    dr.sync_thread()
+    print(jit.describe(), flush=True)
+    for line in sys.stdin:
+        seed, path = line.split(" ", 1)
+        t0 = time.perf_counter()
+        img = mi.render(scene, spp=spp, seed=int(seed))
+        dr.eval(img)
+        dr.sync_thread()
+        secs = time.perf_counter() - t0
+        np.save(path.strip(), np.array(img))
+        print(secs, flush=True)
+    return 0
+
+
 def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     p.add_argument("--scene", default=os.path.join(REPO, "scenes", "cornell-box.toml"))
@@ -109,6 +181,10 @@ def parse_args(argv=None):
                    help="a second furnace binary built for baseline x86-64 (RUSTFLAGS='-C target-cpu=x86-64'; "
                         "the default build targets the building CPU, see .cargo/config.toml), run in the same "
                         "alternation and reported as 'furnace:portable'")
+    p.add_argument("--llvm-avx2", action="store_true",
+                   help="also run each llvm_* variant with its JIT limited to AVX2 (8 lanes), in a worker "
+                        "process, reported as 'mitsuba3:VARIANT:avx2' (on a CPU with AVX-512: the same core "
+                        "with only the vector width changed)")
     p.add_argument("--json", default=None, help="write the results here")
     return p.parse_args(argv)
 
@@ -202,14 +278,37 @@ def main(argv=None):
     rows = {name: [] for name in furnaces}
     for v in variants:
         rows[f"mitsuba3:{v}"] = []
+    mitsuba_depth = -1 if args.max_depth < 0 else args.max_depth + 1
     scenes = {}
+    targets = {}
     for v in variants:
         mi.set_variant(v)
         dr.set_thread_count(args.threads)
-        scenes[v] = mi.load_file(xml, spp=args.spp, width=width, height=height,
-                                 max_depth=-1 if args.max_depth < 0 else args.max_depth + 1)
+        scenes[v] = mi.load_file(xml, spp=args.spp, width=width, height=height, max_depth=mitsuba_depth)
         dr.eval(mi.render(scenes[v], spp=args.spp, seed=999))  # warm-up (JIT for llvm variants)
         dr.sync_thread()
+        if v.startswith("llvm"):
+            try:
+                targets[f"mitsuba3:{v}"] = LlvmJit(dr).describe()
+            except RuntimeError as e:
+                targets[f"mitsuba3:{v}"] = f"unknown ({e})"
+    workers = {}
+    if args.llvm_avx2:
+        for v in variants:
+            if not v.startswith("llvm"):
+                continue
+            name = f"mitsuba3:{v}:avx2"
+            w = subprocess.Popen([sys.executable, os.path.abspath(__file__), "--llvm-worker", v, xml,
+                                  str(args.spp), str(width), str(height), str(mitsuba_depth), str(args.threads)],
+                                 stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+            ready = w.stdout.readline().strip()
+            if not ready:
+                sys.exit(f"the AVX2 worker for {v} stopped before its first render (exit {w.wait()})")
+            targets[name] = ready
+            workers[name] = w
+            rows[name] = []
+        if not workers:
+            sys.exit("--llvm-avx2 needs an llvm_* variant in --variants")
 
     # relMSE (x - r)^2 / (r^2 + eps), eps = 0.01 (Rousselle et al. 2011): bright emitter pixels
     # would otherwise dominate MSE with a few heavy-tailed values. The reference's own variance
@@ -252,6 +351,17 @@ def main(argv=None):
             dr.sync_thread()  # LLVM variants launch kernels asynchronously
             secs = time.perf_counter() - t0
             rows[f"mitsuba3:{v}"].append((secs, mse(None if speed_only else np.array(img))))
+        for name, w in workers.items():
+            path = os.path.join(tmp, f"{name.replace(':', '-')}-{rep}.npy")
+            w.stdin.write(f"{100 + rep} {path}\n")
+            w.stdin.flush()
+            answer = w.stdout.readline().strip()
+            if not answer:
+                sys.exit(f"the worker {name} stopped (exit {w.wait()})")
+            rows[name].append((float(answer), mse(None if speed_only else np.load(path))))
+    for w in workers.values():
+        w.stdin.close()
+        w.wait()
 
     result = {"scene": os.path.relpath(args.scene, REPO), "width": width, "height": height, "spp": args.spp,
               "max_depth_bounces": args.max_depth, "rr_depth": 5 if args.rr_depth is None else args.rr_depth,
@@ -260,19 +370,21 @@ def main(argv=None):
               "reference_mean_variance": None if speed_only else ref_noise,
               "furnace_binaries": {k: os.path.relpath(v, REPO) for k, v in furnaces.items()},
               "furnace_builds": {k: furnace_build(v) for k, v in furnaces.items()},
-              "mitsuba": mi.__version__, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
+              "mitsuba": mi.__version__, "llvm_targets": targets, "platform": platform.platform(), "cpu": cpu_description(), "renderers": {}}
     base = None
     print(f"CPU: {cpu_description()}")
     for k, v in result["furnace_builds"].items():
         print(f"{k}: {v}")
+    for k, v in targets.items():
+        print(f"{k}: JIT target {v}")
     print(f"{width}x{height}, {args.spp} spp, {args.max_depth} bounces, roulette from bounce "
           f"{5 if args.rr_depth is None else args.rr_depth}, {args.threads} threads, "
           f"median of {args.reps} alternating runs; "
           + ("speed only (no reference)" if speed_only else f"error against {result['reference']}"))
     if speed_only:
-        print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'speed vs furnace':>17}")
+        print(f"{'renderer':<32} {'time s':>8} {'M samples/s':>12} {'speed vs furnace':>17}")
     else:
-        print(f"{'renderer':<28} {'time s':>8} {'M samples/s':>12} {'relMSE':>11} {'1/(relMSE t)':>12} {'time to equal error':>20}")
+        print(f"{'renderer':<32} {'time s':>8} {'M samples/s':>12} {'relMSE':>11} {'1/(relMSE t)':>12} {'time to equal error':>20}")
     for name, runs in rows.items():
         t = statistics.median(x[0] for x in runs)
         if base is None:
@@ -292,9 +404,9 @@ def main(argv=None):
                                          "median_rel_mse": m, "efficiency": eff,
                                          "time_to_equal_error_vs_furnace": rel, "runs": runs}
         if speed_only:
-            print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {base[0] / t:>16.3f}x")
+            print(f"{name:<32} {t:>8.3f} {samples / t / 1e6:>12.3f} {base[0] / t:>16.3f}x")
         else:
-            print(f"{name:<28} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
+            print(f"{name:<32} {t:>8.3f} {samples / t / 1e6:>12.3f} {m:>11.4e} {eff:>12.4e} {rel:>19.3f}x")
     # Paired comparisons with furnace (the first renderer): time per repetition, and for the
     # time to equal error relMSE x time per repetition.
     first = next(iter(rows))
@@ -306,7 +418,7 @@ def main(argv=None):
         speed = paired_ratio([x[0] for x in base], [x[0] for x in runs])
         entry = result["renderers"][name]
         entry["paired_time_ratio_vs_furnace"] = speed
-        line = f"  {name:<26} time / furnace's "
+        line = f"  {name:<30} time / furnace's "
         line += "n/a" if speed is None else f"{speed['ratio']:.3f} [{speed['ci95'][0]:.3f}, {speed['ci95'][1]:.3f}]"
         if not speed_only:
             eq = paired_ratio([x[0] * x[1] for x in base], [x[0] * x[1] for x in runs])
@@ -322,4 +434,6 @@ def main(argv=None):
 
 
 if __name__ == "__main__":
+    if sys.argv[1:2] == ["--llvm-worker"]:
+        sys.exit(llvm_worker(sys.argv[2:]))
     sys.exit(main())
