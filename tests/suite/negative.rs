@@ -127,6 +127,48 @@ impl Renderer for OffByOneDepth {
     }
 }
 
+/// A renderer that ignores participating media: every medium rendered as vacuum (σa = σs = 0),
+/// its boundaries kept.
+struct MediaIgnored;
+impl Renderer for MediaIgnored {
+    fn name(&self) -> String {
+        "media ignored".into()
+    }
+    fn render(
+        &self,
+        scene: &Scene,
+        s: &RenderSettings,
+    ) -> Result<Film, furnace::harness::RendererError> {
+        let mut vacuum = scene.clone();
+        for m in &mut vacuum.media {
+            m.sigma_a = m.sigma_a.scaled(0.0);
+            m.sigma_s = m.sigma_s.scaled(0.0);
+        }
+        BuiltIn.render(&vacuum, s)
+    }
+}
+
+#[test]
+fn checks_that_depend_on_sigma_reject_a_renderer_that_ignores_media() {
+    let m = "tests/manifests/media.toml";
+    assert_rejected(m, "media/transmittance[sigma=1]", &MediaIgnored);
+    assert_rejected(m, "scale/absorber", &MediaIgnored);
+}
+
+/// What the media furnaces cannot see (tests/manifests/media.toml says so): in a lossless
+/// medium under a uniform environment the reading is the same with or without the medium.
+#[test]
+fn the_media_furnace_cannot_see_a_renderer_that_ignores_lossless_media() {
+    let m = "tests/manifests/media.toml";
+    assert_all(
+        m,
+        "media/furnace-glass[sigma=1]",
+        &MediaIgnored,
+        Verdict::Pass,
+    );
+    assert_all(m, "scale/medium-furnace", &MediaIgnored, Verdict::Pass);
+}
+
 /// Radiance that falls off with the square of the camera's distance to its look-at point.
 struct InverseSquareCamera;
 impl Renderer for InverseSquareCamera {

@@ -1,9 +1,11 @@
 //! Scale invariance: an analytic scene scaled by s and translated by t must give its closed
 //! form (recomputed for the transformed scene) at every s and t; ray-offset policies tuned for
-//! unit scenes fail this at 1e-4 or 1e5 scale or far from the origin.
+//! unit scenes fail this at 1e-4 or 1e5 scale or far from the origin, and medium distances
+//! computed imprecisely there fail the transmittance closed form.
 
 use crate::harness::closed_form::furnace::{expectation as furnace_expectation, validate_view};
 use crate::harness::closed_form::lambert::expectation as lambert_expectation;
+use crate::harness::closed_form::transmittance::expectation as transmittance_expectation;
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::combine;
 use crate::harness::region::{
@@ -21,6 +23,8 @@ pub enum Of {
     Furnace,
     /// Lambert's law, direct light only.
     Lambert,
+    /// Beer–Lambert transmittance through absorbing media, emission only.
+    Transmittance,
 }
 
 /// Parameters of a scale-invariance check.
@@ -44,7 +48,7 @@ impl Kind for ScaleInvariance {
         common::SCENE,
         Key {
             name: "of",
-            ty: "\"furnace\" or \"lambert\"",
+            ty: "\"furnace\", \"lambert\" or \"transmittance\"",
             default: "required",
             doc: "the closed form re-checked at every scale and offset",
         },
@@ -74,22 +78,29 @@ impl Kind for ScaleInvariance {
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
         let of = match k.get::<String>("of")? {
             None => {
-                return Err(k.error_at("of", "missing; allowed: \"furnace\", \"lambert\"".into()))
+                return Err(k.error_at(
+                    "of",
+                    "missing; allowed: \"furnace\", \"lambert\", \"transmittance\"".into(),
+                ))
             }
             Some(o) => match o.get_ref().as_str() {
                 "furnace" => Of::Furnace,
                 "lambert" => Of::Lambert,
+                "transmittance" => Of::Transmittance,
                 other => {
                     return Err(k.error(
                         o.span(),
                         "of",
-                        format!("{other:?}: allowed \"furnace\", \"lambert\""),
+                        format!("{other:?}: allowed \"furnace\", \"lambert\", \"transmittance\""),
                     ))
                 }
             },
         };
         if of == Of::Lambert && k.has("max_depth") {
             return Err(k.error_at("max_depth", "scale_invariance of \"lambert\" renders direct light only (max_depth 1); remove max_depth".into()));
+        }
+        if of == Of::Transmittance && k.has("max_depth") {
+            return Err(k.error_at("max_depth", "scale_invariance of \"transmittance\" renders emission only (max_depth 0); remove max_depth".into()));
         }
         let scales = k.finite_list("scales", true)?;
         if let Some(s) = scales.iter().find(|s| !(1e-8..=1e8).contains(*s)) {
@@ -142,7 +153,8 @@ impl Kind for ScaleInvariance {
                         check.render.max_depth.or(scene.render.max_depth),
                         Strategy::Mis,
                     ),
-                    _ => (Some(1), Strategy::Mis),
+                    Of::Lambert => (Some(1), Strategy::Mis),
+                    Of::Transmittance => (Some(0), Strategy::Mis),
                 };
                 let settings =
                     settings_for(check, &scene, ctx, mix64(ctx.seed ^ k), max_depth, strategy);
@@ -154,10 +166,21 @@ impl Kind for ScaleInvariance {
                         let (e, w) = furnace_expectation(&scene, max_depth)?;
                         (e, None, w)
                     }
-                    _ => {
+                    Of::Lambert => {
                         let (e, px) =
                             lambert_expectation(&scene, settings.width, settings.height, region)?;
                         (e, Some(px), "Lambert closed form".to_string())
+                    }
+                    Of::Transmittance => {
+                        let (e, px) = transmittance_expectation(
+                            &scene,
+                            settings.width,
+                            settings.height,
+                            region,
+                        )?;
+                        let what =
+                            "emission through absorbing media, Σ ȳ Le exp(−Σ σa d) per pixel";
+                        (e, Some(px), what.to_string())
                     }
                 };
                 let r = render_region(

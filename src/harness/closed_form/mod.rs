@@ -1,7 +1,8 @@
 //! Closed forms the scene-level kinds share: what a furnace enclosure or white furnace must
-//! read, Lambert's law under the scene's lights, emitted radiance along camera rays, and their
-//! averages over pixel footprints, and the albedo of a white GGX conductor. Each is computed
-//! from the scene or model description, not by rendering it or by furnace's model code.
+//! read, Lambert's law under the scene's lights, emitted radiance along camera rays,
+//! Beer–Lambert transmittance through absorbing media, and their averages over pixel
+//! footprints, and the albedo of a white GGX conductor. Each is computed from the scene or
+//! model description, not by rendering it or by furnace's model code.
 
 pub mod emission;
 pub mod footprint;
@@ -9,4 +10,5 @@ pub mod furnace;
 pub mod ggx_albedo;
 pub mod lambert;
 pub mod refraction;
+pub mod transmittance;
 pub mod witness;
