@@ -28,6 +28,12 @@ pub const MAX_MESH_BYTES: u64 = 1 << 30;
 /// Most triangles in one scene: about 1 KB each in the mesh, the BVH and the pairs.
 pub const MAX_TRIANGLES: u64 = 1 << 24;
 
+/// Most vertices in one mesh file: 24 bytes each (three f64), 805 MB at the limit, checked
+/// before they are stored (a binary PLY of one-byte coordinates holds 3 bytes of file per
+/// vertex). Twice [`MAX_TRIANGLES`]: a closed mesh has about half as many vertices as
+/// triangles, so only unused or unshared vertices meet it.
+pub const MAX_VERTICES: u64 = 1 << 25;
+
 /// Most checks a manifest may expand to (after `vary`).
 pub const MAX_CHECKS: usize = 10_000;
 

@@ -62,6 +62,16 @@ impl fmt::Display for Location {
 /// most 64 characters) plus a description of what would have been accepted.
 #[derive(Debug, thiserror::Error)]
 pub enum MeshIoError {
+    /// The file holds more vertices or triangles than furnace accepts
+    /// ([`crate::limits::MAX_VERTICES`], [`crate::limits::MAX_TRIANGLES`]).
+    #[error("{}: {source}", .path.display())]
+    TooLarge {
+        /// File that was being read.
+        path: PathBuf,
+        /// The limit passed.
+        #[source]
+        source: crate::limits::LimitError,
+    },
     /// The file could not be read.
     #[error("cannot read mesh file {}: {source}", .path.display())]
     Io {
@@ -337,6 +347,8 @@ pub fn parse_obj(text: &str, path: &Path) -> std::result::Result<MeshData, MeshI
         match tokens.next() {
             Some("v") => {
                 let position = parse_obj_vertex(tokens, path, line)?;
+                let n = mesh.positions.len() as u64 + 1;
+                within(n, crate::limits::MAX_VERTICES, "vertex", path)?;
                 mesh.positions.push(position);
             }
             Some("f") => {
@@ -353,6 +365,12 @@ pub fn parse_obj(text: &str, path: &Path) -> std::result::Result<MeshData, MeshI
                     });
                 }
                 fan_triangulate(&corners, &mut mesh.triangles);
+                within(
+                    mesh.triangles.len() as u64,
+                    crate::limits::MAX_TRIANGLES,
+                    "triangle",
+                    path,
+                )?;
             }
             // Comments, blank lines, vt/vn/o/g/s/usemtl/mtllib/l/p and
             // unknown statements carry nothing this loader needs.
@@ -913,6 +931,22 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> std::result::Result<MeshData, Mes
     Ok(mesh)
 }
 
+/// An error when `count` (vertices or triangles read so far, or announced) passes `limit`.
+fn within(count: u64, limit: u64, what: &str, path: &Path) -> Result<()> {
+    if count <= limit {
+        return Ok(());
+    }
+    Err(MeshIoError::TooLarge {
+        path: path.to_path_buf(),
+        source: crate::limits::LimitError {
+            what: format!("the {what} count (at least)"),
+            value: count,
+            limit,
+            how: " per mesh file".into(),
+        },
+    })
+}
+
 /// Source of PLY body values, shared by the ASCII and binary encodings.
 trait BodyReader<'a> {
     /// Begins instance `index` (0-based) of `count` instances of `element`.
@@ -938,8 +972,15 @@ fn read_ply_body<'a, R: BodyReader<'a>>(
     body_len: usize,
     path: &Path,
 ) -> Result<MeshData> {
+    within(
+        vertex_count as u64,
+        crate::limits::MAX_VERTICES,
+        "vertex",
+        path,
+    )?;
+    // at most one vertex per 3 bytes of body (three values of at least one byte)
     let mut mesh = MeshData {
-        positions: Vec::with_capacity(vertex_count.min(body_len)),
+        positions: Vec::with_capacity(vertex_count.min(body_len / 3)),
         triangles: Vec::new(),
     };
     let mut corners: Vec<u32> = Vec::new();
@@ -1015,7 +1056,15 @@ fn read_ply_body<'a, R: BodyReader<'a>>(
             reader.finish()?;
             match role {
                 Role::Vertex(_) => mesh.positions.push(position),
-                Role::Face(_) => fan_triangulate(&corners, &mut mesh.triangles),
+                Role::Face(_) => {
+                    fan_triangulate(&corners, &mut mesh.triangles);
+                    within(
+                        mesh.triangles.len() as u64,
+                        crate::limits::MAX_TRIANGLES,
+                        "triangle",
+                        path,
+                    )?;
+                }
                 Role::Skip => {}
             }
         }
@@ -1301,6 +1350,49 @@ mod tests {
             Ok(mesh) => panic!("expected an error, got {mesh:?}"),
             Err(e) => e.to_string(),
         }
+    }
+
+    #[test]
+    fn a_ply_announcing_more_vertices_than_the_limit_is_refused_before_storing_any() {
+        // a lying header: 2^25 + 1 one-byte vertices announced over a body of 6 bytes
+        let n = crate::limits::MAX_VERTICES + 1;
+        let mut bytes = format!(
+            "ply\nformat binary_little_endian 1.0\nelement vertex {n}\nproperty uchar x\n\
+             property uchar y\nproperty uchar z\nelement face 1\n\
+             property list uchar int vertex_indices\nend_header\n"
+        )
+        .into_bytes();
+        bytes.extend([0u8; 6]);
+        let e = ply_err(&bytes);
+        assert_contains(
+            &e,
+            &[
+                "test.ply",
+                "vertex count",
+                "limit is 33554432 per mesh file",
+            ],
+        );
+    }
+
+    #[test]
+    fn mesh_counts_past_their_limits_are_named_errors() {
+        let path = p("m.obj");
+        let e = within(
+            crate::limits::MAX_VERTICES + 1,
+            crate::limits::MAX_VERTICES,
+            "vertex",
+            &path,
+        )
+        .unwrap_err()
+        .to_string();
+        assert_contains(&e, &["m.obj", "the vertex count (at least) is 33554433"]);
+        assert!(within(
+            crate::limits::MAX_TRIANGLES,
+            crate::limits::MAX_TRIANGLES,
+            "triangle",
+            &path
+        )
+        .is_ok());
     }
 
     fn assert_contains(message: &str, parts: &[&str]) {
