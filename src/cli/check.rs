@@ -133,6 +133,21 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     if files.is_empty() {
         return Err(anyhow::anyhow!("no manifests found in {:?}", inputs).into());
     }
+    let outputs = Outputs {
+        json: a.json.clone(),
+        junit: a.junit.clone(),
+        markdown: a.markdown.clone(),
+        report: a.report.clone(),
+    };
+    let mut inputs: Vec<(&str, &Path)> =
+        files.iter().map(|p| ("a manifest", p.as_path())).collect();
+    inputs.extend(
+        a.renderers_file
+            .iter()
+            .map(|p| ("--renderers", p.as_path())),
+    );
+    inputs.extend(a.shard_costs.iter().map(|p| ("--shard-costs", p.as_path())));
+    super::distinct_paths(&inputs, &outputs.roles())?;
     let mut specs = Vec::new();
     for f in &files {
         specs.extend(
@@ -359,13 +374,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         traffic = now;
         reports.push(report);
     }
-    let out = Outputs {
-        json: a.json.clone(),
-        junit: a.junit.clone(),
-        markdown: a.markdown.clone(),
-        report: a.report.clone(),
-    };
-    write_results(&reports, &out, "furnace check")?;
+    write_results(&reports, &outputs, "furnace check")?;
     Ok(
         if reports
             .iter()

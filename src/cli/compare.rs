@@ -52,6 +52,23 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
         )
         .into());
     }
+    let mut inputs = vec![
+        ("the test image", a.test.as_path()),
+        ("the reference", a.reference.as_path()),
+    ];
+    if let Some(p) = &a.regions {
+        inputs.push(("--regions", p));
+    }
+    let outputs: Vec<(&str, &std::path::Path)> = [
+        ("--diff", &a.diff),
+        ("--relerr", &a.relerr),
+        ("--report", &a.report),
+        ("--markdown", &a.markdown),
+    ]
+    .into_iter()
+    .filter_map(|(role, p)| Some((role, p.as_deref()?)))
+    .collect();
+    super::distinct_paths(&inputs, &outputs)?;
     let test = load_rgb(&a.test)?;
     let reference = load_rgb(&a.reference)?;
     let regions = match &a.regions {

@@ -39,6 +39,14 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         )
         .into());
     }
+    if let Some(out) = &a.report {
+        let inputs: Vec<(&str, &std::path::Path)> = a
+            .manifests
+            .iter()
+            .map(|p| ("a manifest", p.as_path()))
+            .collect();
+        super::distinct_paths(&inputs, &[("--report", out)])?;
+    }
     let mut manifests = Vec::new();
     let mut time_error = Vec::new();
     let mut table = Vec::new();

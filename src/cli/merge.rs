@@ -64,6 +64,12 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
         markdown: a.markdown,
         report: a.report,
     };
+    let inputs: Vec<(&str, &std::path::Path)> = a
+        .results
+        .iter()
+        .map(|p| ("a shard's results", p.as_path()))
+        .collect();
+    super::distinct_paths(&inputs, &out.roles())?;
     write_results(&reports, &out, "furnace check (merged shards)")?;
     let failed = reports
         .iter()

@@ -38,6 +38,12 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
         )
         .into());
     }
+    let inputs: Vec<(&str, &std::path::Path)> = a
+        .parts
+        .iter()
+        .map(|p| ("a partial film", p.as_path()))
+        .collect();
+    super::distinct_paths(&inputs, &[("--out", &a.out), ("the PNG preview", &png)])?;
     let (header, film) =
         furnace::film::partial::merge_files(&a.parts).context("cannot merge the partial films")?;
     let written = super::render::write_film(

@@ -175,6 +175,48 @@ pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
     Ok(())
 }
 
+/// A path's identity for comparing files: the canonical path of an existing file, else the
+/// canonical folder joined with the file name (an output not yet written); None when neither
+/// resolves (a write there fails with its own error).
+fn identity(p: &Path) -> Option<PathBuf> {
+    if let Ok(c) = p.canonicalize() {
+        return Some(c);
+    }
+    let dir = p
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    Some(dir.canonicalize().ok()?.join(p.file_name()?))
+}
+
+/// Refuses a run whose outputs would overwrite one of its inputs or each other (the same file
+/// however it is spelled, through links too), naming both roles, before anything runs.
+/// `inputs` and `outputs`: (role, path), e.g. ("the scene", …), ("--out", …).
+pub(crate) fn distinct_paths(
+    inputs: &[(&str, &Path)],
+    outputs: &[(&str, &Path)],
+) -> Result<(), Failure> {
+    let ids: Vec<(&str, &Path, Option<PathBuf>)> = inputs
+        .iter()
+        .chain(outputs)
+        .map(|&(role, p)| (role, p, identity(p)))
+        .collect();
+    for (k, (out_role, out_path, out_id)) in ids.iter().enumerate().skip(inputs.len()) {
+        let Some(out_id) = out_id else { continue };
+        for (j, (role, _, id)) in ids[..k].iter().enumerate() {
+            if id.as_ref() == Some(out_id) {
+                let what = if j < inputs.len() { "input" } else { "output" };
+                return Err(anyhow::anyhow!(
+                    "{out_role} {} is the same file as {role}, an {what} of this run: writing it would destroy it; give another path",
+                    out_path.display()
+                )
+                .into());
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Reads an EXR as linear RGB with optional variance channels.
 pub(crate) fn load_rgb(p: &Path) -> Result<RgbImage, Failure> {
     Ok(RgbImage::load(p).map_err(|e| anyhow::anyhow!(e))?)
@@ -218,6 +260,21 @@ pub struct Outputs {
     pub markdown: Option<PathBuf>,
     /// HTML page (renderers side by side).
     pub report: Option<PathBuf>,
+}
+
+impl Outputs {
+    /// The outputs given, with the option that names each.
+    pub fn roles(&self) -> Vec<(&'static str, &Path)> {
+        [
+            ("--json", &self.json),
+            ("--junit", &self.junit),
+            ("--markdown", &self.markdown),
+            ("--report", &self.report),
+        ]
+        .into_iter()
+        .filter_map(|(role, p)| Some((role, p.as_deref()?)))
+        .collect()
+    }
 }
 
 /// Writes one JSON / JUnit / Markdown file per renderer (the first at the given path, the

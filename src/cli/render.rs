@@ -215,6 +215,10 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
+    super::distinct_paths(
+        &[("the scene", &a.scene)],
+        &[("--out", &exr_path), ("the PNG preview", &png_path)],
+    )?;
     furnace::limits::image(settings.width as u64, settings.height as u64)
         .context("the image is too large")?;
     let light = a.integrator == "light";

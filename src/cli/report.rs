@@ -40,6 +40,18 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
     }
+    let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
+    inputs.extend(a.results.iter().map(|p| ("--results", p.as_path())));
+    inputs.extend(
+        a.compare
+            .iter()
+            .map(|p| ("an image of --compare", p.as_path())),
+    );
+    inputs.extend(a.regions.iter().map(|p| ("--regions", p.as_path())));
+    inputs.extend(a.notes.iter().map(|p| ("--notes", p.as_path())));
+    let mut outputs = vec![("--out", a.out.as_path())];
+    outputs.extend(a.markdown.iter().map(|p| ("--markdown", p.as_path())));
+    super::distinct_paths(&inputs, &outputs)?;
     let mut runs = Vec::new();
     for p in &a.results {
         let text = furnace::io::read_small_text(p)

@@ -220,6 +220,41 @@ fn outputs_that_collide_or_fail_never_destroy_what_was_there() {
 }
 
 #[test]
+fn an_output_naming_an_input_is_refused_and_the_input_kept() {
+    let d = tmp("overwrite");
+    let text = scene("2", "");
+    std::fs::write(d.join("s.toml"), &text).unwrap();
+    let manifest = "[[check]]\nname = \"f\"\nkind = \"furnace\"\nscene = \"s.toml\"\n";
+    std::fs::write(d.join("m.toml"), manifest).unwrap();
+    for (args, role) in [
+        (
+            &["render", "s.toml", "-o", "./s.toml"][..],
+            "--out ./s.toml is the same file as the scene",
+        ),
+        (
+            &["render", "s.toml", "--png", "s.toml"][..],
+            "the PNG preview s.toml is the same file as the scene",
+        ),
+        (
+            &["check", "m.toml", "--json", "m.toml"][..],
+            "--json m.toml is the same file as a manifest",
+        ),
+        (
+            &["check", "m.toml", "--json", "r.json", "--junit", "r.json"][..],
+            "--junit r.json is the same file as --json, an output",
+        ),
+    ] {
+        let out = furnace(&d, args);
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let msg = stderr_of(&out, &d);
+        assert!(msg.contains(role), "{args:?}: {msg}");
+    }
+    assert_eq!(std::fs::read_to_string(d.join("s.toml")).unwrap(), text);
+    assert_eq!(std::fs::read_to_string(d.join("m.toml")).unwrap(), manifest);
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
 fn empty_runs_do_not_pass_silently() {
     let d = tmp("empty");
     std::fs::write(d.join("m.toml"), "# no checks\n").unwrap();
