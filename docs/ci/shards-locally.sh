@@ -1,7 +1,7 @@
 #!/bin/sh
-# The README's sharded CI workflow, run on one machine: N shard jobs (one after another, or
-# side by side with JOBS=N), then the merge job. Exit code: the merge's (0 pass, 1 a check
-# failed, 2 the shards do not make one run).
+# The README's sharded CI workflow, run on one machine: N shard jobs, one after another, then
+# the merge job. Exit code: the merge's (0 pass, 1 a check failed, 2 the shards do not make
+# one run).
 #
 #   cargo build --release && docs/ci/shards-locally.sh [N] [check options...]
 # FURNACE (the binary) and OUT (the folder, emptied first) override the defaults.
