@@ -965,12 +965,24 @@ pub(super) fn write_film(
     layers.channels.extend(extra);
     let srgb = film.linear_srgb();
     drop(film);
+    // a value finite in the f64 film but beyond f32's range (3.4e38) is written as Inf
+    let written_bad = (0..width * height)
+        .filter(|&i| {
+            layers
+                .channels
+                .iter()
+                .any(|(_, v)| v.get(i).is_some_and(|x| !x.is_finite()))
+        })
+        .count();
+    let bad = bad.max(written_bad);
     io::write_exr_owned(exr_path, layers)
         .with_context(|| format!("cannot write {}", exr_path.display()))?;
     io::write_png_srgb(png_path, width, height, &srgb, exposure)
         .with_context(|| format!("cannot write {}", png_path.display()))?;
     if bad > 0 {
-        eprintln!("warning: {bad} pixels hold NaN or Inf");
+        eprintln!(
+            "warning: {bad} pixels hold NaN or Inf in the EXR (its channels are 32-bit floats: a value beyond 3.4e38 is written as Inf)"
+        );
     }
     if truncated > 0 {
         eprintln!(

@@ -255,6 +255,17 @@ fn an_output_naming_an_input_is_refused_and_the_input_kept() {
 }
 
 #[test]
+fn radiance_beyond_f32_is_not_written_as_a_silent_inf() {
+    let text = scene("2", "").replace("radiance = 1.0", "radiance = 1e40");
+    let (code, msg) = render("f32-overflow", &text, &[]);
+    assert_eq!(code, Some(1), "{msg}");
+    assert!(
+        msg.contains("64 pixels hold NaN or Inf in the EXR"),
+        "{msg}"
+    );
+}
+
+#[test]
 fn empty_runs_do_not_pass_silently() {
     let d = tmp("empty");
     std::fs::write(d.join("m.toml"), "# no checks\n").unwrap();
