@@ -34,6 +34,10 @@ pub const MAX_TRIANGLES: u64 = 1 << 24;
 /// triangles, so only unused or unshared vertices meet it.
 pub const MAX_VERTICES: u64 = 1 << 25;
 
+/// Most worker threads a command may be given (`--threads`): each thread holds a stack and its
+/// own film chunk, and thousands of them only exhaust the machine's process limit.
+pub const MAX_THREADS: usize = 1024;
+
 /// Most checks a manifest may expand to (after `vary`).
 pub const MAX_CHECKS: usize = 10_000;
 

@@ -44,7 +44,7 @@ pub struct CheckArgs {
     #[arg(long, default_value_t = harness::context::DEFAULT_TIME_LIMIT)]
     time_limit: f64,
     /// Render threads; 0 uses every core (results are identical for any count).
-    #[arg(short = 'j', long, default_value_t = 0)]
+    #[arg(short = 'j', long, default_value_t = 0, value_parser = super::thread_count)]
     threads: usize,
     /// Write JUnit XML here.
     #[arg(long)]

@@ -18,7 +18,7 @@ pub struct ConvergeArgs {
     #[arg(long, default_value_t = 1)]
     seed: u64,
     /// Render threads; 0 uses every core.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = 0, value_parser = super::thread_count)]
     threads: usize,
     /// Relative error (RMSE over the region mean) for the "time to reach" column.
     #[arg(long, default_value_t = 1e-3)]

@@ -175,6 +175,20 @@ pub(crate) fn write_file(path: &Path, text: &str) -> Result<(), Failure> {
     Ok(())
 }
 
+/// Parses `--threads`: 0 (every core) up to [`furnace::limits::MAX_THREADS`].
+pub(crate) fn thread_count(s: &str) -> Result<usize, String> {
+    let n: usize = s
+        .parse()
+        .map_err(|_| format!("{s:?} is not a thread count (0 uses every core)"))?;
+    let limit = furnace::limits::MAX_THREADS;
+    if n > limit {
+        return Err(format!(
+            "{n} threads; the limit is {limit} (0 uses every core)"
+        ));
+    }
+    Ok(n)
+}
+
 /// A path's identity for comparing files: the canonical path of an existing file, else the
 /// canonical folder joined with the file name (an output not yet written); None when neither
 /// resolves (a write there fails with its own error).

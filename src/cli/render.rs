@@ -24,7 +24,7 @@ pub struct RenderArgs {
     #[arg(long, default_value_t = 0)]
     seed: u64,
     /// Worker threads; 0 uses every core.
-    #[arg(short = 'j', long, default_value_t = 0)]
+    #[arg(short = 'j', long, default_value_t = 0, value_parser = super::thread_count)]
     threads: usize,
     /// Image width in pixels [default: the scene's render.width, else 256].
     #[arg(long)]

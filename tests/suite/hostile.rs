@@ -266,6 +266,13 @@ fn radiance_beyond_f32_is_not_written_as_a_silent_inf() {
 }
 
 #[test]
+fn thread_counts_beyond_the_limit_are_refused_before_any_thread_starts() {
+    let (code, msg) = render("threads", &scene("2", ""), &["-j", "100000"]);
+    assert_eq!(code, Some(2), "{msg}");
+    assert!(msg.contains("100000 threads; the limit is 1024"), "{msg}");
+}
+
+#[test]
 fn empty_runs_do_not_pass_silently() {
     let d = tmp("empty");
     std::fs::write(d.join("m.toml"), "# no checks\n").unwrap();
