@@ -335,6 +335,15 @@ fn run_one(
                     o.message
                 );
                 None
+            } else if ms.samples == 0 {
+                // a check that measured nothing (every model left out by its declared flags,
+                // say) cannot pass
+                o.verdict = Verdict::Error;
+                o.message = format!(
+                    "nothing was measured (0 samples), so nothing can pass; {}",
+                    o.message
+                );
+                None
             } else {
                 if let (Correction::Sidak, p) = (opts.correction, ms.p_value) {
                     settle(&mut o, &ms, p.map(|p| (p <= alpha, alpha)));

@@ -246,6 +246,14 @@ impl RemoteModels {
             Some("float32") => Precision::F32,
             _ => Precision::F64,
         };
+        let models = h
+            .get("models")
+            .and_then(Value::as_array)
+            .cloned()
+            .unwrap_or_default();
+        if let Err(why) = validate_models(&models) {
+            return Err(conn.fail(format!("hello: {why}")));
+        }
         let conn = Arc::new(Mutex::new(conn));
         let mut out = RemoteModels {
             conn: Arc::clone(&conn),
@@ -255,11 +263,6 @@ impl RemoteModels {
             phases: Vec::new(),
             emitters: Vec::new(),
         };
-        let models = h
-            .get("models")
-            .and_then(Value::as_array)
-            .cloned()
-            .unwrap_or_default();
         for m in models {
             let name = m
                 .get("name")
@@ -316,6 +319,78 @@ impl RemoteModels {
         }
         Ok(out)
     }
+}
+
+/// Checks the hello's model list against docs/model-protocol.md before any flag is trusted:
+/// unique non-empty names, a known kind, and flags of the right type and range (a flag selects
+/// what the checks test, so an invalid one must not pass as absent).
+fn validate_models(models: &[Value]) -> Result<(), String> {
+    let mut names = std::collections::HashSet::new();
+    for m in models {
+        let name = m.get("name").and_then(Value::as_str).unwrap_or("");
+        let quoted = format!("{:?}", crate::limits::quote(name));
+        if name.is_empty() || name.contains('\n') {
+            return Err(format!("a model's name {quoted} is empty or has a newline"));
+        }
+        if !names.insert(name) {
+            return Err(format!(
+                "the model name {quoted} is served twice; names are unique"
+            ));
+        }
+        let kind = m.get("kind").and_then(Value::as_str);
+        let bools: &[&str] = match kind {
+            Some("bsdf") => &[
+                "delta",
+                "two_sided",
+                "transmission",
+                "lossless",
+                "dispersive",
+            ],
+            Some("emitter") => &["delta"],
+            Some("phase") => &[],
+            _ => {
+                return Err(format!(
+                    "model {quoted}: kind {} is not one of bsdf, phase, emitter",
+                    crate::limits::quote(&m.get("kind").map_or("none".into(), Value::to_string))
+                ))
+            }
+        };
+        let Some(flags) = m.get("flags") else {
+            continue;
+        };
+        let Some(flags) = flags.as_object() else {
+            return Err(format!("model {quoted}: flags must be an object"));
+        };
+        let bad = |k: &str, want: &str| {
+            Err(format!(
+                "model {quoted}: flag {k} is {}; it must be {want}",
+                crate::limits::quote(&flags[k].to_string())
+            ))
+        };
+        for (k, v) in flags {
+            let ok = match (kind, k.as_str()) {
+                (_, b) if bools.contains(&b) => v.is_boolean(),
+                (Some("bsdf"), "eta") => v.as_f64().is_some_and(|e| e.is_finite() && e > 0.0),
+                (Some("bsdf"), "min_roughness") => {
+                    v.is_null() || v.as_f64().is_some_and(|r| r.is_finite() && r >= 0.0)
+                }
+                (Some("phase"), "mean_cosine") => {
+                    v.is_null() || v.as_f64().is_some_and(|g| (-1.0..=1.0).contains(&g))
+                }
+                _ => true, // unknown flags are left for later protocol versions
+            };
+            if !ok {
+                let want = match k.as_str() {
+                    "eta" => "a finite number > 0",
+                    "min_roughness" => "null or a finite number >= 0 (radians)",
+                    "mean_cosine" => "null or a number in [-1, 1]",
+                    _ => "true or false",
+                };
+                return bad(k, want);
+            }
+        }
+    }
+    Ok(())
 }
 
 impl ModelSource for RemoteModels {
@@ -641,5 +716,41 @@ impl ModelSource for Unavailable {
     }
     fn emitters(&self) -> Result<Vec<Named<dyn EmitterModel>>, ModelError> {
         Err(ModelError(self.0.clone()))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::validate_models;
+    use serde_json::json;
+
+    #[test]
+    fn a_hello_with_invalid_or_duplicate_models_is_refused_by_name() {
+        let bsdf = |flags| json!({"name": "m", "kind": "bsdf", "flags": flags});
+        assert!(validate_models(&[bsdf(json!({"delta": false, "min_roughness": null}))]).is_ok());
+        assert!(validate_models(&[bsdf(json!({"eta": 1.5, "min_roughness": 0.1}))]).is_ok());
+        for (flags, says) in [
+            (json!({"min_roughness": -5}), "flag min_roughness is -5"),
+            (
+                json!({"min_roughness": "abc"}),
+                "flag min_roughness is \"abc\"",
+            ),
+            (json!({"eta": -1e308}), "flag eta"),
+            (
+                json!({"delta": 1}),
+                "flag delta is 1; it must be true or false",
+            ),
+        ] {
+            let e = validate_models(&[bsdf(flags)]).unwrap_err();
+            assert!(e.contains(says), "{e}");
+        }
+        let e = validate_models(&[bsdf(json!({})), bsdf(json!({}))]).unwrap_err();
+        assert!(e.contains("served twice"), "{e}");
+        let e =
+            validate_models(&[json!({"name": "p", "kind": "phase", "flags": {"mean_cosine": 2}})])
+                .unwrap_err();
+        assert!(e.contains("mean_cosine"), "{e}");
+        let e = validate_models(&[json!({"name": "x", "kind": "light"})]).unwrap_err();
+        assert!(e.contains("not one of bsdf, phase, emitter"), "{e}");
     }
 }
