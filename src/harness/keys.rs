@@ -305,11 +305,21 @@ impl<'a> Keys<'a> {
         Ok(x)
     }
 
-    /// `key` as a list of finite numbers (all > 0 when `positive_only`); empty when absent.
+    /// `key` as a list of finite numbers (all > 0 when `positive_only`); empty when absent, an
+    /// error when written empty.
     pub fn finite_list(&self, key: &str, positive_only: bool) -> Result<Vec<f64>, LocatedError> {
         match self.get::<Vec<f64>>(key)? {
             None => Ok(Vec::new()),
             Some(s) => {
+                // an empty list written out is not the key left out (which takes the default)
+                if s.get_ref().is_empty() {
+                    return Err(self.error(
+                        s.span(),
+                        key,
+                        "is empty; give at least one value, or leave the key out for its default"
+                            .into(),
+                    ));
+                }
                 if let Some(x) = s
                     .get_ref()
                     .iter()

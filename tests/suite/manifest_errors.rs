@@ -42,6 +42,9 @@ fn manifest_error_messages() {
         ("measured_without_measurement", error_of("[[check]]\nname = \"x\"\nkind = \"measured\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
         ("light_grid_and_regions", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity_image\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\ngrid = 3\nregions = \"../../scenes/cornell-box.regions.toml\"\n")),
         ("light_paths_one", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity_image\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nlight_paths = 1\n")),
+        ("empty_scales", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nscales = []\n")),
+        ("empty_offsets", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\noffsets = []\n")),
+        ("empty_g", error_of("[[check]]\nname = \"x\"\nkind = \"hg\"\ng = []\n")),
         ("duplicate_names", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\n[[check]]\nname = \"x\"\nkind = \"energy\"\n")),
     ];
     for (name, message) in cases {

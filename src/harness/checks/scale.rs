@@ -111,6 +111,14 @@ impl Kind for ScaleInvariance {
         }
         let offsets = k.get::<Vec<[f64; 3]>>("offsets")?;
         if let Some(o) = &offsets {
+            if o.get_ref().is_empty() {
+                return Err(k.error(
+                    o.span(),
+                    "offsets",
+                    "is empty; give at least one offset, or leave the key out for [[0, 0, 0]]"
+                        .into(),
+                ));
+            }
             if o.get_ref()
                 .iter()
                 .flatten()
