@@ -300,8 +300,20 @@ impl PartFile {
             let mut v = buf
                 .chunks_exact(8)
                 .map(|b| f64::from_le_bytes(b.try_into().expect("8 bytes")));
-            let moments =
+            let moments: [[f64; 4]; 6] =
                 std::array::from_fn(|_| std::array::from_fn(|_| v.next().expect("24 values")));
+            // a sum of squared deviations is never negative, whatever the rounding (each
+            // update and each merge adds a product of two factors of one sign)
+            if moments.iter().any(|m| m[1] < 0.0) {
+                return Err(format_err(
+                    &self.path,
+                    format!(
+                        "pixel {} of piece {}: a negative sum of squared deviations (the file was altered)",
+                        pixels.len(),
+                        self.next_piece
+                    ),
+                ));
+            }
             pixels.push(Pixel::from_moments(n, moments));
         }
         Ok(Some(Piece {
@@ -368,6 +380,36 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Header, Film), PartialFilmError
         };
         PartialFilmError::Tiling(e, detail)
     })?;
+    // the pieces' sample counts: no sum that wraps, and for camera paths the run's spp
+    let mut total: u64 = 0;
+    for part in &parts {
+        for &(_, _, n) in &part.header.pieces {
+            total = total.checked_add(n).ok_or_else(|| {
+                format_err(
+                    &part.path,
+                    "its pieces' sample counts overflow a 64-bit sum",
+                )
+            })?;
+        }
+    }
+    let attribute = |name: &str| {
+        first
+            .header
+            .attributes
+            .iter()
+            .find(|(k, _)| k == name)
+            .map(|(_, v)| v.as_str())
+    };
+    if attribute("furnace.integrator") == Some("path") {
+        if let Some(spp) = attribute("furnace.spp").and_then(|s| s.parse::<u64>().ok()) {
+            if total != spp {
+                return Err(format_err(
+                    &first.path,
+                    format!("the parts' pieces hold {total} samples per pixel, but the run's furnace.spp is {spp} (a file was altered)"),
+                ));
+            }
+        }
+    }
     let header = first.header.clone();
     parts.sort_by_key(|p| p.header.pieces[0].0);
     let mut fold = BlockFold::new(0);

@@ -206,6 +206,36 @@ fn parts_of_different_renders_missing_or_doubled_parts_and_bad_files_are_refused
     .unwrap();
     let e = merge(&[&huge]);
     assert!(e.contains("huge.film"), "{e}");
+    // a piece's sample count altered (the sum no longer the run's spp), and a pixel's sum of
+    // squared deviations made negative (its first channel's m2, after the mean)
+    let header = &text[header_end..header_line_end];
+    let pieces = header.find("\"pieces\":[[").unwrap() + "\"pieces\":[[".len();
+    let count_at = pieces + header[pieces..].find(']').unwrap();
+    let count_start = header[..count_at].rfind(',').unwrap() + 1;
+    let counted = dir.join("counted.film");
+    let more = format!("{}{}{}", &header[..count_start], "99", &header[count_at..]);
+    std::fs::write(
+        &counted,
+        [
+            &bytes[..header_end],
+            more.as_bytes(),
+            &bytes[header_line_end..],
+        ]
+        .concat(),
+    )
+    .unwrap();
+    let e = merge(&[&p1, &counted, &p3]);
+    assert!(
+        e.contains("samples per pixel, but the run's furnace.spp is"),
+        "{e}"
+    );
+    let mut negative = bytes.clone();
+    let m2 = header_line_end + 1 + 8;
+    negative[m2..m2 + 8].copy_from_slice(&(-1.0f64).to_le_bytes());
+    let neg = dir.join("negative.film");
+    std::fs::write(&neg, &negative).unwrap();
+    let e = merge(&[&p1, &neg, &p3]);
+    assert!(e.contains("negative sum of squared deviations"), "{e}");
     // shard specifications the render cannot honour
     for (shard, msg) in [("5/4", "must be K/N"), ("1/5", "fewer than 5 parts")] {
         let x = dir.join("x.film");
