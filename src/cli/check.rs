@@ -82,7 +82,7 @@ pub struct CheckArgs {
     /// Balance shards by the check times of an earlier run (its --json file); without it every check counts alike.
     #[arg(long, value_name = "JSON", requires = "shard")]
     shard_costs: Option<PathBuf>,
-    /// Renderer to judge: furnace (built in) or NAME[:VARIANT] from --renderers; repeatable. External renderers run the renderer-agnostic scene-level kinds; the rest are reported as skipped.
+    /// Renderer to judge: furnace (built in) or NAME[:VARIANT] from --renderers; repeatable. External renderers run the renderer-agnostic scene-level kinds, and the model-level kinds through the model server when their table entry has `models`; the rest are reported as skipped.
     #[arg(long = "renderer", default_value = "furnace")]
     renderers: Vec<String>,
     /// Renderer table (TOML [renderer.NAME] tables) [default: ~/.config/furnace/renderers.toml if it exists, else the table built into furnace]. Never read implicitly from the working directory.

@@ -58,6 +58,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `message` | string | — | Human-readable explanation: estimator, what was compared, and the evidence for UNSTABLE or ERROR. |
 | `regression` | boolean | — | True when the expected value is furnace's own earlier output (a regression baseline, from the manifest's `regression = true` or a check's own regression band): reported apart, never counted as validation. |
 | `bundle` | string (absent unless written) | — | The reproducer bundle of a check that did not pass against an external renderer (`furnace check --report` or `--bundles`): the path of its `README.md`, relative to the HTML report's folder, or under `--bundles` as given. |
+| `isolation` | string (absent when none) | — | What the failed check's isolation ladder found ([checks.md](checks.md#isolation)): the first simpler variant that fails with its numbers and relative deviation, and the variants that passed. |
 
 ### Statistic
 
