@@ -566,6 +566,32 @@ impl Phase for HgSignError {
     }
 }
 
+/// Two Henyey–Greenstein lobes of asymmetries g ± 0.3, half each: normalised, of mean cosine g,
+/// sampled consistently with its own eval, and not Henyey–Greenstein.
+struct TwoLobes(f64);
+impl Phase for TwoLobes {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        0.5 * (HenyeyGreenstein { g: self.0 - 0.3 }.eval(wo, wi)
+            + HenyeyGreenstein { g: self.0 + 0.3 }.eval(wo, wi))
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        // the first number picks the lobe and is reused, rescaled, within it
+        let (g, u0) = if u[0] < 0.5 {
+            (self.0 - 0.3, 2.0 * u[0])
+        } else {
+            (self.0 + 0.3, 2.0 * u[0] - 1.0)
+        };
+        let s = HenyeyGreenstein { g }.sample(wo, [u0, u[1]]);
+        PhaseSample {
+            pdf: self.eval(wo, s.wi),
+            ..s
+        }
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3) -> f64 {
+        self.eval(wo, wi)
+    }
+}
+
 /// Claims a cosine-weighted pdf but draws uniformly over the hemisphere.
 struct CosineClaimUniformDraw;
 impl DirectionSampler for CosineClaimUniformDraw {
@@ -722,6 +748,35 @@ fn hg_rejects_a_sign_error() {
         1,
     )
     .unwrap();
+    assert_eq!(judge(&ok, alpha()), Verdict::Pass, "{}", ok.message);
+}
+
+/// The hg kind pins the shape, not only ∫p = 1 and ⟨μ⟩ = g: a mixture of two HG lobes of
+/// the same mean cosine, sampled consistently, is rejected; the true HG passes the same test.
+#[test]
+fn hg_rejects_a_two_lobe_phase_function_of_the_right_mean_cosine() {
+    use furnace::harness::checks::hg::hg_closed_form;
+    use furnace::harness::model::phase::measure_phase_at;
+    use furnace::harness::under_test::Precision;
+    let g = 0.5;
+    let closed = |mu: f64| hg_closed_form(g, mu);
+    let run = |p: &dyn furnace::harness::under_test::PhaseModel| {
+        measure_phase_at(
+            p,
+            g,
+            1e-6,
+            50_000,
+            [40, 16],
+            1,
+            Precision::F64,
+            Some(&closed),
+        )
+        .unwrap()
+    };
+    let bad = run(&phase(TwoLobes(g)));
+    assert_eq!(judge(&bad, alpha()), Verdict::Fail, "{}", bad.message);
+    assert!(bad.message.contains("mean cosine 0.5"), "{}", bad.message);
+    let ok = run(&phase(HenyeyGreenstein { g }));
     assert_eq!(judge(&ok, alpha()), Verdict::Pass, "{}", ok.message);
 }
 

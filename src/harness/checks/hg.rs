@@ -1,9 +1,10 @@
 //! `hg`: the renderer's Henyey–Greenstein phase function (Henyey & Greenstein 1941, ApJ 93,
-//! eq. 1), served as "hg g=G", for each g of the check: ∫ p dω = 1 and the mean cosine
-//! ∫ μ p dω = g by graded quadrature, and the sampling routine against p by chi-square and a z
-//! test of the sampled mean cosine (`model/phase.rs`), Šidák-combined. Where float rounding
-//! alone makes the model's eval unreliable (f32 at |g| near 1), the closed form below gives
-//! the χ²(μ) expected counts instead.
+//! eq. 1), served as "hg g=G", for each g of the check: ∫ p dω = 1, the mean cosine
+//! ∫ μ p dω = g by graded quadrature and p(μ) itself against the closed form below at every
+//! grid cosine, and the sampling routine against p by chi-square and a z test of the sampled
+//! mean cosine (`model/phase.rs`), Šidák-combined. Where float rounding alone makes the
+//! model's eval unreliable (f32 at |g| near 1), the closed form gives the χ²(μ) expected
+//! counts instead, and the pointwise comparison is left out.
 
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::kind::scope_rule;

@@ -152,7 +152,18 @@ pub fn measure_phase_at(
         }
         (norm, mean_cos, second, cum)
     })?;
-    let det_err = (norm - 1.0).abs().max((mean_cos - g).abs());
+    // with the closed form the model claims, its shape too: p(μ) against it at every grid
+    // cosine, relative (∫p = 1 and ⟨μ⟩ = g alone pass any normalised lobe of that mean)
+    let shape_err = match reference {
+        Some(r) if trusted => with_p_of_mu(phase, |p| {
+            edges
+                .iter()
+                .map(|&m| ((p(m) - r(m)) / r(m)).abs())
+                .fold(0.0, f64::max)
+        })?,
+        _ => 0.0,
+    };
+    let det_err = (norm - 1.0).abs().max((mean_cos - g).abs()).max(shape_err);
     // μ bins: edges at near-equal mass from the cumulative table.
     let total = *cum.last().unwrap_or(&1.0);
     let mut bin_edges = vec![-1.0];
@@ -251,9 +262,14 @@ pub fn measure_phase_at(
         rel_tolerance: None,
         samples,
         message: format!(
-            "g = {g}: ∫p dω = {} and mean cosine {} by quadrature (|error| {:.1e} vs abs_tol {abs_tol:.0e}{}); sampled mean cosine {} ± {} (larger of sample {} and null √(Var_p μ/N) {}); χ²(μ) p {}{mu_source}, χ²(φ) p {} ({on_axis} draws on the axis left out)",
+            "g = {g}: ∫p dω = {} and mean cosine {} by quadrature{} (|error| {:.1e} vs abs_tol {abs_tol:.0e}{}); sampled mean cosine {} ± {} (larger of sample {} and null √(Var_p μ/N) {}); χ²(μ) p {}{mu_source}, χ²(φ) p {} ({on_axis} draws on the axis left out)",
             fmt_sig(norm),
             fmt_sig(mean_cos),
+            if reference.is_some() && trusted {
+                format!(", p(μ) against the closed form at {} cosines (largest relative difference {shape_err:.1e})", edges.len())
+            } else {
+                String::new()
+            },
             det_err,
             if conditioning > 1e-12 {
                 format!(", at least the {} eval's rounding 3ε/(1−|g|)² = {conditioning:.1e}", precision.name())
