@@ -1151,7 +1151,7 @@ fn reciprocity_rejects_a_btdf_with_swapped_indices() {
 #[test]
 fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
     use furnace::harness::checks::smooth_limit;
-    let (rough, smooth) = smooth_limit::PAIRS[0];
+    let (rough, smooth, index) = smooth_limit::PAIRS[0];
     let smooth_model = furnace::harness::model::catalogue::bsdfs()
         .into_iter()
         .find(|(n, _)| n == smooth)
@@ -1160,6 +1160,7 @@ fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
     let good = smooth_limit::measure(
         &LocalBsdf::new(BrokenConductor::of(rough, false, false)),
         &LocalBsdf::of(smooth_model.clone()),
+        index,
         20_000,
         1e-3,
         1,
@@ -1169,12 +1170,37 @@ fn smooth_limit_rejects_a_rough_conductor_without_fresnel() {
     let bad = smooth_limit::measure(
         &LocalBsdf::new(BrokenConductor::of(rough, false, true)),
         &LocalBsdf::of(smooth_model.clone()),
+        index,
         20_000,
         1e-3,
         1,
     )
     .unwrap();
     assert_eq!(judge(&bad, alpha()), Verdict::Fail, "{}", bad.message);
+}
+
+/// A Fresnel error the rough and the smooth model share cannot pass: both conductors as they
+/// are, checked as if named for an index 10 % off theirs (as a renderer whose one Fresnel
+/// routine computes another index than the model states would look).
+#[test]
+fn smooth_limit_rejects_a_fresnel_both_models_share() {
+    use furnace::harness::checks::smooth_limit;
+    let (rough, smooth, [n, k]) = smooth_limit::PAIRS[0];
+    let model = |name: &str| {
+        furnace::harness::model::catalogue::bsdfs()
+            .into_iter()
+            .find(|(n, _)| n == name)
+            .unwrap()
+            .1
+    };
+    let (rough, smooth) = (LocalBsdf::of(model(rough)), LocalBsdf::of(model(smooth)));
+    let bad = smooth_limit::measure(&rough, &smooth, [1.1 * n, k], 2_000, 1e-3, 1).unwrap();
+    assert_eq!(judge(&bad, alpha()), Verdict::Fail, "{}", bad.message);
+    assert!(
+        bad.message.contains("Fresnel closed form"),
+        "{}",
+        bad.message
+    );
 }
 
 // ---------------------------------------------------------------- light tracer

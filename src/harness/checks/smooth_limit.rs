@@ -4,7 +4,10 @@
 //! the smooth model's exact values (its two lobes' probability × weight), z tests with a
 //! relative tolerance for the masking that remains at α = 1e-4 (1 − G ≈ α² tan² θo); and the
 //! sampled directions must lie within 0.01 rad of the smooth direction for ≥ 99 % of samples.
+//! The smooth model's own values are held to the Fresnel closed form of its index
+//! (`closed_form::fresnel`), so that a Fresnel error both models share cannot pass.
 
+use crate::harness::closed_form::fresnel;
 use crate::harness::keys::{common, model, Key, Keys};
 use crate::harness::kind::scope_rule;
 use crate::harness::measurement::{combine, failed_part, fmt_sig};
@@ -19,11 +22,24 @@ use crate::math::Vec3;
 use crate::stats::z_with_tolerance;
 use crate::stats::MeanVar;
 
-/// The pairs (rough name, smooth name) of the catalogue that are compared.
-pub const PAIRS: [(&str, &str); 2] = [
-    ("conductor/ggx α=1e-4", "conductor/smooth n=0.2 k=3"),
-    ("dielectric/ggx α=1e-4 η=1.5", "dielectric/smooth η=1.5"),
+/// The pairs (rough name, smooth name, the smooth model's index n + ik as its name states) of
+/// the catalogue that are compared.
+pub const PAIRS: [(&str, &str, [f64; 2]); 2] = [
+    (
+        "conductor/ggx α=1e-4",
+        "conductor/smooth n=0.2 k=3",
+        [0.2, 3.0],
+    ),
+    (
+        "dielectric/ggx α=1e-4 η=1.5",
+        "dielectric/smooth η=1.5",
+        [1.5, 0.0],
+    ),
 ];
+
+/// Largest difference allowed between the smooth model's reflected or transmitted power and
+/// the Fresnel closed form (both exact up to rounding).
+const FRESNEL_TOL: f64 = 1e-9;
 
 /// The smooth model's exact (reflected, transmitted) power and lobe directions at `wo`.
 fn smooth_lobes(b: &dyn BsdfModel, wo: Vec3) -> Result<([f64; 2], [Option<Vec3>; 2]), ModelError> {
@@ -45,10 +61,11 @@ fn smooth_lobes(b: &dyn BsdfModel, wo: Vec3) -> Result<([f64; 2], [Option<Vec3>;
     Ok((power, dirs))
 }
 
-/// Measures one rough/smooth pair.
+/// Measures one rough/smooth pair; `index`: the smooth model's n + ik, [n, k].
 pub fn measure(
     rough: &dyn BsdfModel,
     smooth: &dyn BsdfModel,
+    index: [f64; 2],
     samples: u64,
     rel_tol: f64,
     seed: u64,
@@ -57,10 +74,17 @@ pub fn measure(
     let mut rng = SampleStream::new(seed, 8, 0);
     let mut parts = Vec::new();
     let mut worst_far = 0.0f64;
+    let mut worst_fresnel = 0.0f64;
     for theta in [0.0f64, 30.0, 60.0, 80.0, 89.0] {
         let t = theta.to_radians();
         let wo = Vec3::new(t.sin(), 0.0, t.cos());
         let (expected, dirs) = smooth_lobes(smooth, wo)?;
+        // power reflected, and transmitted by a dielectric (what it does not reflect)
+        let r = fresnel::reflectance(index[0], index[1], wo.z);
+        let closed = [r, if index[1] == 0.0 { 1.0 - r } else { 0.0 }];
+        for lobe in 0..2 {
+            worst_fresnel = worst_fresnel.max((expected[lobe] - closed[lobe]).abs());
+        }
         let mut mv = [MeanVar::default(); 2];
         let mut far = 0u64;
         let rows: Vec<_> = (0..samples)
@@ -108,10 +132,12 @@ pub fn measure(
         }
     }
     let mut m = combine(parts);
-    m.deterministic_pass = Some(worst_far <= 0.01);
+    m.deterministic_pass = Some(worst_far <= 0.01 && worst_fresnel <= FRESNEL_TOL);
     m.message = format!(
-        "largest fraction of samples farther than 0.01 rad from the smooth direction {} (allowed 0.01); {}",
+        "largest fraction of samples farther than 0.01 rad from the smooth direction {} (allowed 0.01); smooth model against the Fresnel closed form of n = {}, k = {}: largest difference {worst_fresnel:.1e} (allowed {FRESNEL_TOL:.0e}); {}",
         fmt_sig(worst_far),
+        index[0],
+        index[1],
         m.message
     );
     Ok(m)
@@ -154,7 +180,7 @@ impl Kind for SmoothLimit {
         }
         let models = subject.models?.bsdfs().ok()?;
         let has = |n: &str| models.iter().any(|m| m.name == n);
-        (!PAIRS.iter().any(|(r, s)| has(r) && has(s))).then(|| {
+        (!PAIRS.iter().any(|(r, s, _)| has(r) && has(s))).then(|| {
             format!(
                 "{} serves none of the pairs {PAIRS:?} by these names",
                 subject.renderer.name()
@@ -172,7 +198,7 @@ impl Kind for SmoothLimit {
                 .map(|m| m.model.as_ref())
         };
         let mut parts = Vec::new();
-        for (i, (r, s)) in PAIRS.iter().enumerate() {
+        for (i, (r, s, index)) in PAIRS.iter().enumerate() {
             let (Some(rough), Some(smooth)) = (find(r), find(s)) else {
                 continue;
             };
@@ -181,6 +207,7 @@ impl Kind for SmoothLimit {
                 measure(
                     rough,
                     smooth,
+                    *index,
                     p.samples,
                     p.rel_tol,
                     mix64(ctx.seed ^ i as u64),

@@ -6,6 +6,7 @@
 
 pub mod emission;
 pub mod footprint;
+pub mod fresnel;
 pub mod furnace;
 pub mod ggx_albedo;
 pub mod lambert;
