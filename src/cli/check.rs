@@ -217,7 +217,8 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         sequential: a.sequential || !a.fixed,
     };
     let names: Vec<String> = files.iter().map(|f| f.display().to_string()).collect();
-    let externals = if a.renderers.iter().any(|r| r != "furnace") {
+    // a table given explicitly is read (and must be valid) even when only furnace runs
+    let externals = if a.renderers.iter().any(|r| r != "furnace") || a.renderers_file.is_some() {
         Some(renderer_table(a.renderers_file.as_deref())?)
     } else {
         None

@@ -615,6 +615,13 @@ fn render_sppm_image(
     exr_path: &Path,
     png_path: &Path,
 ) -> Result<i32, Failure> {
+    if a.runs < 2 {
+        return Err(anyhow::anyhow!(
+            "--integrator sppm takes each pixel's variance from the spread of --runs independent runs (one run's pixels are correlated across its iterations): give at least 2 runs, not {}",
+            a.runs
+        )
+        .into());
+    }
     let sppm = furnace::integrators::sppm::Sppm {
         iterations: a.iterations,
         photons_per_iteration: a.photons_per_iteration,

@@ -273,6 +273,29 @@ fn thread_counts_beyond_the_limit_are_refused_before_any_thread_starts() {
 }
 
 #[test]
+fn sppm_with_one_run_is_refused_rather_than_written_with_zero_variances() {
+    let (code, msg) = render(
+        "sppm-one-run",
+        &scene("2", ""),
+        &["--integrator", "sppm", "--runs", "1"],
+    );
+    assert_eq!(code, Some(2), "{msg}");
+    assert!(msg.contains("give at least 2 runs, not 1"), "{msg}");
+}
+
+#[test]
+fn a_renderer_table_given_but_missing_is_an_error_even_for_furnace_alone() {
+    let d = tmp("missing-table");
+    std::fs::write(d.join("s.toml"), scene("2", "")).unwrap();
+    let manifest = "[[check]]\nname = \"f\"\nkind = \"furnace\"\nscene = \"s.toml\"\n";
+    std::fs::write(d.join("m.toml"), manifest).unwrap();
+    let out = furnace(&d, &["check", "m.toml", "--renderers", "nope.toml", "-q"]);
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(stderr_of(&out, &d).contains("nope.toml"), "{out:?}");
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
 fn empty_runs_do_not_pass_silently() {
     let d = tmp("empty");
     std::fs::write(d.join("m.toml"), "# no checks\n").unwrap();

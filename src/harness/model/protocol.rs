@@ -151,7 +151,22 @@ pub fn read_message(r: &mut impl BufRead) -> io::Result<Option<Message>> {
             preview(&line)
         )));
     }
+    // `n` and `width`, when present, must be counts: a payload announced otherwise (−1, 1.5,
+    // "7") cannot be skipped, so the stream would lose its framing
+    for k in ["n", "width"] {
+        if let Some(v) = header.get(k).filter(|v| v.as_u64().is_none()) {
+            return Err(bad(format!(
+                "header field {k:?} is {}, not a count of rows or values",
+                preview(v.to_string().as_bytes())
+            )));
+        }
+    }
     let get = |k: &str| header.get(k).and_then(Value::as_u64);
+    if get("n").is_some() != get("width").is_some() {
+        return Err(bad(
+            "a header with a payload gives both \"n\" (rows) and \"width\" (values per row)".into(),
+        ));
+    }
     let payload = match (get("n"), get("width")) {
         (Some(n), Some(w)) => {
             if n as usize > MAX_ROWS || w > 16 {
@@ -241,6 +256,11 @@ mod tests {
             "not json\n".to_string(),
             "[1, 2]\n".to_string(),
             format!("{{\"x\": \"{}\"}}", "a".repeat(MAX_HEADER + 10)),
+            // counts that are not counts, and a payload announced by half
+            "{\"op\": \"eval\", \"n\": -1, \"width\": 3}\n".to_string(),
+            "{\"op\": \"eval\", \"n\": 1.5, \"width\": 3}\n".to_string(),
+            "{\"op\": \"eval\", \"n\": \"7\", \"width\": 3}\n".to_string(),
+            "{\"op\": \"eval\", \"width\": 3}\n".to_string(),
         ] {
             let e = read_message(&mut std::io::Cursor::new(text.into_bytes())).unwrap_err();
             assert_eq!(e.kind(), io::ErrorKind::InvalidData, "{e}");
