@@ -1,8 +1,12 @@
 //! Lambert's law under the scene's lights: a diffuse surface of albedo R with irradiance H
 //! reflects L = R·H/π (Lambert 1760), with H in closed form at each camera ray's hit: a point
-//! light I cos θ/d²; a uniform sky π L; a polygonal area light by Lambert's polygon formula
-//! H = (L/2) Σ Θᵢ (γᵢ·n) (Arvo 1995, "Applications of Irradiance Tensors", eq. 9); a sphere
-//! fully above the horizon π L sin²α cos θ (Nusselt's analogy). Direct light only, no occluders.
+//! light I cos θ/d² (the inverse-square and cosine laws, Lambert 1760, *Photometria*); a
+//! uniform sky π L (∫ L cos θ dω over the hemisphere); a polygonal area light by Lambert's
+//! polygon formula H = (L/2) Σ Θᵢ (γᵢ·n) (Arvo 1995, "Applications of Irradiance Tensors",
+//! eq. 9); a sphere fully above the horizon π L sin²α cos θ (Nusselt's unit-sphere method,
+//! Nusselt 1928: H/L is the cone's projection onto the base disk, an ellipse of area
+//! π sin²α cos θ for a cone of half-angle α at angle θ from the normal). Direct light only, no
+//! occluders.
 
 use super::footprint::per_pixel;
 use crate::geometry::{Hit, Shape, SurfacePoint};
