@@ -469,7 +469,7 @@ fn render_bdpt_image(
     png_path: &Path,
 ) -> Result<i32, Failure> {
     use furnace::integrators::bdpt::{Bdpt, Weighting};
-    if a.runs < 2 || settings.spp % a.runs != 0 {
+    if a.runs < 2 || !settings.spp.is_multiple_of(a.runs) {
         return Err(anyhow::anyhow!(
             "--integrator bdpt divides --spp ({}) among --runs ({}) independent runs: give at least 2 runs and an spp that is a multiple of them",
             settings.spp,

@@ -69,7 +69,7 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
         }
         runs.push(v);
     }
-    if a.compare.len() % 2 != 0 {
+    if !a.compare.len().is_multiple_of(2) {
         return Err(anyhow::anyhow!("--compare takes pairs: TEST.exr REFERENCE.exr").into());
     }
     let regions = match &a.regions {

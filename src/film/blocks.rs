@@ -30,7 +30,7 @@ impl Span {
         self.level == right.level
             && self.level < 63
             && self.end() == right.start
-            && self.start % (1u64 << (self.level + 1)) == 0
+            && self.start.is_multiple_of(1u64 << (self.level + 1))
     }
 }
 

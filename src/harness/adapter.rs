@@ -642,7 +642,7 @@ impl External {
             ));
         }
         let k = self.batches();
-        if s.spp < k || s.spp % k != 0 {
+        if s.spp < k || !s.spp.is_multiple_of(k) {
             return Err(format!(
                 "spp {} must be a multiple of the {k} independent runs per image (renderers.toml `batches`), so that the image has exactly the samples the check asks for",
                 s.spp
