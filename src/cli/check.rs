@@ -88,6 +88,9 @@ pub struct CheckArgs {
     /// Renderer table (TOML [renderer.NAME] tables) [default: ~/.config/furnace/renderers.toml if it exists, else the table built into furnace]. Never read implicitly from the working directory.
     #[arg(long = "renderers")]
     renderers_file: Option<PathBuf>,
+    /// Exit 2 when a renderer named by --renderer is not available (its probe fails), instead of reporting its checks as skipped: for a CI job whose purpose is to judge that renderer.
+    #[arg(long)]
+    require_renderers: bool,
 }
 
 /// Runs `furnace check`; returns the exit code.
@@ -241,6 +244,12 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
             None => &BuiltIn,
         };
         let unavailable = external.as_ref().and_then(|e| e.probe().err());
+        if let (true, Some(why)) = (a.require_renderers, &unavailable) {
+            return Err(anyhow::anyhow!(
+                "renderer {label} is not available (--require-renderers): {why}"
+            )
+            .into());
+        }
         let local = LocalModels;
         let served: Option<Box<dyn ModelSource>> = match (&external, &unavailable) {
             (None, _) => Some(Box::new(local)),

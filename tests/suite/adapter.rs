@@ -102,6 +102,25 @@ fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
         "{stderr}"
     );
     assert!(stdout.contains("0 passed, 0 failed, 7 skipped"), "{stdout}");
+    // A CI job that exists to judge it asks for it: then unavailable is an error (exit 2).
+    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args([
+            "check",
+            "tests/manifests/lambert.toml",
+            "--renderer",
+            "stand-in",
+            "--require-renderers",
+            "--renderers",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(
+        String::from_utf8_lossy(&out.stderr).contains("(--require-renderers)"),
+        "{out:?}"
+    );
     // An unknown renderer is a usage error (exit 2) that lists the known ones.
     let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
         .current_dir(root(""))
