@@ -303,7 +303,11 @@ fn pooled(
         // the power the design holds: the full budget's error (√share of this one's) times
         // the design's drift over the fixed test's (√inflation)
         power_std_error: std_error.map(|e| e * (power_share * d.inflation).sqrt()),
-        statistic: Some(Statistic::Z { z }),
+        statistic: Some(Statistic::Sequential {
+            z,
+            look: k as u64 + 1,
+            looks: d.t.len() as u64,
+        }),
         p_value: Some(d.p_value(k, z)),
         samples: parts.iter().map(|p| p.1.samples).sum(),
         heavy_tail: parts.iter().find_map(|p| p.1.heavy_tail.clone()),

@@ -29,6 +29,19 @@ pub enum Statistic {
         #[serde(deserialize_with = "nan_if_null")]
         z: f64,
     },
+    /// A group-sequential test (`harness::budget`): Z combines the looks' stage-wise p-values
+    /// and is compared with the design's boundaries at the look that settled the check; the
+    /// estimate and standard error shown are the last look's (or pooled over the looks), so Z
+    /// is not (estimate − expected)/standard error.
+    Sequential {
+        /// The sequential statistic Z.
+        #[serde(deserialize_with = "nan_if_null")]
+        z: f64,
+        /// The look that settled the check, from 1.
+        look: u64,
+        /// Looks the design allows.
+        looks: u64,
+    },
     /// Two-sided Student t test: (estimate − expected)/standard error where the standard error
     /// is itself estimated from few effective values: Welch–Satterthwaite degrees of freedom
     /// from fourth moments (region tests between images), or batches − 1 (the re-test of a

@@ -65,6 +65,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `type` | further fields | meaning |
 |---|---|---|
 | `"z"` | `z` (number or null): the z score | Two-sided z test: (`estimate` − `expected`) / `std_error`. |
+| `"sequential"` | `z` (number or null): the sequential statistic; `look` (integer): the look that settled the check, from 1; `looks` (integer): looks the design allows | Group-sequential test of a budgeted check (the default of `furnace check`): Z combines the looks' stage-wise p-values and is compared with the design's boundaries; `estimate` and `std_error` are the last look's (or pooled over the looks), so Z is not (`estimate` − `expected`) / `std_error`. |
 | `"t"` | `t` (number or null): the t score; `dof` (number or null): its degrees of freedom | Two-sided Student t test, used where a standard error rests on few effective samples: Welch–Satterthwaite degrees of freedom from the samples' fourth moments (region tests between images), or batches − 1 (the re-test of a region whose residuals have structure). |
 | `"chi_square"` | `chi2` (number or null): the χ² value; `dof` (integer): degrees of freedom after pooling | Pearson χ² goodness of fit. |
 | `"tolerance"` | `max_error` (number or null): largest error found; `abs_tol` (number or null): absolute tolerance; `rel_tol` (number or null): relative tolerance | Deterministic comparison; passes when `max_error` ≤ `abs_tol` + `rel_tol`·\|`expected`\|. |

@@ -413,6 +413,11 @@ mod tests {
             let y = numbers[(i + 5) % numbers.len()];
             let statistics = [
                 Statistic::Z { z: x },
+                Statistic::Sequential {
+                    z: x,
+                    look: 1,
+                    looks: 3,
+                },
                 Statistic::T { t: x, dof: y },
                 Statistic::PerValueTolerance {
                     max_ratio: x,

@@ -131,6 +131,12 @@ fn estimate_text(o: &Outcome) -> String {
 pub(crate) fn statistic_text(o: &Outcome) -> String {
     match &o.statistic {
         Statistic::Z { z } => format!("z = {}", sig(*z, 3, true)),
+        Statistic::Sequential { z, look, looks } => {
+            format!(
+                "sequential Z = {} at look {look} of {looks}",
+                sig(*z, 3, true)
+            )
+        }
         Statistic::T { t, dof } => format!("t = {}, ν {}", sig(*t, 3, true), sig(*dof, 3, false)),
         Statistic::ChiSquare { chi2, dof } => format!("χ² = {}, dof {dof}", sig(*chi2, 4, true)),
         Statistic::Tolerance {
