@@ -2,9 +2,7 @@
 //! and sampling routine furnace ships is enrolled here once, so a new model is covered by
 //! reciprocity, energy, chi-square and sample-weight checks without new check code.
 
-use crate::geometry::{
-    mesh::TriangleMesh, quad::Quad, sphere::Sphere, triangle::ShearedRay, Ray, Shape,
-};
+use crate::geometry::{mesh::TriangleMesh, quad::Quad, sphere::Sphere, Shape};
 use crate::harness::under_test::BsdfFlags;
 use crate::lights::Light;
 use crate::math::{warp, Vec3, PI};
@@ -209,7 +207,8 @@ pub struct LightSampler {
 
 impl LightSampler {
     /// The density of producing `w` from `p`, per steradian, by intersecting the light's shape
-    /// (every crossing along `w`), not by asking the light's sampling code.
+    /// (every crossing along `w`, found by [`crossings`] here, not by the renderer's
+    /// intersection code), not by asking the light's sampling code.
     pub fn pdf_of(&self, w: Vec3) -> f64 {
         match &self.light {
             Light::Area { shape, .. } => {
@@ -217,45 +216,104 @@ impl LightSampler {
                 if let Shape::Sphere(sphere) = s {
                     // Seen from clearly outside, the sampler is uniform over the directions
                     // that hit the sphere: 1 over the solid angle it subtends, 2π(1 − cos θmax)
-                    // with sin θmax = r/d.
-                    // (the rule for "outside" is the sampler's specification; the density is
-                    // computed here from the geometry)
-                    if sphere.visible_cone(self.p).is_some() {
+                    // with sin θmax = r/d. (Which points count as outside is the sampler's
+                    // specification, so that rule is the sphere's own; the density and the
+                    // hit are computed here from the geometry.)
+                    if sphere.clearly_outside(self.p) {
                         let d = (sphere.center - self.p).length();
                         let sin2_max = (sphere.radius / d).powi(2);
                         let solid_angle = 2.0 * PI * sin2_max / (1.0 + (1.0 - sin2_max).sqrt());
-                        let hits = sphere
-                            .intersect(&Ray { o: self.p, d: w }, f64::INFINITY)
-                            .is_some();
+                        let hits = !crossings(s, self.p, w).is_empty();
                         return if hits { 1.0 / solid_angle } else { 0.0 };
                     }
                 }
-                let mut pdf = 0.0;
-                for prim in 0..s.primitive_count() {
-                    // Every crossing of the surface along w is a point the sampler can pick:
-                    // a sphere is crossed at most twice, a planar primitive once.
-                    let mut start = 0.0;
-                    for _ in 0..2 {
-                        let ray = ShearedRay::new(Ray {
-                            o: self.p + w * start,
-                            d: w,
-                        });
-                        let Some((t, sp)) = s.intersect_primitive(prim, &ray, f64::INFINITY) else {
-                            break;
-                        };
-                        let d = start + t;
-                        let cos = sp.n.dot(w).abs();
-                        if cos > 0.0 {
-                            pdf += d * d / (cos * s.area());
-                        }
-                        start = d * (1.0 + 1e-9);
-                    }
-                }
-                pdf
+                // Every crossing of the surface along w is a point the sampler can pick, at
+                // density 1/area, d²/(|cos θ| area) per steradian.
+                let area = surface_area(s);
+                crossings(s, self.p, w)
+                    .into_iter()
+                    .filter(|&(_, cos)| cos > 0.0)
+                    .map(|(d, cos)| d * d / (cos * area))
+                    .sum()
             }
             Light::Environment { .. } => warp::UNIFORM_SPHERE_PDF,
             Light::Point { .. } => 0.0,
         }
+    }
+}
+
+/// The distances t > 0 at which the ray p + t·w (w unit) crosses `shape`, each with |cos| of
+/// the angle between w and the surface normal there: the ray–sphere quadratic in its
+/// cancellation-free form (Press et al., *Numerical Recipes*, §5.6), and for planar pieces the
+/// plane's distance with the point's coordinates on the parallelogram's edges or the
+/// triangle's (Möller & Trumbore 1997, "Fast, Minimum Storage Ray/Triangle Intersection",
+/// eq. 5). Written here, apart from `geometry`, so that the light-sampler check does not take
+/// its expected density from the code it tests.
+pub fn crossings(shape: &Shape, p: Vec3, w: Vec3) -> Vec<(f64, f64)> {
+    // a piece spanned by edges e1, e2 from corner a: (t, cos) when the ray meets it with
+    // coordinates (u, v) the test accepts
+    let planar = |a: Vec3, e1: Vec3, e2: Vec3, inside: &dyn Fn(f64, f64) -> bool| {
+        let q = w.cross(e2);
+        let det = e1.dot(q);
+        if det == 0.0 {
+            return None;
+        }
+        let s = p - a;
+        let u = s.dot(q) / det;
+        let r = s.cross(e1);
+        let v = w.dot(r) / det;
+        let t = e2.dot(r) / det;
+        let n = e1.cross(e2).normalize();
+        (t > 0.0 && inside(u, v)).then(|| (t, n.dot(w).abs()))
+    };
+    match shape {
+        Shape::Sphere(sp) => {
+            let oc = p - sp.center;
+            let b = oc.dot(w);
+            let c = oc.dot(oc) - sp.radius * sp.radius;
+            let disc = b * b - c;
+            if disc < 0.0 {
+                return Vec::new();
+            }
+            let q = -(b + disc.sqrt().copysign(b));
+            let mut roots = [q, if q != 0.0 { c / q } else { 0.0 }];
+            roots.sort_by(f64::total_cmp);
+            roots
+                .into_iter()
+                .filter(|&t| t > 0.0)
+                .map(|t| {
+                    let n = (p + w * t - sp.center) / sp.radius;
+                    (t, n.dot(w).abs())
+                })
+                .collect()
+        }
+        Shape::Quad(q) => planar(q.corner, q.edge_u, q.edge_v, &|u, v| {
+            (0.0..=1.0).contains(&u) && (0.0..=1.0).contains(&v)
+        })
+        .into_iter()
+        .collect(),
+        Shape::Mesh(m) => (0..m.triangles.len())
+            .filter_map(|i| {
+                let [a, b, c] = m.vertices(i);
+                planar(a, b - a, c - a, &|u, v| {
+                    u >= 0.0 && v >= 0.0 && u + v <= 1.0
+                })
+            })
+            .collect(),
+    }
+}
+
+/// A shape's surface area: 4πr², |eu × ev|, or the triangles' |e1 × e2|/2 summed.
+fn surface_area(shape: &Shape) -> f64 {
+    match shape {
+        Shape::Sphere(sp) => 4.0 * PI * sp.radius * sp.radius,
+        Shape::Quad(q) => q.edge_u.cross(q.edge_v).length(),
+        Shape::Mesh(m) => (0..m.triangles.len())
+            .map(|i| {
+                let [a, b, c] = m.vertices(i);
+                0.5 * (b - a).cross(c - a).length()
+            })
+            .sum(),
     }
 }
 
@@ -333,4 +391,49 @@ pub fn lights() -> Vec<(String, LightSampler)> {
         },
     ));
     v
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{crossings, surface_area};
+    use crate::geometry::{mesh::TriangleMesh, quad::Quad, sphere::Sphere, Shape};
+    use crate::math::{Vec3, PI};
+
+    #[test]
+    fn crossings_and_areas_of_each_shape_in_closed_form() {
+        let z = Vec3::new(0.0, 0.0, 1.0);
+        let sphere = Shape::Sphere(Sphere {
+            center: Vec3::new(0.0, 0.0, 3.0),
+            radius: 1.0,
+            flip_normals: false,
+        });
+        assert_eq!(crossings(&sphere, Vec3::ZERO, z), vec![(2.0, 1.0), (4.0, 1.0)]);
+        assert!(crossings(&sphere, Vec3::new(1.5, 0.0, 0.0), z).is_empty());
+        assert!((surface_area(&sphere) - 4.0 * PI).abs() < 1e-15);
+        let quad = Shape::Quad(Quad {
+            corner: Vec3::new(-1.0, -1.0, 2.0),
+            edge_u: Vec3::new(2.0, 0.0, 0.0),
+            edge_v: Vec3::new(0.0, 2.0, 0.0),
+            flip_normals: false,
+        });
+        let w = Vec3::new(0.3, 0.0, 1.0).normalize();
+        let hit = crossings(&quad, Vec3::ZERO, w);
+        assert_eq!(hit.len(), 1);
+        assert!((hit[0].0 - 2.0 / w.z).abs() < 1e-15 && (hit[0].1 - w.z).abs() < 1e-15);
+        assert!(crossings(&quad, Vec3::ZERO, -z).is_empty());
+        assert!(crossings(&quad, Vec3::new(1.5, 0.0, 0.0), z).is_empty());
+        assert!((surface_area(&quad) - 4.0).abs() < 1e-15);
+        let tri = Shape::Mesh(TriangleMesh::new(
+            vec![
+                Vec3::new(0.0, 0.0, 1.0),
+                Vec3::new(1.0, 0.0, 1.0),
+                Vec3::new(0.0, 1.0, 1.0),
+            ],
+            vec![[0, 1, 2]],
+            false,
+        ));
+        assert_eq!(crossings(&tri, Vec3::new(0.25, 0.25, 0.0), z), vec![(1.0, 1.0)]);
+        assert!(crossings(&tri, Vec3::new(0.75, 0.75, 0.0), z).is_empty());
+        assert!((surface_area(&tri) - 0.5).abs() < 1e-15);
+    }
 }
