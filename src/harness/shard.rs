@@ -32,7 +32,7 @@ pub enum ShardError {
 impl Shard {
     /// Parses `K/N`.
     pub fn parse(s: &str) -> Result<Shard, ShardError> {
-        let bad = || ShardError::Spec(s.chars().take(40).collect());
+        let bad = || ShardError::Spec(crate::limits::quote(s));
         let (k, n) = s.split_once('/').ok_or_else(bad)?;
         let (index, count) = (
             k.trim().parse::<usize>().map_err(|_| bad())?,

@@ -204,7 +204,7 @@ fn sppm_core(
         .find(|r| !(r.is_finite() && **r > 0.0 && (**r * **r).is_normal()))
     {
         return Err(RenderError::Settings(format!(
-            "SPPM's initial radius must be a positive length, got {radius}"
+            "SPPM's initial radius must be a positive length whose square is a normal f64 (about 1.5e-154 to 1.3e154), got {radius:e}"
         )));
     }
     let grey = settings.spectral.grey_mode && scene.is_grey();

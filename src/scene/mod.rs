@@ -651,6 +651,20 @@ impl Builder<'_> {
             "the camera needs an up vector [x, y, z]",
         )?;
         let up = self.vec3(up_s, "camera.up")?;
+        // as for shapes: beyond it the view direction's squared length overflows
+        let limit = crate::limits::MAX_COORDINATE;
+        for (p, key) in [(position, "camera.position"), (look_at, "camera.look_at")] {
+            if p.abs().max_element() > limit {
+                return Err(self.err(
+                    span.clone(),
+                    key,
+                    format!(
+                        "{:?} lies beyond {limit:e} scene units; coordinates must be within it (choose a larger unit)",
+                        p.to_array()
+                    ),
+                ));
+            }
+        }
         let forward = look_at - position;
         if forward.length_squared() == 0.0 {
             return Err(self.err(

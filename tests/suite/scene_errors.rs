@@ -90,6 +90,7 @@ fn error_messages() {
 fn camera_errors() {
     let camera_cases = [
         ("camera_both_forms", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 40\nfocal_length = 0.035\nfilm_size = [0.025, 0.025]\n"),
+        ("camera_beyond_the_coordinate_limit", "[camera]\nposition = [0,1,-1e300]\nlook_at = [0,0,0]\nup = [0,1,0]\nfov = 40\n"),
         ("camera_up_parallel", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,0,2]\nfov = 40\n"),
         ("camera_fov_out_of_range", "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 180\n"),
         ("camera_missing", "[[light]]\ntype = \"environment\"\nradiance = 1\n"),

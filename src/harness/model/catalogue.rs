@@ -407,7 +407,10 @@ mod tests {
             radius: 1.0,
             flip_normals: false,
         });
-        assert_eq!(crossings(&sphere, Vec3::ZERO, z), vec![(2.0, 1.0), (4.0, 1.0)]);
+        assert_eq!(
+            crossings(&sphere, Vec3::ZERO, z),
+            vec![(2.0, 1.0), (4.0, 1.0)]
+        );
         assert!(crossings(&sphere, Vec3::new(1.5, 0.0, 0.0), z).is_empty());
         assert!((surface_area(&sphere) - 4.0 * PI).abs() < 1e-15);
         let quad = Shape::Quad(Quad {
@@ -432,7 +435,10 @@ mod tests {
             vec![[0, 1, 2]],
             false,
         ));
-        assert_eq!(crossings(&tri, Vec3::new(0.25, 0.25, 0.0), z), vec![(1.0, 1.0)]);
+        assert_eq!(
+            crossings(&tri, Vec3::new(0.25, 0.25, 0.0), z),
+            vec![(1.0, 1.0)]
+        );
         assert!(crossings(&tri, Vec3::new(0.75, 0.75, 0.0), z).is_empty());
         assert!((surface_area(&tri) - 0.5).abs() < 1e-15);
     }

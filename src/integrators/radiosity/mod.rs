@@ -143,7 +143,7 @@ pub fn solve_with(
         Some(s) if s.is_finite() && s > 0.0 => s,
         Some(s) => {
             return Err(RadiosityError::Settings(format!(
-                "patch size must be a positive length, got {s}"
+                "patch size must be a positive length, got {s:e}"
             )))
         }
         None => default_patch_size(shapes),
