@@ -431,6 +431,128 @@ fn committed_reference_exports_are_current() {
     }
 }
 
+/// The committed Cornell Box export against the scene's sources read here, without furnace's
+/// scene loader (the TOML by the `toml` crate, the CSV tables by hand), so that a misreading in
+/// the loader cannot reach both the reference render and furnace's image unseen: the camera's
+/// frame and its fov from the focal length and film height (fov_y = 2 atan(h / 2f)), and every
+/// reflectance and emission spectrum at each wavelength the XML lists.
+#[test]
+fn the_cornell_box_reference_export_says_what_its_sources_say() {
+    let text = std::fs::read_to_string(root("scenes/cornell-box.toml")).unwrap();
+    let src: toml::Value = toml::from_str(&text).unwrap();
+    let xml =
+        std::fs::read_to_string(root("reference/mitsuba/cornell-box.export/scene.xml")).unwrap();
+    let doc = parse(&xml);
+    let nums = |v: &toml::Value| -> Vec<f64> {
+        v.as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_float().or(x.as_integer().map(|i| i as f64)).unwrap())
+            .collect()
+    };
+    let cam = &src["camera"];
+    let mut sensors = Vec::new();
+    doc.all("sensor", &mut sensors);
+    let sensor = sensors[0];
+    let fov: f64 = sensor.child_named("float", "fov").unwrap().attrs["value"]
+        .parse()
+        .unwrap();
+    let (f, h) = (
+        cam["focal_length"].as_float().unwrap(),
+        nums(&cam["film_size"])[1],
+    );
+    let want = 2.0 * (h / (2.0 * f)).atan().to_degrees();
+    assert!((fov - want).abs() < 1e-12, "fov {fov} vs {want}");
+    assert_eq!(
+        sensor.child_named("string", "fov_axis").unwrap().attrs["value"],
+        "y"
+    );
+    let mut lookats = Vec::new();
+    sensor.all("lookat", &mut lookats);
+    let xyz = |s: &str| -> Vec<f64> { s.split(',').map(|v| v.trim().parse().unwrap()).collect() };
+    for (attr, key) in [("origin", "position"), ("target", "look_at"), ("up", "up")] {
+        assert_eq!(
+            xyz(&lookats[0].attrs[attr]),
+            nums(&cam[key]),
+            "camera {key}"
+        );
+    }
+    // the CSV tables, read by hand: header, then wavelength and one value per column
+    let table = |spec: &toml::Value| -> Vec<(f64, f64)> {
+        let csv =
+            std::fs::read_to_string(root("scenes").join(spec["csv"].as_str().unwrap())).unwrap();
+        let mut lines = csv
+            .lines()
+            .filter(|l| !l.trim().is_empty() && !l.starts_with('#'));
+        let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = header
+            .iter()
+            .position(|c| c.trim() == spec["column"].as_str().unwrap())
+            .unwrap();
+        lines
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+                (v[0], v[col])
+            })
+            .collect()
+    };
+    // each shape, in order, against its material's reflectance and its emission as the TOML
+    // names them: a constant, or a CSV column
+    let spectra = src["spectra"].as_table().unwrap();
+    let expect = |v: &toml::Value, points: &[(Option<f64>, f64)], what: &str| {
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b.abs().max(1.0);
+        match v {
+            toml::Value::Float(c) => assert!(
+                matches!(points, [(None, x)] if close(*x, *c)),
+                "{what}: {points:?} vs the constant {c}"
+            ),
+            toml::Value::String(name) => {
+                let t = table(&spectra[name.as_str()]);
+                assert_eq!(points.len(), t.len(), "{what}: wavelengths");
+                for (&(l, x), &(tl, tv)) in points.iter().zip(&t) {
+                    assert!(
+                        l == Some(tl) && close(x, tv),
+                        "{what} at {tl} nm: {x} vs {tv}"
+                    );
+                }
+            }
+            other => panic!("{what}: unexpected {other:?}"),
+        }
+    };
+    let mut shapes = Vec::new();
+    doc.all("shape", &mut shapes);
+    let src_shapes = src["shape"].as_array().unwrap();
+    assert_eq!(shapes.len(), src_shapes.len());
+    for (i, (x, t)) in shapes.iter().zip(src_shapes).enumerate() {
+        let material = &src["materials"][t["material"].as_str().unwrap()];
+        let mut refl = Vec::new();
+        x.all("spectrum", &mut refl);
+        let r = refl
+            .iter()
+            .find(|n| n.attrs["name"] == "reflectance")
+            .unwrap_or_else(|| panic!("shape {i}: no reflectance"));
+        expect(
+            &material["reflectance"],
+            &spectrum_points(&r.attrs["value"]),
+            &format!("shape {i} reflectance"),
+        );
+        match t.get("emission") {
+            Some(e) => {
+                let radiance = refl.iter().find(|n| n.attrs["name"] == "radiance").unwrap();
+                expect(
+                    e,
+                    &spectrum_points(&radiance.attrs["value"]),
+                    &format!("shape {i} emission"),
+                );
+            }
+            None => assert!(
+                refl.iter().all(|n| n.attrs["name"] != "radiance"),
+                "shape {i} emits"
+            ),
+        }
+    }
+}
+
 #[test]
 fn pbrt_export_snapshot_and_every_scene() {
     for (path, scene) in bundled() {
