@@ -304,8 +304,9 @@ fn token_text(token: &str) -> String {
     }
 }
 
-/// Appends the fan triangulation of a polygon (given as vertex indices) to `out`.
-fn fan_triangulate(corners: &[u32], out: &mut Vec<[u32; 3]>) {
+/// Appends the fan triangulation of a polygon (given as vertex indices) to `out`; an error when
+/// the file's triangles then pass [`crate::limits::MAX_TRIANGLES`].
+fn fan_triangulate(corners: &[u32], out: &mut Vec<[u32; 3]>, path: &Path) -> Result<()> {
     if let Some((&first, rest)) = corners.split_first() {
         for pair in rest.windows(2) {
             if let &[b, c] = pair {
@@ -313,6 +314,12 @@ fn fan_triangulate(corners: &[u32], out: &mut Vec<[u32; 3]>) {
             }
         }
     }
+    within(
+        out.len() as u64,
+        crate::limits::MAX_TRIANGLES,
+        "triangle",
+        path,
+    )
 }
 
 /// Names of the three coordinate axes, for messages.
@@ -364,13 +371,7 @@ pub fn parse_obj(text: &str, path: &Path) -> std::result::Result<MeshData, MeshI
                         count: corners.len(),
                     });
                 }
-                fan_triangulate(&corners, &mut mesh.triangles);
-                within(
-                    mesh.triangles.len() as u64,
-                    crate::limits::MAX_TRIANGLES,
-                    "triangle",
-                    path,
-                )?;
+                fan_triangulate(&corners, &mut mesh.triangles, path)?;
             }
             // Comments, blank lines, vt/vn/o/g/s/usemtl/mtllib/l/p and
             // unknown statements carry nothing this loader needs.
@@ -1056,15 +1057,7 @@ fn read_ply_body<'a, R: BodyReader<'a>>(
             reader.finish()?;
             match role {
                 Role::Vertex(_) => mesh.positions.push(position),
-                Role::Face(_) => {
-                    fan_triangulate(&corners, &mut mesh.triangles);
-                    within(
-                        mesh.triangles.len() as u64,
-                        crate::limits::MAX_TRIANGLES,
-                        "triangle",
-                        path,
-                    )?;
-                }
+                Role::Face(_) => fan_triangulate(&corners, &mut mesh.triangles, path)?,
                 Role::Skip => {}
             }
         }
