@@ -144,12 +144,10 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     };
     let mut inputs: Vec<(&str, &Path)> =
         files.iter().map(|p| ("a manifest", p.as_path())).collect();
-    inputs.extend(
-        a.renderers_file
-            .iter()
-            .map(|p| ("--renderers", p.as_path())),
-    );
-    inputs.extend(a.shard_costs.iter().map(|p| ("--shard-costs", p.as_path())));
+    inputs.extend(super::given(&[
+        ("--renderers", &a.renderers_file),
+        ("--shard-costs", &a.shard_costs),
+    ]));
     super::distinct_paths(&inputs, &outputs.roles())?;
     let mut specs = Vec::new();
     for f in &files {

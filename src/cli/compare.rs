@@ -56,18 +56,13 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
         ("the test image", a.test.as_path()),
         ("the reference", a.reference.as_path()),
     ];
-    if let Some(p) = &a.regions {
-        inputs.push(("--regions", p));
-    }
-    let outputs: Vec<(&str, &std::path::Path)> = [
+    inputs.extend(super::given(&[("--regions", &a.regions)]));
+    let outputs = super::given(&[
         ("--diff", &a.diff),
         ("--relerr", &a.relerr),
         ("--report", &a.report),
         ("--markdown", &a.markdown),
-    ]
-    .into_iter()
-    .filter_map(|(role, p)| Some((role, p.as_deref()?)))
-    .collect();
+    ]);
     super::distinct_paths(&inputs, &outputs)?;
     let test = load_rgb(&a.test)?;
     let reference = load_rgb(&a.reference)?;

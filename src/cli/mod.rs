@@ -189,6 +189,17 @@ pub(crate) fn thread_count(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
+/// The optional paths that were given, each with the option (role) that names it, for
+/// [`distinct_paths`].
+pub(crate) fn given<'a>(
+    options: &[(&'static str, &'a Option<PathBuf>)],
+) -> Vec<(&'static str, &'a Path)> {
+    options
+        .iter()
+        .filter_map(|&(role, p)| Some((role, p.as_deref()?)))
+        .collect()
+}
+
 /// A path's identity for comparing files: the canonical path of an existing file, else the
 /// canonical folder joined with the file name (an output not yet written); None when neither
 /// resolves (a write there fails with its own error).
@@ -279,15 +290,12 @@ pub struct Outputs {
 impl Outputs {
     /// The outputs given, with the option that names each.
     pub fn roles(&self) -> Vec<(&'static str, &Path)> {
-        [
+        given(&[
             ("--json", &self.json),
             ("--junit", &self.junit),
             ("--markdown", &self.markdown),
             ("--report", &self.report),
-        ]
-        .into_iter()
-        .filter_map(|(role, p)| Some((role, p.as_deref()?)))
-        .collect()
+        ])
     }
 }
 

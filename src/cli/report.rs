@@ -47,10 +47,12 @@ pub fn run(a: ReportArgs) -> Result<i32, Failure> {
             .iter()
             .map(|p| ("an image of --compare", p.as_path())),
     );
-    inputs.extend(a.regions.iter().map(|p| ("--regions", p.as_path())));
-    inputs.extend(a.notes.iter().map(|p| ("--notes", p.as_path())));
+    inputs.extend(super::given(&[
+        ("--regions", &a.regions),
+        ("--notes", &a.notes),
+    ]));
     let mut outputs = vec![("--out", a.out.as_path())];
-    outputs.extend(a.markdown.iter().map(|p| ("--markdown", p.as_path())));
+    outputs.extend(super::given(&[("--markdown", &a.markdown)]));
     super::distinct_paths(&inputs, &outputs)?;
     let mut runs = Vec::new();
     for p in &a.results {
