@@ -80,18 +80,22 @@ fn a_black_box_renderer_is_judged_by_the_same_statistics() {
 #[test]
 fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
     let file = renderers("scenes/furnace-sphere.toml", "\"false\"");
-    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
-        .current_dir(root(""))
-        .args([
-            "check",
-            "tests/manifests/lambert.toml",
-            "--renderer",
-            "stand-in",
-            "--renderers",
-        ])
-        .arg(&file)
-        .output()
-        .unwrap();
+    let check = |extra: &[&str]| {
+        Command::new(env!("CARGO_BIN_EXE_furnace"))
+            .current_dir(root(""))
+            .args([
+                "check",
+                "tests/manifests/lambert.toml",
+                "--renderer",
+                "stand-in",
+            ])
+            .args(extra)
+            .arg("--renderers")
+            .arg(&file)
+            .output()
+            .unwrap()
+    };
+    let out = check(&[]);
     let (stdout, stderr) = (
         String::from_utf8_lossy(&out.stdout),
         String::from_utf8_lossy(&out.stderr),
@@ -103,19 +107,7 @@ fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
     );
     assert!(stdout.contains("0 passed, 0 failed, 7 skipped"), "{stdout}");
     // A CI job that exists to judge it asks for it: then unavailable is an error (exit 2).
-    let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
-        .current_dir(root(""))
-        .args([
-            "check",
-            "tests/manifests/lambert.toml",
-            "--renderer",
-            "stand-in",
-            "--require-renderers",
-            "--renderers",
-        ])
-        .arg(&file)
-        .output()
-        .unwrap();
+    let out = check(&["--require-renderers"]);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     assert!(
         String::from_utf8_lossy(&out.stderr).contains("(--require-renderers)"),

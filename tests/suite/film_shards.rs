@@ -190,40 +190,33 @@ fn parts_of_different_renders_missing_or_doubled_parts_and_bad_files_are_refused
     let e = merge(&[&junk]);
     assert!(e.contains("not a furnace partial film"), "{e}");
     let text = String::from_utf8_lossy(&bytes).into_owned();
-    let huge = dir.join("huge.film");
     let header_end = text.find('\n').unwrap() + 1;
     let header_line_end = header_end + text[header_end..].find('\n').unwrap();
-    let altered = text[header_end..header_line_end].replace("\"width\":8", "\"width\":65536");
-    std::fs::write(
-        &huge,
-        [
+    let header = &text[header_end..header_line_end];
+    // p2 with its header line replaced
+    let with_header = |name: &str, altered: &str| {
+        let f = dir.join(name);
+        let body = [
             &bytes[..header_end],
             altered.as_bytes(),
             &bytes[header_line_end..],
-        ]
-        .concat(),
-    )
-    .unwrap();
+        ];
+        std::fs::write(&f, body.concat()).unwrap();
+        f
+    };
+    let huge = with_header(
+        "huge.film",
+        &header.replace("\"width\":8", "\"width\":65536"),
+    );
     let e = merge(&[&huge]);
     assert!(e.contains("huge.film"), "{e}");
     // a piece's sample count altered (the sum no longer the run's spp), and a pixel's sum of
     // squared deviations made negative (its first channel's m2, after the mean)
-    let header = &text[header_end..header_line_end];
     let pieces = header.find("\"pieces\":[[").unwrap() + "\"pieces\":[[".len();
     let count_at = pieces + header[pieces..].find(']').unwrap();
     let count_start = header[..count_at].rfind(',').unwrap() + 1;
-    let counted = dir.join("counted.film");
     let more = format!("{}{}{}", &header[..count_start], "99", &header[count_at..]);
-    std::fs::write(
-        &counted,
-        [
-            &bytes[..header_end],
-            more.as_bytes(),
-            &bytes[header_line_end..],
-        ]
-        .concat(),
-    )
-    .unwrap();
+    let counted = with_header("counted.film", &more);
     let e = merge(&[&p1, &counted, &p3]);
     assert!(
         e.contains("samples per pixel, but the run's furnace.spp is"),
