@@ -27,6 +27,25 @@ pub enum Of {
     Transmittance,
 }
 
+/// The `of` values, as the manifest writes them.
+const OF_NAMES: [(&str, Of); 3] = [
+    ("furnace", Of::Furnace),
+    ("lambert", Of::Lambert),
+    ("transmittance", Of::Transmittance),
+];
+
+impl Of {
+    /// The depth its closed form fixes and what that depth renders; None: the check's or
+    /// the scene's own.
+    fn fixed_depth(self) -> Option<(u32, &'static str)> {
+        match self {
+            Of::Furnace => None,
+            Of::Lambert => Some((1, "direct light only")),
+            Of::Transmittance => Some((0, "emission only")),
+        }
+    }
+}
+
 /// Parameters of a scale-invariance check.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Params {
@@ -76,31 +95,22 @@ impl Kind for ScaleInvariance {
     const BUDGETED: bool = true;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
-        let of = match k.get::<String>("of")? {
-            None => {
-                return Err(k.error_at(
-                    "of",
-                    "missing; allowed: \"furnace\", \"lambert\", \"transmittance\"".into(),
-                ))
-            }
-            Some(o) => match o.get_ref().as_str() {
-                "furnace" => Of::Furnace,
-                "lambert" => Of::Lambert,
-                "transmittance" => Of::Transmittance,
-                other => {
-                    return Err(k.error(
-                        o.span(),
-                        "of",
-                        format!("{other:?}: allowed \"furnace\", \"lambert\", \"transmittance\""),
-                    ))
+        let allowed = OF_NAMES.map(|(n, _)| format!("{n:?}")).join(", ");
+        let (name, of) = match k.get::<String>("of")? {
+            None => return Err(k.error_at("of", format!("missing; allowed: {allowed}"))),
+            Some(o) => match OF_NAMES.iter().find(|(n, _)| *n == o.get_ref().as_str()) {
+                Some(&found) => found,
+                None => {
+                    let other = o.get_ref();
+                    return Err(k.error(o.span(), "of", format!("{other:?}: allowed {allowed}")));
                 }
             },
         };
-        if of == Of::Lambert && k.has("max_depth") {
-            return Err(k.error_at("max_depth", "scale_invariance of \"lambert\" renders direct light only (max_depth 1); remove max_depth".into()));
-        }
-        if of == Of::Transmittance && k.has("max_depth") {
-            return Err(k.error_at("max_depth", "scale_invariance of \"transmittance\" renders emission only (max_depth 0); remove max_depth".into()));
+        if let (Some((depth, what)), true) = (of.fixed_depth(), k.has("max_depth")) {
+            return Err(k.error_at(
+                "max_depth",
+                format!("scale_invariance of {name:?} renders {what} (max_depth {depth}); remove max_depth"),
+            ));
         }
         let scales = k.finite_list("scales", true)?;
         if let Some(s) = scales.iter().find(|s| !(1e-8..=1e8).contains(*s)) {
@@ -156,16 +166,18 @@ impl Kind for ScaleInvariance {
         for &s in scales {
             for o in offsets {
                 let scene = base.transformed(s, Vec3::from_array(*o));
-                let (max_depth, strategy) = match of {
-                    Of::Furnace => (
-                        check.render.max_depth.or(scene.render.max_depth),
-                        Strategy::Mis,
-                    ),
-                    Of::Lambert => (Some(1), Strategy::Mis),
-                    Of::Transmittance => (Some(0), Strategy::Mis),
+                let max_depth = match of.fixed_depth() {
+                    Some((depth, _)) => Some(depth),
+                    None => check.render.max_depth.or(scene.render.max_depth),
                 };
-                let settings =
-                    settings_for(check, &scene, ctx, mix64(ctx.seed ^ k), max_depth, strategy);
+                let settings = settings_for(
+                    check,
+                    &scene,
+                    ctx,
+                    mix64(ctx.seed ^ k),
+                    max_depth,
+                    Strategy::Mis,
+                );
                 k += 1;
                 let region = region_of(check, &settings)?;
                 let (expected, px, what) = match of {
