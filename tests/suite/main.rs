@@ -7,6 +7,7 @@ mod colorimetry;
 mod digests;
 mod docs_consistency;
 mod export;
+mod export_geometry;
 mod false_alarms;
 mod film_shards;
 mod hostile;

@@ -1,0 +1,237 @@
+//! The committed Cornell Box export's geometry against the measured source, read without any of
+//! furnace's code: the source TOML (reference/cornell-box/cornell_box_geometry.toml) by the
+//! `toml` crate, the exported PLY files and the XML's file names by hand. Every exported triangle
+//! must be the source quad's half, corners in the source's order (so the winding, hence the
+//! one-sided light's side, is the page's), to within f32 rounding; the only deviation is the
+//! light lowered by 0.5 mm (scenes/cornell-box.toml, the light shape). A negative control moves
+//! one vertex and reverses one winding, and the comparison must reject both.
+
+use crate::root;
+
+/// The export's shapes in order, by the source's section names (scenes/cornell-box.toml lists
+/// them in this order).
+const SURFACES: [&str; 8] = [
+    "floor",
+    "ceiling",
+    "back_wall",
+    "right_wall",
+    "left_wall",
+    "light",
+    "short_block",
+    "tall_block",
+];
+
+/// How far the light is lowered (mm; Mitsuba's cbox.xml `translate y = -0.5`).
+const LIGHT_DROP: f64 = 0.5;
+
+/// Largest corner difference accepted (mm): the PLY holds f32, whose spacing at 560 mm is
+/// 6.1e-5 mm.
+const TOLERANCE: f64 = 1e-4;
+
+type Triangle = [[f64; 3]; 3];
+
+/// The source's triangles of one surface: each quad (v0, v1, v2, v3) as (v0, v1, v2) and
+/// (v0, v2, v3), the page's diagonal (scenes/cornell-box.toml, the left wall).
+fn source_triangles(src: &toml::Value, surface: &str) -> Vec<Triangle> {
+    let point = |v: &toml::Value| -> [f64; 3] {
+        let a = v.as_array().unwrap();
+        std::array::from_fn(|k| {
+            a[k].as_float()
+                .or(a[k].as_integer().map(|i| i as f64))
+                .unwrap()
+        })
+    };
+    let section = &src[surface];
+    let quads: Vec<Vec<[f64; 3]>> = match section.get("quads") {
+        Some(q) => q
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|quad| quad.as_array().unwrap().iter().map(point).collect())
+            .collect(),
+        None => vec![section["vertices"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(point)
+            .collect()],
+    };
+    let drop = if surface == "light" { LIGHT_DROP } else { 0.0 };
+    let mut out = Vec::new();
+    for q in quads {
+        assert_eq!(q.len(), 4, "{surface}: a quad has four corners");
+        let q: Vec<[f64; 3]> = q.iter().map(|p| [p[0], p[1] - drop, p[2]]).collect();
+        out.push([q[0], q[1], q[2]]);
+        out.push([q[0], q[2], q[3]]);
+    }
+    out
+}
+
+/// A binary little-endian PLY of float x, y, z vertices and `uchar`-counted `int` faces, read
+/// by hand: its triangles' corners.
+fn ply_triangles(bytes: &[u8]) -> Result<Vec<Triangle>, String> {
+    let end = b"end_header\n";
+    let body = bytes
+        .windows(end.len())
+        .position(|w| w == end)
+        .ok_or("no end_header")?
+        + end.len();
+    let header = std::str::from_utf8(&bytes[..body]).map_err(|e| e.to_string())?;
+    let lines: Vec<&str> = header.lines().collect();
+    let want_props = [
+        "property float x",
+        "property float y",
+        "property float z",
+        "property list uchar int vertex_indices",
+    ];
+    let count = |element: &str| -> Result<usize, String> {
+        let line = lines
+            .iter()
+            .find(|l| l.starts_with(&format!("element {element} ")))
+            .ok_or(format!("no element {element}"))?;
+        line.rsplit(' ')
+            .next()
+            .unwrap()
+            .parse()
+            .map_err(|e| format!("{line}: {e}"))
+    };
+    if !lines.contains(&"format binary_little_endian 1.0")
+        || want_props.iter().any(|p| !lines.contains(p))
+        || lines.iter().filter(|l| l.starts_with("property")).count() != want_props.len()
+    {
+        return Err(format!("unexpected header:\n{header}"));
+    }
+    let (nv, nf) = (count("vertex")?, count("face")?);
+    let mut at = body;
+    let mut take = |n: usize| -> Result<&[u8], String> {
+        let s = bytes.get(at..at + n).ok_or("truncated")?;
+        at += n;
+        Ok(s)
+    };
+    let mut vertices = Vec::with_capacity(nv);
+    for _ in 0..nv {
+        let mut p = [0.0; 3];
+        for c in &mut p {
+            *c = f64::from(f32::from_le_bytes(take(4)?.try_into().unwrap()));
+        }
+        vertices.push(p);
+    }
+    let mut triangles = Vec::with_capacity(nf);
+    for _ in 0..nf {
+        if take(1)?[0] != 3 {
+            return Err("a face that is not a triangle".into());
+        }
+        let mut t = [[0.0; 3]; 3];
+        for c in &mut t {
+            let i = i32::from_le_bytes(take(4)?.try_into().unwrap());
+            *c = *usize::try_from(i)
+                .ok()
+                .and_then(|i| vertices.get(i))
+                .ok_or(format!("index {i} of {nv} vertices"))?;
+        }
+        triangles.push(t);
+    }
+    if at != bytes.len() {
+        return Err(format!("{} bytes after the faces", bytes.len() - at));
+    }
+    Ok(triangles)
+}
+
+/// Whether two triangles are the same corners in the same cyclic order (the same winding),
+/// each corner within [`TOLERANCE`].
+fn same_triangle(a: &Triangle, b: &Triangle) -> bool {
+    let close = |p: &[f64; 3], q: &[f64; 3]| (0..3).all(|k| (p[k] - q[k]).abs() <= TOLERANCE);
+    (0..3).any(|r| (0..3).all(|k| close(&a[(k + r) % 3], &b[k])))
+}
+
+/// Each exported surface's triangles against the source's, in order: the first disagreement.
+fn compare(src: &toml::Value, exported: &[Vec<Triangle>]) -> Result<(), String> {
+    if exported.len() != SURFACES.len() {
+        return Err(format!(
+            "{} shapes exported, {} surfaces",
+            exported.len(),
+            SURFACES.len()
+        ));
+    }
+    for (surface, got) in SURFACES.iter().zip(exported) {
+        let want = source_triangles(src, surface);
+        if got.len() != want.len() {
+            return Err(format!(
+                "{surface}: {} triangles exported, {} in the source",
+                got.len(),
+                want.len()
+            ));
+        }
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            if !same_triangle(g, w) {
+                return Err(format!(
+                    "{surface} triangle {i}: exported {g:?}, source {w:?}"
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The committed export's triangles, shape by shape, from the file names in its XML.
+fn exported() -> Vec<Vec<Triangle>> {
+    let dir = root("reference/mitsuba/cornell-box.export");
+    let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
+    let mut out = Vec::new();
+    let mut rest = xml.as_str();
+    while let Some(i) = rest.find("<shape type=\"") {
+        rest = &rest[i..];
+        let kind = &rest[13..rest[13..].find('"').unwrap() + 13];
+        assert_eq!(kind, "ply", "every Cornell Box shape is a PLY");
+        let key = "<string name=\"filename\" value=\"";
+        let f = rest.find(key).unwrap() + key.len();
+        let file = &rest[f..f + rest[f..].find('"').unwrap()];
+        let bytes = std::fs::read(dir.join(file)).unwrap();
+        out.push(ply_triangles(&bytes).unwrap_or_else(|e| panic!("{file}: {e}")));
+        rest = &rest[f..];
+    }
+    out
+}
+
+fn source() -> toml::Value {
+    let text =
+        std::fs::read_to_string(root("reference/cornell-box/cornell_box_geometry.toml")).unwrap();
+    toml::from_str(&text).unwrap()
+}
+
+#[test]
+fn the_cornell_box_reference_export_has_the_measured_geometry() {
+    let src = source();
+    compare(&src, &exported()).unwrap();
+    // the page's winding, as Mitsuba reads it: the one-sided light's face normal
+    // (v1 − v0) × (v2 − v0) points down, into the room
+    for t in &exported()[5] {
+        let (e1, e2) = (
+            [0, 1, 2].map(|k| t[1][k] - t[0][k]),
+            [0, 1, 2].map(|k| t[2][k] - t[0][k]),
+        );
+        let ny = e1[2] * e2[0] - e1[0] * e2[2];
+        assert!(ny < 0.0, "the light faces up: {t:?}");
+    }
+}
+
+/// Negative control: a vertex moved by 1 mm, or one triangle's winding reversed, is rejected.
+#[test]
+fn a_moved_vertex_or_a_reversed_winding_fails_the_geometry_comparison() {
+    let src = source();
+    let mut moved = exported();
+    moved[4][1][2][0] += 1.0;
+    let e = compare(&src, &moved).unwrap_err();
+    assert!(e.starts_with("left_wall triangle 1"), "{e}");
+    let mut reversed = exported();
+    reversed[5][0].swap(1, 2);
+    let e = compare(&src, &reversed).unwrap_err();
+    assert!(e.starts_with("light triangle 0"), "{e}");
+    let mut unlowered = exported();
+    for t in &mut unlowered[5] {
+        for p in t {
+            p[1] += LIGHT_DROP;
+        }
+    }
+    assert!(compare(&src, &unlowered).is_err());
+}
