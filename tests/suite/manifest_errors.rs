@@ -45,6 +45,7 @@ fn manifest_error_messages() {
         ("empty_scales", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nscales = []\n")),
         ("empty_offsets", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\noffsets = []\n")),
         ("empty_g", error_of("[[check]]\nname = \"x\"\nkind = \"hg\"\ng = []\n")),
+        ("max_bias_above_one", error_of("[[check]]\nname = \"x\"\nkind = \"algorithm_agreement\"\nintegrator = \"radiosity\"\nscene = \"../../scenes/cornell-box.toml\"\nmax_bias = 2.0\n")),
         ("duplicate_names", error_of("[[check]]\nname = \"x\"\nkind = \"reciprocity\"\n[[check]]\nname = \"x\"\nkind = \"energy\"\n")),
     ];
     for (name, message) in cases {

@@ -1787,6 +1787,48 @@ fn algorithm_agreement_rejects_a_radiosity_that_loses_light() {
     );
 }
 
+/// A point factor that loses light with the square of the source patch's longest edge, a tenth
+/// at 100 mm (a second-order quadrature error): at the Cornell box's default patches (edges up
+/// to 97 mm) the image is some 10 % dark, at twice the patch size far darker, so that the
+/// refinement estimates more than the whole error.
+fn patch_size_lossy_factor(x: Vec3, n: Vec3, polygon: &[Vec3]) -> f64 {
+    let edge = (0..polygon.len())
+        .map(|i| (polygon[(i + 1) % polygon.len()] - polygon[i]).length())
+        .fold(0.0, f64::max);
+    (1.0 - 0.1 * (edge / 100.0).powi(2)).max(0.0)
+        * furnace::integrators::radiosity::point_to_polygon(x, n, polygon)
+}
+
+/// The refinement is the algorithm's own estimate of its bias: a radiosity whose error grows
+/// with the patch size estimates about its whole error and, allowed that much, would pass
+/// (shown with the cap lifted to 1); the default cap `max_bias` = 5 % rejects it.
+#[test]
+fn algorithm_agreement_caps_the_bias_an_algorithm_estimates_for_itself() {
+    let manifest = "tests/manifests/algorithms.toml";
+    let broken = BrokenRadiosity(patch_size_lossy_factor);
+    assert_all(manifest, "radiosity/cornell-box", &broken, Verdict::Fail);
+    let text = std::fs::read_to_string(root(manifest)).unwrap();
+    let lifted = text.replace(
+        "name = \"radiosity/cornell-box\"",
+        "name = \"radiosity/cornell-box\"\nmax_bias = 1.0",
+    );
+    assert_ne!(lifted, text);
+    let specs: Vec<CheckSpec> = manifest::parse(&lifted, &root(manifest))
+        .unwrap()
+        .into_iter()
+        .filter(|s| s.name == "radiosity/cornell-box")
+        .collect();
+    let opts = RunOptions {
+        family_alpha: alpha(),
+        sequential: true,
+        ..RunOptions::default()
+    };
+    let report = harness::run(&specs, &opts, &broken, vec![], &mut |_| {});
+    let o = &report.outcomes[0];
+    assert_eq!(o.verdict, Verdict::Pass, "uncapped: {}", o.message);
+    assert!(o.message.contains("(at most 1.000;"), "{}", o.message);
+}
+
 /// Near the Cornell box's corners the point-to-point factor exceeds 1 by far: the solve has
 /// no finite solution, and the check says so as an ERROR naming the row sum (not a verdict on
 /// the image).
