@@ -1,10 +1,13 @@
-//! The committed Cornell Box export's geometry against the measured source, read without any of
-//! furnace's code: the source TOML (reference/cornell-box/cornell_box_geometry.toml) by the
-//! `toml` crate, the exported PLY files and the XML's file names by hand. Every exported triangle
-//! must be the source quad's half, corners in the source's order (so the winding, hence the
-//! one-sided light's side, is the page's), to within f32 rounding; the only deviation is the
-//! light lowered by 0.5 mm (scenes/cornell-box.toml, the light shape). A negative control moves
-//! one vertex and reverses one winding, and the comparison must reject both.
+//! The committed reference exports' geometry against their sources, read without any of
+//! furnace's code: the TOML by the `toml` crate, the exported XML's shapes and PLY files by
+//! hand. For the measured Cornell Box the source is the page's geometry
+//! (reference/cornell-box/cornell_box_geometry.toml); for every reference it is also its scene
+//! file (`scene_file` in its JSON). Every exported triangle must be the source's, corners in the
+//! source's order (so the winding, hence a one-sided light's side, is the source's), to within
+//! f32 rounding, and every sphere its centre and radius; the Cornell Box's only deviation from
+//! the page is the light lowered by 0.5 mm (scenes/cornell-box.toml, the light shape). A
+//! negative control moves one vertex, reverses one winding and unlowers the light, and the
+//! comparison must reject each.
 
 use crate::root;
 
@@ -24,9 +27,9 @@ const SURFACES: [&str; 8] = [
 /// How far the light is lowered (mm; Mitsuba's cbox.xml `translate y = -0.5`).
 const LIGHT_DROP: f64 = 0.5;
 
-/// Largest corner difference accepted (mm): the PLY holds f32, whose spacing at 560 mm is
-/// 6.1e-5 mm.
-const TOLERANCE: f64 = 1e-4;
+/// Largest corner difference accepted, relative to the coordinate (at least 1): the PLY holds
+/// f32, whose spacing is at most 1.2e-7 relative (6.1e-5 mm at the Cornell Box's 560 mm).
+const TOLERANCE: f64 = 1e-6;
 
 type Triangle = [[f64; 3]; 3];
 
@@ -140,7 +143,9 @@ fn ply_triangles(bytes: &[u8]) -> Result<Vec<Triangle>, String> {
 /// Whether two triangles are the same corners in the same cyclic order (the same winding),
 /// each corner within [`TOLERANCE`].
 fn same_triangle(a: &Triangle, b: &Triangle) -> bool {
-    let close = |p: &[f64; 3], q: &[f64; 3]| (0..3).all(|k| (p[k] - q[k]).abs() <= TOLERANCE);
+    let close = |p: &[f64; 3], q: &[f64; 3]| {
+        (0..3).all(|k| (p[k] - q[k]).abs() <= TOLERANCE * q[k].abs().max(1.0))
+    };
     (0..3).any(|r| (0..3).all(|k| close(&a[(k + r) % 3], &b[k])))
 }
 
@@ -173,24 +178,126 @@ fn compare(src: &toml::Value, exported: &[Vec<Triangle>]) -> Result<(), String> 
     Ok(())
 }
 
-/// The committed export's triangles, shape by shape, from the file names in its XML.
-fn exported() -> Vec<Vec<Triangle>> {
-    let dir = root("reference/mitsuba/cornell-box.export");
+/// An exported shape: a PLY's triangles, or a sphere's centre and radius.
+#[derive(Debug, Clone, PartialEq)]
+enum Exported {
+    Mesh(Vec<Triangle>),
+    Sphere([f64; 3], f64),
+}
+
+/// The value of attribute `name` in the XML element text `element`.
+fn attr<'a>(element: &'a str, name: &str) -> &'a str {
+    let key = format!(" {name}=\"");
+    let at = element
+        .find(&key)
+        .unwrap_or_else(|| panic!("no {name} in {element}"))
+        + key.len();
+    &element[at..at + element[at..].find('"').unwrap()]
+}
+
+/// The element `<tag name="name" …/>` inside `shape`'s text.
+fn child<'a>(shape: &'a str, tag: &str, name: &str) -> &'a str {
+    let at = shape
+        .find(&format!("<{tag} name=\"{name}\""))
+        .unwrap_or_else(|| panic!("no <{tag} name={name:?}> in {shape}"));
+    &shape[at..at + shape[at..].find("/>").unwrap()]
+}
+
+/// The committed export `dir`'s shapes in order, read by hand from its scene.xml (each
+/// `<shape>` up to its `</shape>`) and its PLY files.
+fn exported(dir: &str) -> Vec<Exported> {
+    let dir = root(dir);
     let xml = std::fs::read_to_string(dir.join("scene.xml")).unwrap();
     let mut out = Vec::new();
     let mut rest = xml.as_str();
     while let Some(i) = rest.find("<shape type=\"") {
-        rest = &rest[i..];
-        let kind = &rest[13..rest[13..].find('"').unwrap() + 13];
-        assert_eq!(kind, "ply", "every Cornell Box shape is a PLY");
-        let key = "<string name=\"filename\" value=\"";
-        let f = rest.find(key).unwrap() + key.len();
-        let file = &rest[f..f + rest[f..].find('"').unwrap()];
-        let bytes = std::fs::read(dir.join(file)).unwrap();
-        out.push(ply_triangles(&bytes).unwrap_or_else(|e| panic!("{file}: {e}")));
-        rest = &rest[f..];
+        let end = rest[i..].find("</shape>").unwrap() + i;
+        let shape = &rest[i..end];
+        out.push(match attr(shape, "type") {
+            "ply" => {
+                let file = attr(child(shape, "string", "filename"), "value");
+                let bytes = std::fs::read(dir.join(file)).unwrap();
+                Exported::Mesh(ply_triangles(&bytes).unwrap_or_else(|e| panic!("{file}: {e}")))
+            }
+            "sphere" => {
+                let c = child(shape, "point", "center");
+                let centre = ["x", "y", "z"].map(|k| attr(c, k).parse().unwrap());
+                let radius = attr(child(shape, "float", "radius"), "value");
+                Exported::Sphere(centre, radius.parse().unwrap())
+            }
+            other => panic!("unexpected shape type {other}"),
+        });
+        rest = &rest[end..];
     }
     out
+}
+
+/// The Cornell Box export's meshes.
+fn cornell_meshes() -> Vec<Vec<Triangle>> {
+    exported("reference/mitsuba/cornell-box.export")
+        .into_iter()
+        .map(|e| match e {
+            Exported::Mesh(t) => t,
+            other => panic!("a Cornell Box shape that is not a mesh: {other:?}"),
+        })
+        .collect()
+}
+
+/// A TOML number (integer or float).
+fn number(v: &toml::Value) -> f64 {
+    v.as_float()
+        .or(v.as_integer().map(|i| i as f64))
+        .unwrap_or_else(|| panic!("not a number: {v}"))
+}
+
+fn point(v: &toml::Value) -> [f64; 3] {
+    let a = v.as_array().unwrap();
+    assert_eq!(a.len(), 3, "{v}");
+    std::array::from_fn(|k| number(&a[k]))
+}
+
+/// A scene file's shapes as its TOML states them: `triangles` (vertices and index triples),
+/// `quad` (corner c, edges u and v: c, c + u, c + u + v, c + v, halved along c to c + u + v)
+/// and `sphere`.
+fn scene_shapes(src: &toml::Value) -> Vec<Exported> {
+    src["shape"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| match t["type"].as_str().unwrap() {
+            "triangles" => {
+                let v: Vec<[f64; 3]> = t["vertices"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(point)
+                    .collect();
+                Exported::Mesh(
+                    t["indices"]
+                        .as_array()
+                        .unwrap()
+                        .iter()
+                        .map(|i| {
+                            let i = i.as_array().unwrap();
+                            std::array::from_fn(|k| v[i[k].as_integer().unwrap() as usize])
+                        })
+                        .collect(),
+                )
+            }
+            "quad" => {
+                let (c, u, w) = (
+                    point(&t["corner"]),
+                    point(&t["edge_u"]),
+                    point(&t["edge_v"]),
+                );
+                let at = |a: f64, b: f64| std::array::from_fn(|k| c[k] + a * u[k] + b * w[k]);
+                let q = [at(0.0, 0.0), at(1.0, 0.0), at(1.0, 1.0), at(0.0, 1.0)];
+                Exported::Mesh(vec![[q[0], q[1], q[2]], [q[0], q[2], q[3]]])
+            }
+            "sphere" => Exported::Sphere(point(&t["center"]), number(&t["radius"])),
+            other => panic!("a reference scene with a {other} shape: extend this test"),
+        })
+        .collect()
 }
 
 fn source() -> toml::Value {
@@ -202,10 +309,10 @@ fn source() -> toml::Value {
 #[test]
 fn the_cornell_box_reference_export_has_the_measured_geometry() {
     let src = source();
-    compare(&src, &exported()).unwrap();
+    compare(&src, &cornell_meshes()).unwrap();
     // the page's winding, as Mitsuba reads it: the one-sided light's face normal
     // (v1 − v0) × (v2 − v0) points down, into the room
-    for t in &exported()[5] {
+    for t in &cornell_meshes()[5] {
         let (e1, e2) = (
             [0, 1, 2].map(|k| t[1][k] - t[0][k]),
             [0, 1, 2].map(|k| t[2][k] - t[0][k]),
@@ -219,19 +326,58 @@ fn the_cornell_box_reference_export_has_the_measured_geometry() {
 #[test]
 fn a_moved_vertex_or_a_reversed_winding_fails_the_geometry_comparison() {
     let src = source();
-    let mut moved = exported();
+    let mut moved = cornell_meshes();
     moved[4][1][2][0] += 1.0;
     let e = compare(&src, &moved).unwrap_err();
     assert!(e.starts_with("left_wall triangle 1"), "{e}");
-    let mut reversed = exported();
+    let mut reversed = cornell_meshes();
     reversed[5][0].swap(1, 2);
     let e = compare(&src, &reversed).unwrap_err();
     assert!(e.starts_with("light triangle 0"), "{e}");
-    let mut unlowered = exported();
+    let mut unlowered = cornell_meshes();
     for t in &mut unlowered[5] {
         for p in t {
             p[1] += LIGHT_DROP;
         }
     }
     assert!(compare(&src, &unlowered).is_err());
+}
+
+/// Every committed reference export against its scene file (its JSON's `scene_file`), read by
+/// the `toml` crate: the same shapes in order, each triangle in the source's winding, each
+/// sphere's centre and radius.
+#[test]
+fn every_reference_export_has_its_scene_files_geometry() {
+    let mut seen = 0;
+    for entry in std::fs::read_dir(root("reference/mitsuba")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.extension().is_none_or(|e| e != "json") {
+            continue;
+        }
+        let meta: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+        let scene = meta["scene_file"].as_str().unwrap();
+        let src: toml::Value = toml::from_str(&std::fs::read_to_string(root(scene)).unwrap())
+            .unwrap_or_else(|e| panic!("{scene}: {e}"));
+        let dir = path.with_extension("export");
+        let got = exported(&dir.to_string_lossy());
+        let want = scene_shapes(&src);
+        assert_eq!(got.len(), want.len(), "{scene}: shapes");
+        for (i, (g, w)) in got.iter().zip(&want).enumerate() {
+            match (g, w) {
+                (Exported::Mesh(g), Exported::Mesh(w)) => {
+                    assert_eq!(g.len(), w.len(), "{scene} shape {i}: triangles");
+                    for (k, (a, b)) in g.iter().zip(w).enumerate() {
+                        assert!(
+                            same_triangle(a, b),
+                            "{scene} shape {i} triangle {k}: exported {a:?}, source {b:?}"
+                        );
+                    }
+                }
+                (g, w) => assert_eq!(g, w, "{scene} shape {i}"),
+            }
+        }
+        seen += 1;
+    }
+    assert!(seen >= 6, "{seen} references");
 }
