@@ -11,7 +11,7 @@ use furnace::harness::manifest;
 use furnace::harness::model::local::{LocalBsdf, LocalPhase};
 use furnace::harness::model::samplers::DirectionSampler;
 use furnace::harness::outcome::Verdict;
-use furnace::harness::under_test::{BsdfModel, ModelError, Named, Precision};
+use furnace::harness::under_test::{BsdfModel, ModelError, ModelSource, Named, Precision};
 use furnace::harness::Check as CheckSpec;
 use furnace::harness::{self, judge, BuiltIn, Renderer, RunOptions};
 use furnace::integrators::Strategy;
@@ -2226,4 +2226,209 @@ fn heavy_tail_calibration() {
         }
         println!("{check:32} {:28} {counts:?}", renderer.name());
     }
+}
+
+// ---------------------------------------------------------------- through the catalogue-wide checks
+
+/// furnace's catalogue with one broken model in place of the model of the same name (or added
+/// under a new name, with its own flags): what a renderer serving one broken model among
+/// correct ones would serve. The controls above measure the broken model alone; these run it
+/// through the check as the default manifest states it (its sample counts, its combination over
+/// every model) at the suite's per-test level, as `furnace check` would.
+struct Catalogue {
+    broken: String,
+    bsdfs: Vec<Named<dyn BsdfModel>>,
+    phases: Vec<Named<dyn furnace::harness::under_test::PhaseModel>>,
+}
+
+impl Catalogue {
+    fn swap<M: ?Sized>(list: &mut Vec<Named<M>>, m: Named<M>) {
+        match list.iter_mut().find(|n| n.name == m.name) {
+            Some(slot) => *slot = m,
+            None => list.push(m),
+        }
+    }
+
+    /// The catalogue with `b` as the BSDF `name`, claiming the catalogue model's flags.
+    fn with_bsdf<B: Bxdf + Send + Sync + 'static>(name: &str, b: B) -> Catalogue {
+        let local = furnace::harness::model::local::LocalModels;
+        let mut bsdfs = local.bsdfs().unwrap();
+        let mut m = LocalBsdf::new(b);
+        if let Some((_, own)) = furnace::harness::model::catalogue::bsdfs()
+            .into_iter()
+            .find(|(n, _)| n == name)
+        {
+            m.flags = LocalBsdf::of(own).flags;
+        }
+        Self::swap(
+            &mut bsdfs,
+            Named {
+                name: name.into(),
+                model: Arc::new(m),
+            },
+        );
+        Catalogue {
+            broken: format!("BSDF {name} = {}", std::any::type_name::<B>()),
+            bsdfs,
+            phases: local.phases().unwrap(),
+        }
+    }
+
+    /// The catalogue with `p` as the phase function `name`, stating `mean_cosine`.
+    fn with_phase<P: Phase + Send + Sync + 'static>(
+        name: &str,
+        p: P,
+        mean_cosine: Option<f64>,
+    ) -> Catalogue {
+        let local = furnace::harness::model::local::LocalModels;
+        let mut phases = local.phases().unwrap();
+        Self::swap(
+            &mut phases,
+            Named {
+                name: name.into(),
+                model: Arc::new(LocalPhase {
+                    phase: p,
+                    mean_cosine,
+                }),
+            },
+        );
+        Catalogue {
+            broken: format!("phase {name} = {}", std::any::type_name::<P>()),
+            bsdfs: local.bsdfs().unwrap(),
+            phases,
+        }
+    }
+}
+
+impl ModelSource for Catalogue {
+    fn describe(&self) -> String {
+        format!("furnace's catalogue with {}", self.broken)
+    }
+    fn bsdfs(&self) -> Result<Vec<Named<dyn BsdfModel>>, ModelError> {
+        Ok(self.bsdfs.clone())
+    }
+    fn phases(
+        &self,
+    ) -> Result<Vec<Named<dyn furnace::harness::under_test::PhaseModel>>, ModelError> {
+        Ok(self.phases.clone())
+    }
+    fn emitters(
+        &self,
+    ) -> Result<Vec<Named<dyn furnace::harness::under_test::EmitterModel>>, ModelError> {
+        furnace::harness::model::local::LocalModels.emitters()
+    }
+}
+
+/// The bsdf.toml check `check`, run as `furnace check` runs it on the models `m`, must FAIL.
+fn assert_catalogue_rejects(check: &str, m: &Catalogue) {
+    let s = specs("tests/manifests/bsdf.toml", check);
+    let opts = RunOptions {
+        family_alpha: alpha(),
+        sequential: true,
+        ..RunOptions::default()
+    };
+    let subject = furnace::harness::under_test::Subject {
+        renderer: &BuiltIn,
+        models: Some(m),
+    };
+    let report = harness::run_with(&s, &opts, subject, vec![], &mut |_| {});
+    for o in report.outcomes {
+        assert_eq!(
+            o.verdict,
+            Verdict::Fail,
+            "{} with {}: {}",
+            o.name,
+            m.broken,
+            o.message
+        );
+    }
+}
+
+/// A dielectric of the catalogue, by name.
+fn catalogue_dielectric(name: &str) -> furnace::scattering::Dielectric {
+    match furnace::harness::model::catalogue::bsdfs()
+        .into_iter()
+        .find(|(n, _)| n == name)
+    {
+        Some((_, furnace::scattering::Bsdf::Dielectric(d))) => d,
+        _ => panic!("{name} is not a catalogue dielectric"),
+    }
+}
+
+#[test]
+fn catalogue_wide_reciprocity_rejects_one_non_reciprocal_model() {
+    let check = "reciprocity/all-bsdfs";
+    assert_catalogue_rejects(
+        check,
+        &Catalogue::with_bsdf("non-reciprocal", NonReciprocal),
+    );
+    let name = "dielectric/ggx α=0.5 η=1.5";
+    let swapped = SwappedEtaBtdf(catalogue_dielectric(name));
+    assert_catalogue_rejects(check, &Catalogue::with_bsdf(name, swapped));
+}
+
+#[test]
+fn catalogue_wide_energy_and_weights_reject_one_broken_lambert() {
+    let name = "diffuse/0.5";
+    assert_catalogue_rejects(
+        "energy/all-bsdfs",
+        &Catalogue::with_bsdf(name, LambertNoInvPi(0.5)),
+    );
+    for m in [
+        Catalogue::with_bsdf(name, LambertInconsistentWeight(0.5)),
+        Catalogue::with_bsdf(name, LambertPdfMismatch(0.5)),
+    ] {
+        assert_catalogue_rejects("weights/all-models", &m);
+    }
+}
+
+#[test]
+fn catalogue_wide_chi2_rejects_one_sampler_whose_pdf_is_wrong() {
+    assert_catalogue_rejects(
+        "chi2/all-samplers",
+        &Catalogue::with_bsdf("diffuse/0.5", LambertPdfMismatch(0.5)),
+    );
+}
+
+#[test]
+fn catalogue_wide_phase_checks_reject_one_broken_phase_function() {
+    let hg = "hg/normalisation-mean-cosine-sampling";
+    assert_catalogue_rejects(
+        hg,
+        &Catalogue::with_phase("hg g=0.3", HgSignError(0.3), Some(0.3)),
+    );
+    assert_catalogue_rejects(
+        hg,
+        &Catalogue::with_phase("hg g=0.3", TwoLobes(0.3), Some(0.3)),
+    );
+    assert_catalogue_rejects(
+        "phase/all-models",
+        &Catalogue::with_phase("rayleigh", RayleighUniformDraw, Some(0.0)),
+    );
+    assert_catalogue_rejects(
+        "phase/all-models",
+        &Catalogue::with_phase("non-reciprocal", NonReciprocalPhase, None),
+    );
+}
+
+#[test]
+fn catalogue_wide_albedo_and_smooth_limit_reject_one_broken_model() {
+    let check = "albedo/lossless-and-white-conductors";
+    let (a03, a1) = ("conductor/ggx α=0.3 perfect", "conductor/ggx α=1 perfect");
+    for m in [
+        Catalogue::with_bsdf(a03, BrokenConductor::of(a03, true, false)),
+        Catalogue::with_bsdf(a1, BrokenConductor::grey(a1, 0.97)),
+        Catalogue::with_bsdf(a1, BrokenConductor::height_correlated(a1)),
+        Catalogue::with_bsdf(
+            "dielectric/smooth η=1.5",
+            GlassWithoutEtaScaling(catalogue_dielectric("dielectric/smooth η=1.5")),
+        ),
+    ] {
+        assert_catalogue_rejects(check, &m);
+    }
+    let (rough, _, _) = furnace::harness::checks::smooth_limit::PAIRS[0];
+    assert_catalogue_rejects(
+        "smooth-limit/roughness-1e-4",
+        &Catalogue::with_bsdf(rough, BrokenConductor::of(rough, false, true)),
+    );
 }
