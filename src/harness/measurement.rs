@@ -35,6 +35,13 @@ pub struct Measurement {
     /// The standard error the detection power is computed from, when not `std_error`: a
     /// sequential test's power is its design's (`budget.rs`), not that of the looks it used.
     pub power_std_error: Option<f64>,
+    /// The magnitude the detection power is relative to where the expected value is 0 (a
+    /// difference of two estimates of one quantity: that quantity's size); None: |expected|.
+    pub power_scale: Option<f64>,
+    /// A chi-square goodness-of-fit test's (degrees of freedom, draws), for its detection
+    /// power: the RMS relative error of the binned density (Cohen's w) it detects with 95 %
+    /// probability (stats::power::chi_square_min_detectable_w); the weakest sub-test's.
+    pub power_chi_square: Option<(f64, u64)>,
     /// Samples used.
     pub samples: u64,
     /// Explanation: estimator, what was compared, sub-results.

@@ -122,7 +122,9 @@ pub struct Outcome {
     /// ([`super::context::Context::rel_tolerance`]).
     #[serde(deserialize_with = "nan_if_null")]
     pub rel_tolerance: f64,
-    /// Smallest relative bias detected with 95 % probability at this budget and alpha.
+    /// Smallest relative bias detected with 95 % probability at this budget and alpha (a
+    /// difference tested against 0: relative to the quantity both estimate; a chi-square
+    /// test: Cohen's w, the RMS relative error of the binned density).
     pub detection_power: Option<f64>,
     /// Samples (paths, BSDF samples, quadrature points) used.
     pub samples: u64,

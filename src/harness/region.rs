@@ -537,6 +537,8 @@ pub fn region_measurement(
     };
     Measurement {
         power_std_error: None,
+        power_scale: None,
+        power_chi_square: None,
         estimate: Some(r.mean),
         std_error: Some(se),
         expected: Some(expected),

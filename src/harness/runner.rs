@@ -40,11 +40,16 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
     // split over the sub-tests folded into the p-value, one- or two-sided, plus the
     // stated model tolerance.
     let se = ms.power_std_error.or(ms.std_error);
-    if let (Some(se), Some(exp), Some(thr)) = (se, ms.expected, o.alpha) {
-        if exp != 0.0 {
+    if let (Some((dof, draws)), Some(thr)) = (ms.power_chi_square, o.alpha) {
+        let w = power::chi_square_min_detectable_w(dof, draws, ms.sub_test_level(thr), 0.95);
+        o.detection_power = w.is_finite().then_some(w);
+    }
+    let scale = ms.power_scale.or(ms.expected.map(f64::abs));
+    if let (Some(se), Some(scale), Some(thr)) = (se, scale, o.alpha) {
+        if scale != 0.0 {
             let level = ms.sub_test_level(thr);
             o.detection_power =
-                Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / exp.abs());
+                Some(o.rel_tolerance + power::min_detectable_bias(se, level, 0.95) / scale);
         }
     }
     let rejected = test.is_some_and(|t| t.0);

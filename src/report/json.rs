@@ -52,7 +52,7 @@ Fields may be added within schema version 1; none is removed or changes meaning.
 | `p_value` | number or null | probability | Two-sided p-value of the test (stochastic checks). |
 | `alpha` | number or null | probability | Per-check significance level after the family-wise correction; the check fails when `p_value` < `alpha`. |
 | `rel_tolerance` | number or null | fraction of `expected` | Relative tolerance added to the acceptance rule: the stated model tolerance plus, for an image check on a renderer with float32 images, its rounding allowance above f64's; 0 when none. |
-| `detection_power` | number or null | fraction of `expected` | Smallest relative bias this check detects with 95 % probability at its sample budget and `alpha`. |
+| `detection_power` | number or null | fraction of `expected` | Smallest relative bias this check detects with 95 % probability at its sample budget and `alpha` (`estimator_agreement`: relative to the region's radiance, its expected difference being 0; `chi2`: the RMS relative error of the binned density, Cohen's w). |
 | `samples` | integer | count | Samples used (paths, BSDF samples or quadrature points). |
 | `seconds` | number or null | s | Wall time of the check. |
 | `message` | string | — | Human-readable explanation: estimator, what was compared, and the evidence for UNSTABLE or ERROR. |

@@ -94,6 +94,7 @@ pub fn measure_sampler(
             expected: Some(expected.iter().sum::<f64>() / samples as f64),
             statistic: Some(Statistic::ChiSquare { chi2: c.chi2, dof: c.dof }),
             p_value: Some(if zero_pdf > 0 { 0.0 } else { c.p_value }),
+            power_chi_square: Some((c.dof as f64, samples)),
             samples,
             message: format!(
                 "χ² = {} with {} dof ({} bins pooled), {zero_pdf} samples where the claimed pdf is 0; estimate = fraction of draws that gave a sample, expected = ∫ pdf",
@@ -150,7 +151,14 @@ impl Kind for Chi2 {
             .unwrap_or_else(failed_part);
             parts.push((name, m));
         }
-        Ok(combine(parts))
+        // the power of the weakest sampler's test (the most degrees of freedom at equal draws)
+        let weakest = parts
+            .iter()
+            .filter_map(|(_, m)| m.power_chi_square)
+            .max_by(|a, b| a.0.total_cmp(&b.0));
+        let mut m = combine(parts);
+        m.power_chi_square = weakest;
+        Ok(m)
     }
 }
 

@@ -148,6 +148,8 @@ pub fn measure(
     let weakest = noisiest.0 / 5f64.sqrt();
     Ok(Measurement {
         power_std_error: Some(se.max(weakest)),
+        power_scale: None,
+        power_chi_square: None,
         estimate: Some(mean),
         std_error: Some(se),
         expected: Some(1.0),

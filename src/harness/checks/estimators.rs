@@ -155,7 +155,11 @@ impl Kind for EstimatorAgreement {
             .collect();
         let mis = &stats[2].1;
         Ok(Measurement {
-        power_std_error: None,
+            power_std_error: None,
+            // the power: a difference between two estimators, relative to the region's
+            // radiance (MIS's estimate)
+            power_scale: Some(mis.mean.abs()),
+            power_chi_square: None,
             estimate: Some(worst.3),
             std_error: Some(worst.4),
             expected: Some(0.0),

@@ -247,6 +247,8 @@ pub fn measure_phase_at(
     };
     Ok(Measurement {
         power_std_error: None,
+        power_scale: None,
+        power_chi_square: None,
         estimate: Some(mv.mean()),
         std_error: Some(se),
         expected: Some(g),
