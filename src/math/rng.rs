@@ -94,6 +94,12 @@ pub struct SampleStream {
     pixel_key: u64,
     sample: u64,
     spp: u64,
+    /// Sobol: the set of four dimensions in `sobol_points` (u64::MAX before the first).
+    sobol_set: u64,
+    /// Sobol: that set's points, from one `sobol_burley::sample_4d` (four dimensions in SIMD
+    /// lanes, equal to four `sample` calls; the crate tests this), so that the index's
+    /// scramble and the walk over its bits are done once per four draws.
+    sobol_points: [f32; 4],
 }
 
 impl SampleStream {
@@ -117,6 +123,8 @@ impl SampleStream {
             pixel_key,
             sample,
             spp: spp.max(1),
+            sobol_set: u64::MAX,
+            sobol_points: [0.0; 4],
         }
     }
 
@@ -127,14 +135,27 @@ impl SampleStream {
     }
 
     #[inline]
-    fn sobol(&self, dimension: u64) -> Option<f64> {
-        (dimension < sobol_burley::NUM_DIMENSIONS as u64).then(|| {
-            sobol_burley::sample(
-                self.sample as u32,
-                dimension as u32,
-                (self.pixel_key ^ (self.pixel_key >> 32)) as u32,
-            ) as f64
-        })
+    fn sobol(&mut self, dimension: u64) -> Option<f64> {
+        let set = dimension / 4;
+        if set >= u64::from(sobol_burley::NUM_DIMENSION_SETS_4D) {
+            return None;
+        }
+        if set != self.sobol_set {
+            self.refill_sobol(set);
+        }
+        Some(f64::from(self.sobol_points[(dimension % 4) as usize]))
+    }
+
+    /// The Sobol points of dimension set `set`, out of line so that every draw's call site
+    /// stays small (the independent sampler's included).
+    #[inline(never)]
+    fn refill_sobol(&mut self, set: u64) {
+        self.sobol_points = sobol_burley::sample_4d(
+            self.sample as u32,
+            set as u32,
+            (self.pixel_key ^ (self.pixel_key >> 32)) as u32,
+        );
+        self.sobol_set = set;
     }
 
     /// The stratum of this sample among `n` for dimension `d`: a hashed permutation of the
