@@ -185,6 +185,13 @@ def parse_args(argv=None):
                    help="also run each llvm_* variant with its JIT limited to AVX2 (8 lanes), in a worker "
                         "process, reported as 'mitsuba3:VARIANT:avx2' (on a CPU with AVX-512: the same core "
                         "with only the vector width changed)")
+    p.add_argument("--furnace-sampler", default="independent",
+                   choices=["independent", "stratified", "sobol"],
+                   help="furnace's --sampler (default independent, as the issue's measurement)")
+    p.add_argument("--mitsuba-sampler", default="independent",
+                   choices=["independent", "stratified", "multijitter", "orthogonal", "ldsampler"],
+                   help="the sampler plugin written into the export for Mitsuba (default independent); "
+                        "with a low-discrepancy sampler in both, each renderer runs at its best pattern")
     p.add_argument("--json", default=None, help="write the results here")
     return p.parse_args(argv)
 
@@ -263,6 +270,13 @@ def main(argv=None):
         text = text.replace(line, line + f'\n    <integer name="rr_depth" value="{args.rr_depth}"/>')
         with open(xml, "w") as f:
             f.write(text)
+    if args.mitsuba_sampler != "independent":
+        text = open(xml).read()
+        line = '<sampler type="independent">'
+        if text.count(line) != 1:
+            sys.exit(f"the export has no single {line}")
+        with open(xml, "w") as f:
+            f.write(text.replace(line, f'<sampler type="{args.mitsuba_sampler}">'))
     samples = width * height * args.spp
     variants = [v for v in args.variants.split(",") if v]
     furnaces = {args.furnace_label: args.furnace}
@@ -332,7 +346,8 @@ def main(argv=None):
                 depths += ["--rr-depth", str(args.rr_depth)]
             r = subprocess.run([binary, "render", args.scene, "--width", str(width), "--height", str(height),
                                 "--spp", str(args.spp), "--threads", str(args.threads), "--seed", str(100 + rep),
-                                "--observer", "mitsuba3", "--out", out] + depths,
+                                "--observer", "mitsuba3", "--sampler", args.furnace_sampler,
+                                "--out", out] + depths,
                                check=True, capture_output=True, text=True)
             secs = float(re.search(r"([0-9.]+) s wall", r.stdout).group(1))
             if speed_only:
@@ -366,6 +381,7 @@ def main(argv=None):
     result = {"scene": os.path.relpath(args.scene, REPO), "width": width, "height": height, "spp": args.spp,
               "max_depth_bounces": args.max_depth, "rr_depth": 5 if args.rr_depth is None else args.rr_depth,
               "threads": args.threads, "reps": args.reps,
+              "furnace_sampler": args.furnace_sampler, "mitsuba_sampler": args.mitsuba_sampler,
               "reference": None if speed_only else os.path.relpath(args.reference, REPO),
               "reference_mean_variance": None if speed_only else ref_noise,
               "furnace_binaries": {k: os.path.relpath(v, REPO) for k, v in furnaces.items()},
