@@ -29,6 +29,10 @@ A profile-guided build (benches/pgo.sh) goes first, with the default build besid
     --furnace target/pgo/release/furnace --furnace-label furnace:pgo \\
         --furnace-also furnace:default=target/release/furnace
 
+With --furnace-sampler sobol and --mitsuba-sampler ldsampler (or multijitter, orthogonal) each
+renderer runs at a low-discrepancy pattern; relMSE then falls faster than 1/spp, so the time to
+equal error holds at the --spp measured only.
+
 With `--reference none --size 256x256 --max-depth 5` it measures speed only (no error, so no
 time to equal error), at any size and depth: the issue's setting is 256x256, Mitsuba max_depth 6.
 
