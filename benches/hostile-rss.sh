@@ -83,4 +83,12 @@ file = \"same$n.obj\"" > same$n.toml
   measure "$n coincident triangles (renders)" render same$n.toml -o o.exr -q
 done
 
+# a grid of 1000 x 1000 quads: 2 million triangles that pair (a quad's halves share an edge)
+awk 'BEGIN { n = 1000; for (j = 0; j <= n; j++) for (i = 0; i <= n; i++) printf "v %g %g 0\n", i / n, j / n;
+             for (j = 0; j < n; j++) for (i = 0; i < n; i++) { a = j * (n + 1) + i + 1;
+               printf "f %d %d %d\nf %d %d %d\n", a, a + 1, a + n + 2, a, a + n + 2, a + n + 1 } }' > grid.obj
+scene 1 'type = "mesh"
+file = "grid.obj"' > grid.toml
+measure "2 million triangles, a grid of quads (renders)" render grid.toml -o o.exr -q
+
 measure "EXR declaring 100000^2 pixels" compare "$root/tests/fuzz/corpus/exr/huge-window.exr" "$root/tests/fuzz/corpus/exr/tiny.exr"

@@ -165,13 +165,11 @@ const BUNDLE_MIN: usize = 8;
 const BUNDLE_GRID: f64 = 1e6;
 
 /// Two triangles of one mesh sharing an edge, (a, b, c) and (a, c, d) (see
-/// [`triangle::intersect_pair_sheared`]): the corners, each triangle's corners as
-/// `triangle::surface_point` takes them, and their oriented unit normals as the mesh gives
-/// them.
+/// [`triangle::intersect_pair_sheared`]): the corners and the triangles' oriented unit normals
+/// as the mesh gives them (144 bytes; each triangle's corners are read from `q` when hit).
 #[derive(Debug, Clone, PartialEq)]
 struct Pair {
     q: [Vec3; 4],
-    p: [[Vec3; 3]; 2],
     n: [Vec3; 2],
 }
 
@@ -208,9 +206,19 @@ impl Pair {
         }
         Some(Pair {
             q,
-            p: [[q[0], q[1], q[2]], [q[0], q[2], q[3]]],
             n: [m.normal(i), m.normal(i + 1)],
         })
+    }
+
+    /// Triangle `k`'s corners as `triangle::surface_point` takes them: (a, b, c) or (a, c, d).
+    #[inline(always)]
+    fn corners(&self, k: usize) -> [Vec3; 3] {
+        let q = &self.q;
+        if k == 0 {
+            [q[0], q[1], q[2]]
+        } else {
+            [q[0], q[2], q[3]]
+        }
     }
 }
 
@@ -220,12 +228,19 @@ impl Pair {
 /// too").
 const PAIR_SLACK: f64 = 1.5;
 
-/// A hit found during traversal: a triangle with its barycentrics (the point is computed once,
+/// A hit found during traversal: a triangle or a pair's half with its barycentrics (the point is computed once,
 /// for the nearest), or another shape's index and point.
 enum Found<'a> {
     Triangle {
         p: &'a [Vec3; 3],
         n: &'a Vec3,
+        shape: u32,
+        bary: [f64; 3],
+    },
+    /// Triangle `k` of a pair (its corners are read from the pair for the nearest hit only).
+    Half {
+        pair: &'a Pair,
+        k: usize,
         shape: u32,
         bary: [f64; 3],
     },
@@ -304,6 +319,7 @@ impl Aggregate {
                 p += if slot == u32::MAX { 1 } else { 2 };
             }
         }
+        pairs.shrink_to_fit();
         // Bounds beyond f64, or so small that the f32 frame's scale overflows (scenes the
         // loader refuses): no BVH rather than a panic in its builder; such an aggregate hits
         // nothing.
@@ -345,8 +361,10 @@ impl Aggregate {
             (0..prims.len()).collect()
         };
         // Boxes of one shape that agree to 1e-6 of the scene's extent (coincident or
-        // near-coincident primitives): bundles of at least BUNDLE_MIN; `slots[j]` are the
-        // primitives (indices into `prims`) behind BVH primitive j.
+        // near-coincident primitives): bundles of at least BUNDLE_MIN; `slot(j)` are the
+        // primitives (indices into `prims`) behind BVH primitive j, ascending, the slots in the
+        // order of their first primitive. Runs of equal keys come from sorting, not from a map
+        // of vectors, which held a vector per triangle of a large mesh while building.
         let cell = |b: &Aabb| {
             let q = |x: f32| (x as f64 * BUNDLE_GRID / FRAME_EXTENT).floor() as i64;
             [
@@ -358,32 +376,43 @@ impl Aggregate {
                 q(b.max.z),
             ]
         };
-        let mut groups: std::collections::HashMap<([i64; 6], u32), Vec<usize>> =
-            std::collections::HashMap::new();
-        for &i in &walked {
-            groups
-                .entry((cell(&aabbs[i]), prims[i].0))
-                .or_default()
-                .push(i);
-        }
-        let mut slots: Vec<Vec<usize>> = Vec::with_capacity(walked.len());
-        let mut taken = vec![false; aabbs.len()];
-        for &i in &walked {
-            if taken[i] {
-                continue;
+        let key = |i: usize| (cell(&aabbs[i]), prims[i].0);
+        let mut order = walked.clone();
+        order.sort_unstable_by_key(|&i| (key(i), i));
+        // each bundled primitive's run: the run's start in `order` (u32::MAX: not bundled)
+        let mut run_of = vec![u32::MAX; aabbs.len()];
+        let mut r = 0;
+        while r < order.len() {
+            let k = key(order[r]);
+            let e = r + order[r..].iter().take_while(|&&i| key(i) == k).count();
+            if e - r >= BUNDLE_MIN {
+                order[r..e].iter().for_each(|&i| run_of[i] = r as u32);
             }
-            let group = &groups[&(cell(&aabbs[i]), prims[i].0)];
-            if group.len() >= BUNDLE_MIN {
-                group.iter().for_each(|&k| taken[k] = true);
-                slots.push(group.clone());
-            } else {
-                taken[i] = true;
-                slots.push(vec![i]);
+            r = e;
+        }
+        let mut slot_start = Vec::with_capacity(walked.len() + 1);
+        let mut members = Vec::with_capacity(walked.len());
+        for &i in &walked {
+            match run_of[i] {
+                u32::MAX => {
+                    slot_start.push(members.len());
+                    members.push(i);
+                }
+                // a run's first primitive in `walked` order is its smallest, first in `order`
+                r if order[r as usize] == i => {
+                    slot_start.push(members.len());
+                    let run = &order[r as usize..];
+                    members.extend(run.iter().take_while(|&&k| run_of[k] == r));
+                }
+                _ => {}
             }
         }
-        let aabbs: Vec<Aabb> = slots
-            .iter()
-            .map(|s| {
+        slot_start.push(members.len());
+        drop((order, run_of));
+        let slot = |j: usize| &members[slot_start[j]..slot_start[j + 1]];
+        let aabbs: Vec<Aabb> = (0..slot_start.len() - 1)
+            .map(|j| {
+                let s = slot(j);
                 s.iter()
                     .skip(1)
                     .fold(aabbs[s[0]], |u, &k| u.union(&aabbs[k]))
@@ -419,7 +448,7 @@ impl Aggregate {
         let mut candidates: Vec<Candidate> = bvh
             .primitive_indices
             .iter()
-            .map(|&j| match slots[j as usize].as_slice() {
+            .map(|&j| match slot(j as usize) {
                 [i] => candidate(*i),
                 members => {
                     let start = bundled.len() as u32;
@@ -455,7 +484,7 @@ impl Aggregate {
                 .contains(&bvh.primitive_indices.len())
                 .then(|| {
                     let slot_boxes = bvh.primitive_indices.iter();
-                    FlatBoxes::new(slot_boxes.map(|&j| padded(&slots[j as usize])), 0, 0)
+                    FlatBoxes::new(slot_boxes.map(|&j| padded(slot(j as usize))), 0, 0)
                 })
         };
         Aggregate {
@@ -604,9 +633,9 @@ impl Aggregate {
             &Candidate::Pair { pair, shape } => {
                 let q = &self.pairs[pair as usize];
                 triangle::intersect_pair_sheared(ray, &q.q, t_max).map(|(t, k, bary)| {
-                    let found = Found::Triangle {
-                        p: &q.p[k],
-                        n: &q.n[k],
+                    let found = Found::Half {
+                        pair: q,
+                        k,
                         shape,
                         bary,
                     };
@@ -637,6 +666,15 @@ impl Aggregate {
         let (point, shape) = match best {
             Found::Point(shape, point) => (point, shape),
             Found::Triangle { p, n, shape, bary } => (triangle::surface_point(bary, *p, *n), shape),
+            Found::Half {
+                pair,
+                k,
+                shape,
+                bary,
+            } => (
+                triangle::surface_point(bary, pair.corners(k), pair.n[k]),
+                shape,
+            ),
         };
         Some(Hit {
             t: best_t,
@@ -1625,7 +1663,7 @@ mod tests {
         for f in 0..6 {
             let pair = Pair::of(&c, 2 * f).expect("a face's halves pair");
             let [a, b, cc, d] = pair.q;
-            assert_eq!(pair.p, [[a, b, cc], [a, cc, d]]);
+            assert_eq!([pair.corners(0), pair.corners(1)], [[a, b, cc], [a, cc, d]]);
             assert_eq!(pair.n, [c.normal(2 * f), c.normal(2 * f + 1)]);
         }
         // halves of different faces: their boxes differ (or they share no edge)
