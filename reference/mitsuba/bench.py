@@ -274,6 +274,12 @@ def main(argv=None):
         text = text.replace(line, line + f'\n    <integer name="rr_depth" value="{args.rr_depth}"/>')
         with open(xml, "w") as f:
             f.write(text)
+    if args.mitsuba_sampler == "orthogonal":
+        # Mitsuba's orthogonal sampler rounds the sample count up to a prime's square
+        root = round(args.spp ** 0.5)
+        if root * root != args.spp or root < 2 or any(root % k == 0 for k in range(2, root)):
+            sys.exit(f"--mitsuba-sampler orthogonal needs --spp the square of a prime (Mitsuba "
+                     f"rounds {args.spp} up to one): 49, 121, 169, ...")
     if args.mitsuba_sampler != "independent":
         text = open(xml).read()
         line = '<sampler type="independent">'

@@ -110,7 +110,10 @@ fn powered_spp(
         ..*ctx
     };
     let m = run_at(check, pilot_spp, &pilot_ctx)?;
-    let (Some(se), Some(expected)) = (m.std_error, m.expected) else {
+    // the magnitude and standard error the stated power rests on (runner::settle): a
+    // difference's power is relative to what the two estimates measure
+    let expected = m.power_scale.or(m.expected);
+    let (Some(se), Some(expected)) = (m.power_std_error.or(m.std_error), expected) else {
         return Err(CheckError::Setup(format!(
             "power target {delta}: the pilot run gave no standard error or expected value to plan from"
         )));
@@ -301,8 +304,16 @@ fn pooled(
         estimate,
         std_error,
         // the power the design holds: the full budget's error (√share of this one's) times
-        // the design's drift over the fixed test's (√inflation)
-        power_std_error: std_error.map(|e| e * (power_share * d.inflation).sqrt()),
+        // the design's drift over the fixed test's (√inflation), from the error the check
+        // states its power at where that is not its reported one (estimator_agreement: the
+        // weakest pair's)
+        power_std_error: std_error.map(|e| {
+            let ratio = match (last.power_std_error, last.std_error) {
+                (Some(p), Some(s)) if s > 0.0 && p.is_finite() => p / s,
+                _ => 1.0,
+            };
+            e * ratio * (power_share * d.inflation).sqrt()
+        }),
         statistic: Some(Statistic::Sequential {
             z,
             look: k as u64 + 1,

@@ -40,12 +40,11 @@ fn settle(o: &mut Outcome, ms: &Measurement, test: Option<(bool, f64)>) {
     // split over the sub-tests folded into the p-value, one- or two-sided, plus the
     // stated model tolerance.
     let se = ms.power_std_error.or(ms.std_error);
+    let scale = ms.power_scale.or(ms.expected.map(f64::abs));
     if let (Some((dof, draws)), Some(thr)) = (ms.power_chi_square, o.alpha) {
         let w = power::chi_square_min_detectable_w(dof, draws, ms.sub_test_level(thr), 0.95);
         o.detection_power = w.is_finite().then_some(w);
-    }
-    let scale = ms.power_scale.or(ms.expected.map(f64::abs));
-    if let (Some(se), Some(scale), Some(thr)) = (se, scale, o.alpha) {
+    } else if let (Some(se), Some(scale), Some(thr)) = (se, scale, o.alpha) {
         if scale != 0.0 {
             let level = ms.sub_test_level(thr);
             o.detection_power =

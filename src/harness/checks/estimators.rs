@@ -93,6 +93,8 @@ impl Kind for EstimatorAgreement {
         let mut retested = true;
         let mut ps = Vec::new();
         let mut worst = (0.0f64, 1.0f64, String::new(), 0.0f64, 0.0f64);
+        // the largest pair's standard error: the power the weakest comparison has
+        let mut weakest_se = 0.0f64;
         let mut lines = Vec::new();
         for (a, b) in [(0, 1), (0, 2), (1, 2)] {
             let (fa, region, _) = &films[a];
@@ -145,6 +147,7 @@ impl Kind for EstimatorAgreement {
                 fmt_sig(se),
                 t.z
             ));
+            weakest_se = weakest_se.max(se);
             if worst.2.is_empty() || t.p < worst.1 {
                 worst = (t.z, t.p, format!("{na} vs {nb}"), diff, se);
             }
@@ -155,9 +158,10 @@ impl Kind for EstimatorAgreement {
             .collect();
         let mis = &stats[2].1;
         Ok(Measurement {
-            power_std_error: None,
             // the power: a difference between two estimators, relative to the region's
-            // radiance (MIS's estimate)
+            // radiance (MIS's estimate), at the weakest pair's standard error (not the pair
+            // that happened to give the smallest p)
+            power_std_error: Some(weakest_se),
             power_scale: Some(mis.mean.abs()),
             power_chi_square: None,
             estimate: Some(worst.3),
