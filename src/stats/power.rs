@@ -91,7 +91,7 @@ pub fn detection_power(bias: f64, se: f64, alpha: f64) -> f64 {
 /// Degenerate inputs: `dof` or `samples` 0, or NaN anywhere, give NaN; `power` outside (0, 1)
 /// behaves as in [`min_detectable_bias`] (0 or +∞).
 pub fn chi_square_min_detectable_w(dof: f64, samples: u64, alpha: f64, power: f64) -> f64 {
-    if !(dof > 0.0) || samples == 0 || alpha.is_nan() || power.is_nan() {
+    if dof.is_nan() || dof <= 0.0 || samples == 0 || alpha.is_nan() || power.is_nan() {
         return f64::NAN;
     }
     if power <= 0.0 {
