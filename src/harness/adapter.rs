@@ -884,14 +884,30 @@ mod tests {
         assert_eq!(shell_quote(""), "''");
     }
 
-    fn write(text: &str) -> PathBuf {
+    /// A renderer table written to a temporary file, removed when dropped.
+    struct Written(PathBuf);
+
+    impl Drop for Written {
+        fn drop(&mut self) {
+            let _ = std::fs::remove_file(&self.0);
+        }
+    }
+
+    impl std::ops::Deref for Written {
+        type Target = std::path::Path;
+        fn deref(&self) -> &std::path::Path {
+            &self.0
+        }
+    }
+
+    fn write(text: &str) -> Written {
         let p = std::env::temp_dir().join(format!(
             "furnace-renderers-{}-{}.toml",
             std::process::id(),
             text.len()
         ));
         std::fs::write(&p, text).unwrap();
-        p
+        Written(p)
     }
 
     #[test]

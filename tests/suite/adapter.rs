@@ -18,7 +18,7 @@ fn renderers(scene: &str, probe: &str) -> std::path::PathBuf {
     );
     // one file per call: tests run in parallel and must not share a table
     static CALLS: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
-    let p = std::env::temp_dir().join(format!(
+    let p = crate::scratch_dir().join(format!(
         "furnace-adapter-{}-{}.toml",
         std::process::id(),
         CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed)
@@ -67,7 +67,7 @@ fn a_black_box_renderer_is_judged_by_the_same_statistics() {
     assert_eq!(v, Verdict::Pass, "{m}");
     // Negative control: the stand-in renders albedo 0.45 where the check's scene says 0.5.
     let wrong =
-        std::env::temp_dir().join(format!("furnace-adapter-wrong-{}.toml", std::process::id()));
+        crate::scratch_dir().join(format!("furnace-adapter-wrong-{}.toml", std::process::id()));
     let text = std::fs::read_to_string(root("tests/manifests/scenes/furnace-sphere-0.5.toml"))
         .unwrap()
         .replace("reflectance = 0.5", "reflectance = 0.45");
@@ -130,7 +130,7 @@ fn an_unavailable_renderer_is_skipped_with_a_clear_message() {
 
 #[test]
 fn the_recorded_mitsuba_run_rebuilds_the_comparison_report_without_python() {
-    let dir = std::env::temp_dir().join(format!("furnace-adapter-report-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-adapter-report-{}", std::process::id()));
     let page = dir.join("comparison.html");
     let out = Command::new(env!("CARGO_BIN_EXE_furnace"))
         .current_dir(root(""))
@@ -269,7 +269,7 @@ fn convergence_checks_skip_a_renderer_whose_spp_is_a_lower_bound() {
 /// check leaves none.
 #[test]
 fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
-    let dir = std::env::temp_dir().join(format!("furnace-bundle-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-bundle-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
     // the stand-in renders albedo 0.45 where the check's scene says 0.5: FAIL
@@ -393,7 +393,7 @@ fn a_renderer_that_cannot_express_a_scene_skips_the_check_by_name() {
         let text = format!(
             "[renderer.refuser]\nexporter = \"json\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", {script:?}, \"{{scene}}\"]\n"
         );
-        let p = std::env::temp_dir().join(format!(
+        let p = crate::scratch_dir().join(format!(
             "furnace-refuser-{}-{}.toml",
             std::process::id(),
             script.len()
@@ -440,7 +440,7 @@ fn a_black_box_gets_the_float32_rounding_allowance_and_no_more() {
         furnace::harness::Renderer::image_rounding(&furnace::harness::BuiltIn),
         1e-12
     );
-    let dir = std::env::temp_dir().join(format!("furnace-f32-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-f32-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let text = std::fs::read_to_string(root("tests/manifests/scenes/lambert-point.toml"))
         .unwrap()

@@ -54,7 +54,7 @@ fn render_help_documents_every_option() {
 
 #[test]
 fn render_writes_exr_and_png_and_reports_speed() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-{}", std::process::id()));
     let exr = dir.join("sphere.exr");
     let out = furnace()
         .args([
@@ -96,7 +96,7 @@ fn render_writes_exr_and_png_and_reports_speed() {
 
 #[test]
 fn invalid_scene_exits_2_with_location() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-bad-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\nfov = 60\n[materials.m]\ntype = \"diffuse\"\nreflectance = 1.5\n").unwrap();
@@ -124,7 +124,7 @@ fn compare_takes_a_bdpt_images_region_errors_from_its_kept_runs() {
     // A BDPT image's pixels are correlated within a run: `compare` refuses its region tests
     // unless the EXR keeps the runs (--keep-runs), and then judges it against a path-traced
     // render of the same scene. The kept runs do not change the image.
-    let dir = std::env::temp_dir().join(format!("furnace-keep-runs-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-keep-runs-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let scene = root("scenes/cornell-box.toml");
     let render = |extra: &[&str], out: &std::path::Path| {
@@ -217,7 +217,7 @@ fn compare_takes_a_bdpt_images_region_errors_from_its_kept_runs() {
 #[test]
 fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
     use furnace::io::image::{read_exr, write_exr};
-    let dir = std::env::temp_dir().join(format!("furnace-compare-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-compare-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let reference = root("reference/mitsuba/cornell-box.exr");
     let regions = root("scenes/cornell-box.regions.toml");
@@ -281,7 +281,7 @@ fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
 
 #[test]
 fn export_writes_a_mitsuba_scene_and_refuses_bad_scenes() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-export-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-export-{}", std::process::id()));
     let out = furnace()
         .args(["export", "scenes/cornell-box.toml", "--out"])
         .arg(&dir)
@@ -307,7 +307,7 @@ fn export_writes_a_mitsuba_scene_and_refuses_bad_scenes() {
 
 #[test]
 fn report_builds_one_page_from_results_and_comparisons() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-report-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-report-{}", std::process::id()));
     let (page, md) = (dir.join("r.html"), dir.join("r.md"));
     let out = furnace()
         .args([
@@ -350,7 +350,7 @@ fn report_builds_one_page_from_results_and_comparisons() {
 
 #[test]
 fn render_with_the_light_tracer() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-light-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-light-{}", std::process::id()));
     let exr = dir.join("sphere.exr");
     let out = furnace()
         .args([
@@ -433,7 +433,7 @@ fn a_closed_stdout_pipe_ends_quietly() {
             "8",
         ])
         .arg("--out")
-        .arg(std::env::temp_dir().join("furnace-pipe-test.exr"))
+        .arg(crate::scratch_dir().join("furnace-pipe-test.exr"))
         .stdout(std::process::Stdio::piped())
         .stderr(std::process::Stdio::piped())
         .spawn()
@@ -448,7 +448,7 @@ fn a_closed_stdout_pipe_ends_quietly() {
 /// `--quiet` is accepted by every command, before or after it, and silences stdout.
 #[test]
 fn quiet_silences_stdout_on_every_command() {
-    let exr = std::env::temp_dir().join(format!("furnace-quiet-{}.exr", std::process::id()));
+    let exr = crate::scratch_dir().join(format!("furnace-quiet-{}.exr", std::process::id()));
     let exr = exr.to_str().unwrap();
     let render = [
         "render",
@@ -528,7 +528,7 @@ fn color_colours_verdicts_only_when_asked_or_on_a_terminal() {
 
 #[test]
 fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-rad-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-rad-{}", std::process::id()));
     let exr = dir.join("cbox.exr");
     let out = furnace()
         .args([
@@ -632,7 +632,7 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
 
 #[test]
 fn render_bdpt_and_mlt_write_images_and_refuse_what_they_cannot_do() {
-    let dir = std::env::temp_dir().join(format!("furnace-bdpt-cli-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-bdpt-cli-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let small = ["--width", "8", "--height", "8", "-o"];
     for (integrator, extra, says) in [
@@ -727,7 +727,7 @@ fn render_bdpt_and_mlt_write_images_and_refuse_what_they_cannot_do() {
 
 #[test]
 fn converge_measures_reference_ladders_of_every_estimator() {
-    let dir = std::env::temp_dir().join(format!("furnace-cli-conv-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-cli-conv-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let scene = root("scenes/cornell-box.toml");
     let mut manifest = String::new();

@@ -379,7 +379,7 @@ fn every_bundled_scene_exports_and_reads_back() {
 }
 
 fn tempdir(scene: &Path) -> PathBuf {
-    let d = std::env::temp_dir().join(format!(
+    let d = crate::scratch_dir().join(format!(
         "furnace-export-{}-{}",
         std::process::id(),
         scene.file_stem().unwrap().to_string_lossy()

@@ -21,7 +21,7 @@ fn ok(out: &Output) -> String {
 }
 
 fn scratch(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("furnace-films-{name}-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-films-{name}-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     dir
 }

@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 /// A fresh temporary folder for one test.
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("furnace-hostile-{name}-{}", std::process::id()));
+    let d = crate::scratch_dir().join(format!("furnace-hostile-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
@@ -404,6 +404,7 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
 }
 
 fn temp_folders(label: &str) -> usize {
+    // the program's own temporary folders live in the system's temporary folder
     std::fs::read_dir(std::env::temp_dir())
         .unwrap()
         .flatten()
@@ -460,6 +461,7 @@ fn an_interrupted_run_removes_its_temporary_folders() {
         .unwrap();
     let prefix = format!("furnace-sleepy-{}-", child.id());
     let live = || {
+        // the program's own temporary folders live in the system's temporary folder
         std::fs::read_dir(std::env::temp_dir())
             .unwrap()
             .flatten()

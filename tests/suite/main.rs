@@ -33,6 +33,12 @@ pub fn root(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
+/// The folder for the tests' scratch files: Cargo's temporary folder for integration tests
+/// (target/tmp), so that test runs leave nothing in the system's temporary folder.
+pub fn scratch_dir() -> PathBuf {
+    PathBuf::from(env!("CARGO_TARGET_TMPDIR"))
+}
+
 /// Runs the `furnace` binary from the crate root with `args`.
 pub fn run_furnace(args: &[&str]) -> std::process::Output {
     std::process::Command::new(env!("CARGO_BIN_EXE_furnace"))

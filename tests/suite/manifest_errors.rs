@@ -56,7 +56,7 @@ fn manifest_error_messages() {
 
 #[test]
 fn check_exits_2_on_an_invalid_manifest_and_1_on_a_failing_check() {
-    let dir = std::env::temp_dir().join(format!("furnace-manifest-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-manifest-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let bad = dir.join("bad.toml");
     std::fs::write(&bad, "[[check]]\nname = \"x\"\nkind = \"furnice\"\n").unwrap();

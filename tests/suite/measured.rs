@@ -93,7 +93,7 @@ fn spec(measurement: &Path) -> CheckSpec {
 
 #[test]
 fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_error() {
-    let dir = std::env::temp_dir().join(format!("furnace-measured-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-measured-{}", std::process::id()));
     let ctx = Context {
         models: None,
         deadline: None,
@@ -133,7 +133,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
 
 #[test]
 fn measurement_files_are_validated_by_name() {
-    let dir = std::env::temp_dir().join(format!("furnace-measured-bad-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-measured-bad-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let p = dir.join("m.toml");
     for (text, want) in [

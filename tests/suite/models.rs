@@ -183,7 +183,7 @@ fn a_misbehaving_server_makes_the_check_an_error_with_its_words() {
 
 #[test]
 fn the_c_example_server_answers_furnace() {
-    let out = std::env::temp_dir().join(format!("furnace-example-server-{}", std::process::id()));
+    let out = crate::scratch_dir().join(format!("furnace-example-server-{}", std::process::id()));
     let cc = std::process::Command::new("cc")
         .args(["-std=c99", "-Wall", "-Wextra", "-Werror", "-O2"])
         .arg(root("protocol/example_server.c"))

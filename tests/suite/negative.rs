@@ -1593,7 +1593,7 @@ fn leaky_edges(shrink: f64) -> SceneSwap {
         positions.extend(p.map(|v| c + (v - c) * (1.0 - shrink)));
         triangles.push([n, n + 1, n + 2]);
     }
-    let dir = std::env::temp_dir().join(format!(
+    let dir = crate::scratch_dir().join(format!(
         "furnace-leaky-{}-{}",
         std::process::id(),
         (shrink * 1e6) as u64

@@ -53,7 +53,7 @@ impl Shot {
 }
 
 fn screenshot(bin: &str, name: &str, page: &str) -> Shot {
-    let dir = std::env::temp_dir().join(format!("furnace-html-{}-{name}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-html-{}-{name}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let (file, shot) = (dir.join("report.html"), dir.join("shot.png"));
     std::fs::write(&file, page).unwrap();

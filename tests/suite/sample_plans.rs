@@ -241,7 +241,7 @@ fn sequential_looks_still_reject_a_broken_renderer_and_pass_a_correct_one() {
 
 #[test]
 fn power_values_fixed_spp_and_kinds_without_a_budget_are_refused() {
-    let dir = std::env::temp_dir().join(format!("furnace-power-{}", std::process::id()));
+    let dir = crate::scratch_dir().join(format!("furnace-power-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let write = |name: &str, body: &str| {
         let p = dir.join(name);

@@ -13,7 +13,7 @@ fn furnace(args: &[&str]) -> Output {
 
 /// A fresh scratch folder for one test (removed first if an earlier run left it).
 fn scratch(name: &str) -> std::path::PathBuf {
-    let d = std::env::temp_dir().join(format!("furnace-shard-{name}-{}", std::process::id()));
+    let d = crate::scratch_dir().join(format!("furnace-shard-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
     std::fs::create_dir_all(&d).unwrap();
     d
