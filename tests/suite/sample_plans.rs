@@ -127,6 +127,36 @@ fn detection_limit() -> f64 {
     power::min_detectable_bias(1.0 / (SPP as f64).sqrt(), ALPHA, 0.95)
 }
 
+/// A power target on a difference check (expected 0) plans from the quantity both estimates
+/// measure and states the power it reached; it was an ERROR, which made the nightly
+/// `check --power` end in one.
+#[test]
+fn a_power_target_plans_for_a_check_whose_expected_value_is_zero() {
+    let out = run_furnace(&[
+        "check",
+        "tests/manifests/invariance.toml",
+        "--filter",
+        "estimators/direct-mixed",
+        "--power",
+        "0.05",
+    ]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    let line = text.lines().next().unwrap();
+    assert!(line.starts_with("PASS"), "{line}");
+    let power: f64 = line
+        .split("power ")
+        .nth(1)
+        .and_then(|p| p.split(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(
+        power <= 5.0,
+        "stated power {power} % above the 5 % target: {line}"
+    );
+}
+
 #[test]
 fn a_fixed_check_keeps_its_spp_under_looks_and_power_targets() {
     let mut check = gauss(0.0, SPP, None);
