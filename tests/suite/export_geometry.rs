@@ -36,14 +36,6 @@ type Triangle = [[f64; 3]; 3];
 /// The source's triangles of one surface: each quad (v0, v1, v2, v3) as (v0, v1, v2) and
 /// (v0, v2, v3), the page's diagonal (scenes/cornell-box.toml, the left wall).
 fn source_triangles(src: &toml::Value, surface: &str) -> Vec<Triangle> {
-    let point = |v: &toml::Value| -> [f64; 3] {
-        let a = v.as_array().unwrap();
-        std::array::from_fn(|k| {
-            a[k].as_float()
-                .or(a[k].as_integer().map(|i| i as f64))
-                .unwrap()
-        })
-    };
     let section = &src[surface];
     let quads: Vec<Vec<[f64; 3]>> = match section.get("quads") {
         Some(q) => q

@@ -2316,8 +2316,10 @@ impl ModelSource for Catalogue {
     }
 }
 
-/// The bsdf.toml check `check`, run as `furnace check` runs it on the models `m`, must FAIL.
-fn assert_catalogue_rejects(check: &str, m: &Catalogue) {
+/// The bsdf.toml check `check`, run as `furnace check` runs it on the models `m`, must end
+/// with `want`: FAIL for a broken model, PASS for the correct one through the same wrapper
+/// (the wrapper's positive control).
+fn assert_catalogue(check: &str, m: &Catalogue, want: Verdict) {
     let s = specs("tests/manifests/bsdf.toml", check);
     let opts = RunOptions {
         family_alpha: alpha(),
@@ -2331,40 +2333,19 @@ fn assert_catalogue_rejects(check: &str, m: &Catalogue) {
     let report = harness::run_with(&s, &opts, subject, vec![], &mut |_| {});
     for o in report.outcomes {
         assert_eq!(
-            o.verdict,
-            Verdict::Fail,
+            o.verdict, want,
             "{} with {}: {}",
-            o.name,
-            m.broken,
-            o.message
+            o.name, m.broken, o.message
         );
     }
 }
 
-/// The bsdf.toml check `check`, run as `furnace check` runs it on the models `m`, must PASS:
-/// the positive control of the wrapper (a correct model through `Catalogue` is not rejected).
+fn assert_catalogue_rejects(check: &str, m: &Catalogue) {
+    assert_catalogue(check, m, Verdict::Fail);
+}
+
 fn assert_catalogue_passes(check: &str, m: &Catalogue) {
-    let s = specs("tests/manifests/bsdf.toml", check);
-    let opts = RunOptions {
-        family_alpha: alpha(),
-        sequential: true,
-        ..RunOptions::default()
-    };
-    let subject = furnace::harness::under_test::Subject {
-        renderer: &BuiltIn,
-        models: Some(m),
-    };
-    let report = harness::run_with(&s, &opts, subject, vec![], &mut |_| {});
-    for o in report.outcomes {
-        assert_eq!(
-            o.verdict,
-            Verdict::Pass,
-            "{} with {}: {}",
-            o.name,
-            m.broken,
-            o.message
-        );
-    }
+    assert_catalogue(check, m, Verdict::Pass);
 }
 
 /// A model of the catalogue, by name.
@@ -2405,11 +2386,8 @@ fn catalogue_wide_checks_pass_the_correct_model_through_the_same_wrapper() {
 
 /// A dielectric of the catalogue, by name.
 fn catalogue_dielectric(name: &str) -> furnace::scattering::Dielectric {
-    match furnace::harness::model::catalogue::bsdfs()
-        .into_iter()
-        .find(|(n, _)| n == name)
-    {
-        Some((_, furnace::scattering::Bsdf::Dielectric(d))) => d,
+    match catalogue_bsdf(name) {
+        furnace::scattering::Bsdf::Dielectric(d) => d,
         _ => panic!("{name} is not a catalogue dielectric"),
     }
 }
