@@ -233,8 +233,62 @@ fn bvh_build(c: &mut Criterion) {
     g.finish();
 }
 
+/// A 512² Cornell film's twelve f32 channels (16 spp, 5 bounces) encoded as OpenEXR with each
+/// lossless compression, in memory: what `io::image::write_exr`'s choice (RLE) trades against
+/// ZIP and PIZ (docs/performance.md, "EXR files run-length encoded"). Prints each file's size.
+fn exr_compression(c: &mut Criterion) {
+    use exr::image::{AnyChannel, AnyChannels, Blocks, Encoding, FlatSamples, Image, Layer};
+    use exr::meta::attribute::LineOrder;
+    use exr::prelude::{Compression, WritableImage as _};
+    let scene = cornell();
+    let mut settings = frame_settings(512, 16);
+    settings.integrator.max_depth = Some(5);
+    let film = render(&scene, &settings, &|_| {}).expect("render");
+    let layers = film.to_layers(Vec::new());
+    let encode = |compression: Compression| {
+        let channels = layers
+            .channels
+            .iter()
+            .map(|(name, v)| AnyChannel::new(name.as_str(), FlatSamples::F32(v.clone())))
+            .collect();
+        let encoding = Encoding {
+            compression,
+            blocks: Blocks::ScanLines,
+            line_order: LineOrder::Increasing,
+        };
+        let layer = Layer::new(
+            (layers.width, layers.height),
+            Default::default(),
+            encoding,
+            AnyChannels::sort(channels),
+        );
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        Image::from_layer(layer)
+            .write()
+            .to_buffered(&mut bytes)
+            .expect("encode");
+        bytes.into_inner().len()
+    };
+    let mut g = c.benchmark_group("exr_compression");
+    g.sample_size(10);
+    g.throughput(Throughput::Bytes(
+        (layers.width * layers.height * 12 * 4) as u64,
+    ));
+    for (name, compression) in [
+        ("rle", Compression::RLE),
+        ("zip16", Compression::ZIP16),
+        ("piz", Compression::PIZ),
+        ("uncompressed", Compression::Uncompressed),
+    ] {
+        println!("exr_compression/{name}: {} bytes", encode(compression));
+        g.bench_function(name, |b| b.iter(|| encode(compression)));
+    }
+    g.finish();
+}
+
 criterion_group!(
     benches,
+    exr_compression,
     bvh_build,
     cornell_frame,
     sppm_frame,
