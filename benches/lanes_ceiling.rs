@@ -165,10 +165,7 @@ fn trace<const L: usize, const FURNACE: bool>(
             if !alive[l] {
                 continue;
             }
-            let ray = Ray {
-                o: Vec3::new(o[0][l], o[1][l], o[2][l]),
-                d: Vec3::new(d[0][l], d[1][l], d[2][l]),
-            };
+            let ray = lane_ray(o, d, l);
             if let Some(h) =
                 scene
                     .aggregate
@@ -192,6 +189,14 @@ fn trace<const L: usize, const FURNACE: bool>(
             shape[l] = room.shape[k];
         }
         (t, n, shape)
+    }
+}
+
+/// Lane `l`'s ray, for furnace's queries.
+fn lane_ray<const L: usize>(o: &Lane3<L>, d: &Lane3<L>, l: usize) -> Ray {
+    Ray {
+        o: Vec3::new(o[0][l], o[1][l], o[2][l]),
+        d: Vec3::new(d[0][l], d[1][l], d[2][l]),
     }
 }
 
@@ -220,10 +225,7 @@ fn shadowed<const L: usize, const FURNACE: bool>(
             if !wanted[l] {
                 return true;
             }
-            let ray = Ray {
-                o: Vec3::new(o[0][l], o[1][l], o[2][l]),
-                d: Vec3::new(d[0][l], d[1][l], d[2][l]),
-            };
+            let ray = lane_ray(o, d, l);
             scene
                 .aggregate
                 .occluded_except(&ray, t_max[l], skip(room, on[l]))
