@@ -22,9 +22,13 @@ use std::hint::black_box;
 use std::path::Path;
 use std::time::Instant;
 
-/// Image side (pixels), samples per pixel and bounces of the timed frame.
+/// Image side of the timed frame, pixels.
 const SIDE: usize = 64;
+/// Samples per pixel of the timed frame: a multiple of every lane count, so that each group of
+/// lanes holds samples of one pixel.
 const SPP: usize = 16;
+const _: () = assert!(SPP.is_multiple_of(8));
+/// Most bounces of a path (furnace's `--max-depth`).
 const MAX_DEPTH: usize = 5;
 /// Triangles of the measured Cornell Box.
 const NT: usize = 32;
@@ -33,26 +37,34 @@ const NT: usize = 32;
 /// minimum storage ray-triangle intersection", JGT 2(1): corner, two edges), their unit normals
 /// and materials, the light's parallelogram, and the spectra.
 struct Room {
+    /// Each triangle's first corner and its edges to the other two, by axis (mm).
     v0: [[f64; NT]; 3],
     e1: [[f64; NT]; 3],
     e2: [[f64; NT]; 3],
+    /// Each triangle's unit normal (as the scene orients it), by axis.
     n: [[f64; NT]; 3],
+    /// Each triangle's shape in the scene.
     shape: [usize; NT],
+    /// By shape: whether it emits, and whether it is planar (furnace's queries skip it then).
     light_shape: Vec<bool>,
     planar: Vec<bool>,
+    /// The light: a corner, its two edges, its unit normal (emitting side) and area (mm²).
     light_o: [f64; 3],
     light_u: [f64; 3],
     light_v: [f64; 3],
     light_n: [f64; 3],
     light_area: f64,
-    /// Reflectance by material, and each shape's material.
+    /// Reflectance by material.
     reflectance: Vec<Spectrum>,
+    /// Each shape's material.
     material: Vec<usize>,
+    /// The light's radiance (W·sr⁻¹·m⁻²·nm⁻¹).
     emission: Spectrum,
     observer: Observer,
 }
 
 impl Room {
+    /// The measured Cornell Box's triangles, light and spectra from furnace's scene.
     fn new(scene: &Scene) -> Room {
         let mut r = Room {
             v0: [[0.0; NT]; 3],
@@ -124,7 +136,9 @@ impl Room {
     }
 }
 
+/// One f64 per lane.
 type Lane<const L: usize> = [f64; L];
+/// A vector per lane, by axis (structure of arrays).
 type Lane3<const L: usize> = [[f64; L]; 3];
 
 /// Closest hit of each lane's ray among all triangles (t, triangle; t = ∞ for a miss), every
@@ -289,22 +303,37 @@ fn uniform<const L: usize>(key: &[u64; L], dim: u64) -> Lane<L> {
     u
 }
 
-/// Renders the frame in groups of `L` samples of one pixel; returns the sum of Y over all
-/// samples and the share of lane-bounces whose path was still alive.
+/// What a frame gives: Y's sum and sum of squares over the samples, a digest of every sample's
+/// Y bits in sample order (equal digests: the same image), and the lane-bounces run and those
+/// that carried a live path.
+#[derive(Debug, Default, Clone, Copy, PartialEq)]
+struct Stats {
+    sum: f64,
+    sum_sq: f64,
+    digest: u64,
+    lane_bounces: u64,
+    live_lane_bounces: u64,
+}
+
+/// Renders the frame in groups of `L` samples of one pixel, all lanes in step until every
+/// path in the group has left the box.
+#[inline(always)]
 fn render_lanes<const L: usize, const FURNACE: bool>(
     room: &Room,
     scene: &Scene,
     seed: u64,
     max_depth: usize,
-) -> (f64, f64) {
+) -> Stats {
     let tan = (39.3077f64.to_radians() / 2.0).tan();
     let eye = [278.0, 273.0, -800.0];
-    let (mut total, mut alive_lanes, mut lane_slots) = (0.0, 0u64, 0u64);
+    let mut stats = Stats::default();
     for pixel in 0..SIDE * SIDE {
         let (px, py) = ((pixel % SIDE) as f64, (pixel / SIDE) as f64);
         for first in (0..SPP).step_by(L) {
             let key: [u64; L] = std::array::from_fn(|l| {
-                mix64(mix64(seed ^ pixel as u64).wrapping_add((first + l) as u64))
+                mix64(
+                    mix64(mix64(seed).wrapping_add(pixel as u64)).wrapping_add((first + l) as u64),
+                )
             });
             let mut dim = 0;
             let mut next = || {
@@ -345,12 +374,17 @@ fn render_lanes<const L: usize, const FURNACE: bool>(
                 let (t, mut n, shape) = trace::<L, FURNACE>(room, scene, &o, &d, &on, &alive);
                 for l in 0..L {
                     alive[l] &= t[l].is_finite();
-                    lane_slots += 1;
-                    alive_lanes += u64::from(alive[l]);
                     for ax in 0..3 {
                         o[ax][l] += t[l].min(f64::MAX) * d[ax][l] * f64::from(u8::from(alive[l]));
                     }
                 }
+                // (dead lanes add nothing, so stopping when all are dead keeps the image)
+                let live = alive.iter().filter(|&&a| a).count();
+                if live == 0 {
+                    break;
+                }
+                stats.lane_bounces += L as u64;
+                stats.live_lane_bounces += live as u64;
                 on = shape;
                 // emission seen by this ray (one-sided, downwards), weighed against light sampling
                 for l in 0..L {
@@ -470,19 +504,78 @@ fn render_lanes<const L: usize, const FURNACE: bool>(
                 for (i, ri) in radiance.iter().enumerate() {
                     y += ri[l] * room.observer.cmf(wl[l].lambda[i])[1] / wl[l].pdf[i];
                 }
-                total += y / 4.0;
+                let y = y / 4.0;
+                stats.sum += y;
+                stats.sum_sq += y * y;
+                stats.digest = mix64(stats.digest ^ y.to_bits());
             }
         }
     }
-    (total, alive_lanes as f64 / lane_slots as f64)
+    stats
 }
 
-/// Mean Y of furnace's render of the frame.
-fn y_furnace(scene: &Scene, settings: &RenderSettings) -> f64 {
+/// Mean Y of furnace's render of the frame, and its standard error.
+fn y_furnace(scene: &Scene, settings: &RenderSettings) -> (f64, f64) {
     let film = render(scene, settings, &|_| {}).expect("render");
-    film.means(1).iter().sum::<f64>() / (SIDE * SIDE) as f64
+    let n = (SIDE * SIDE) as f64;
+    let se = film.mean_variances(1).iter().sum::<f64>().sqrt() / n;
+    (film.means(1).iter().sum::<f64>() / n, se)
 }
 
+/// [`render_lanes`] compiled for AVX-512 (eight f64 lanes in one register) in the default
+/// build, which leaves AVX-512 out (`.cargo/config.toml`): run only where the CPU has it.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
+fn render_lanes_avx512<const FURNACE: bool>(room: &Room, scene: &Scene, seed: u64) -> Stats {
+    render_lanes::<8, FURNACE>(room, scene, seed, MAX_DEPTH)
+}
+
+/// Whether this CPU runs [`render_lanes_avx512`].
+fn has_avx512() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return std::arch::is_x86_feature_detected!("avx512f")
+        && std::arch::is_x86_feature_detected!("avx512vl")
+        && std::arch::is_x86_feature_detected!("avx512dq")
+        && std::arch::is_x86_feature_detected!("avx512bw");
+    #[cfg(not(target_arch = "x86_64"))]
+    false
+}
+
+/// Variant `v` of [`NAMES`] with seed `seed` (None: this CPU cannot run it).
+fn run_variant(v: usize, room: &Room, scene: &Scene, seed: u64) -> Option<Stats> {
+    Some(match v {
+        1 => render_lanes::<1, false>(room, scene, seed, MAX_DEPTH),
+        2 => render_lanes::<4, false>(room, scene, seed, MAX_DEPTH),
+        3 => render_lanes::<8, false>(room, scene, seed, MAX_DEPTH),
+        4 => render_lanes::<1, true>(room, scene, seed, MAX_DEPTH),
+        5 => render_lanes::<4, true>(room, scene, seed, MAX_DEPTH),
+        6 => render_lanes::<8, true>(room, scene, seed, MAX_DEPTH),
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: the CPU has the features the function is compiled for (checked just here)
+        7 if has_avx512() => unsafe { render_lanes_avx512::<false>(room, scene, seed) },
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: as above
+        8 if has_avx512() => unsafe { render_lanes_avx512::<true>(room, scene, seed) },
+        _ => return None,
+    })
+}
+
+/// The timed variants; 0 is furnace's renderer.
+const NAMES: [&str; 9] = [
+    "furnace render",
+    "lanes queries L=1",
+    "lanes queries L=4",
+    "lanes queries L=8",
+    "furnace queries L=1",
+    "furnace queries L=4",
+    "furnace queries L=8",
+    "lanes queries L=8, AVX-512",
+    "furnace queries L=8, AVX-512",
+];
+
+/// Checks the prototype against furnace (same mean Y, same samples at every lane count), then
+/// times the variants in alternating rounds (`ROUNDS`, default 7; `FURNACE_LANES_ONLY=i` times
+/// variant i alone, for a profiler).
 fn main() {
     let rounds: usize = std::env::args()
         .skip(1)
@@ -511,74 +604,49 @@ fn main() {
         deadline: None,
         crop: None,
     };
-    for furnace_queries in [false, true] {
-        let run = |l| match (l, furnace_queries) {
-            (1, false) => render_lanes::<1, false>(&room, &scene, 1, MAX_DEPTH),
-            (4, false) => render_lanes::<4, false>(&room, &scene, 1, MAX_DEPTH),
-            (8, false) => render_lanes::<8, false>(&room, &scene, 1, MAX_DEPTH),
-            (1, true) => render_lanes::<1, true>(&room, &scene, 1, MAX_DEPTH),
-            (4, true) => render_lanes::<4, true>(&room, &scene, 1, MAX_DEPTH),
-            _ => render_lanes::<8, true>(&room, &scene, 1, MAX_DEPTH),
-        };
-        let (y1, alive) = run(1);
-        for l in [4, 8] {
-            assert_eq!(
-                y1.to_bits(),
-                run(l).0.to_bits(),
-                "{l} lanes change the image"
-            );
+    for (furnace_queries, variants) in [(false, [1, 2, 3, 7]), (true, [4, 5, 6, 8])] {
+        let s1 = run_variant(variants[0], &room, &scene, 1).expect("scalar");
+        for &v in &variants[1..] {
+            if let Some(sv) = run_variant(v, &room, &scene, 1) {
+                assert_eq!(s1.digest, sv.digest, "{} changes the image", NAMES[v]);
+            }
         }
+        let s8 = run_variant(variants[2], &room, &scene, 1).expect("8 lanes");
+        // the prototype's mean Y (over ∫ȳ, as furnace's film) against furnace's, with the
+        // standard error of their ratio (independent samples, first-order propagation)
+        let n = (SIDE * SIDE * SPP) as f64;
+        let mean = s1.sum / n;
+        let se = ((s1.sum_sq / n - mean * mean) * n / (n - 1.0) / n).sqrt();
+        let (yf, sef) = y_furnace(&scene, &settings);
+        let yint = room.observer.y_integral();
+        let ratio = mean / yint / yf;
+        let ratio_se = ratio * ((se / mean).powi(2) + (sef / yf).powi(2)).sqrt();
         println!(
-            "queries {}: mean Y / furnace's {:.4} (Y over ∫ȳ); lanes alive {:.1} %; 1, 4 and 8 lanes bit-identical",
+            "queries {}: mean Y / furnace's {ratio:.4} ± {ratio_se:.4}; every lane count gives the same samples (digest); live lanes at L = 8: {:.1} %",
             if furnace_queries { "furnace's" } else { "in lanes" },
-            y1 / (SIDE * SIDE * SPP) as f64 / room.observer.y_integral() / y_furnace(&scene, &settings),
-            100.0 * alive
+            100.0 * s8.live_lane_bounces as f64 / s8.lane_bounces as f64
         );
     }
-    let names = [
-        "furnace render",
-        "lanes queries L=1",
-        "lanes queries L=4",
-        "lanes queries L=8",
-        "furnace queries L=1",
-        "furnace queries L=4",
-        "furnace queries L=8",
-    ];
-    // FURNACE_LANES_ONLY=i times variant i alone (for a profiler)
+    if !has_avx512() {
+        println!("no AVX-512 on this CPU: its two variants are skipped");
+    }
     let only: Option<usize> = std::env::var("FURNACE_LANES_ONLY")
         .ok()
         .and_then(|v| v.parse().ok());
-    let mut times = vec![Vec::new(); names.len()];
+    let mut times = vec![Vec::new(); NAMES.len()];
     for round in 0..rounds {
         let seed = round as u64;
         for (v, t) in times.iter_mut().enumerate() {
             if only.is_some_and(|o| o != v) {
-                t.push(f64::NAN);
                 continue;
             }
             let t0 = Instant::now();
-            match v {
-                0 => drop(black_box(
+            if v == 0 {
+                drop(black_box(
                     render(&scene, &settings, &|_| {}).expect("render"),
-                )),
-                1 => drop(black_box(render_lanes::<1, false>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
-                2 => drop(black_box(render_lanes::<4, false>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
-                3 => drop(black_box(render_lanes::<8, false>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
-                4 => drop(black_box(render_lanes::<1, true>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
-                5 => drop(black_box(render_lanes::<4, true>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
-                _ => drop(black_box(render_lanes::<8, true>(
-                    &room, &scene, seed, MAX_DEPTH,
-                ))),
+                ));
+            } else if black_box(run_variant(v, &room, &scene, seed)).is_none() {
+                continue;
             }
             t.push(t0.elapsed().as_secs_f64());
         }
@@ -589,15 +657,22 @@ fn main() {
         s[s.len() / 2]
     };
     let paths = (SIDE * SIDE * SPP) as f64;
-    for (name, t) in names.iter().zip(&times) {
-        let ratios: Vec<f64> = t.iter().zip(&times[0]).map(|(a, b)| a / b).collect();
-        println!(
-            "{name:<16} median {:.4} s  {:.3} M paths/s  time / furnace's: median {:.3} (min {:.3}, max {:.3})",
+    for (name, t) in NAMES.iter().zip(&times).filter(|(_, t)| !t.is_empty()) {
+        print!(
+            "{name:<28} median {:.4} s  {:.3} M paths/s",
             median(t),
-            paths / median(t) / 1e6,
-            median(&ratios),
-            ratios.iter().copied().fold(f64::INFINITY, f64::min),
-            ratios.iter().copied().fold(0.0, f64::max),
+            paths / median(t) / 1e6
         );
+        if times[0].len() == t.len() {
+            // paired: the same round's furnace render
+            let ratios: Vec<f64> = t.iter().zip(&times[0]).map(|(a, b)| a / b).collect();
+            print!(
+                "  time / furnace's: median {:.3} (min {:.3}, max {:.3})",
+                median(&ratios),
+                ratios.iter().copied().fold(f64::INFINITY, f64::min),
+                ratios.iter().copied().fold(0.0, f64::max),
+            );
+        }
+        println!();
     }
 }
