@@ -223,8 +223,8 @@ fn standard_string_fields(attributes: &mut LayerAttributes) -> [&mut Option<Text
 
 /// Write `image` as a single-part, scan-line OpenEXR file with 32-bit float channels and
 /// lossless run-length (RLE) compression: a render's noisy floats barely deflate, so ZIP's
-/// files were 2-5 % smaller for 5-10 times the writing time (docs/performance.md, "EXR files
-/// run-length encoded").
+/// files were 2-5 % smaller for about ten times the encoding time (docs/performance.md, "EXR
+/// files run-length encoded").
 ///
 /// Values are stored bit-exactly; units are whatever the caller stores. Channels may be given
 /// in any order (OpenEXR stores them sorted by name). `image.attributes` become string
