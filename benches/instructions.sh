@@ -21,18 +21,7 @@ sed 's/^reflectance = 0.5 /reflectance = 0.99/' scenes/furnace-sphere.toml >"$tm
 scenes=(scenes/cornell-box.toml scenes/cornell-glossy.toml "$tmp/furnace-sphere-0.99.toml" scenes/hg-fog.toml)
 [ -f benches/cornell-mesh/scene.toml ] && scenes+=(benches/cornell-mesh/scene.toml)
 
-# "identical" when the two EXRs are the same bytes; "same R, G, B" when only the files differ
-# (builds either side of 9e36fd0 write ZIP and RLE compression), by `furnace compare`'s RMSE
-same_image() { # binary a.exr b.exr
-    if cmp -s "$2" "$3"; then
-        echo identical
-    elif "$1" compare "$2" "$3" 2>/dev/null |
-        awk '$1 ~ /^[RGB]$/ && NF == 6 {n++; if ($4 != "0.0000e0") d = 1} END {exit !(n == 3 && !d)}'; then
-        echo "same R, G, B"
-    else
-        echo differ
-    fi
-}
+. "$(dirname "$0")/same-image.sh"
 count() { # binary scene tag -> "instructions mispredictions"
     valgrind --tool=callgrind --branch-sim=yes --callgrind-out-file="$tmp/cg.out" \
         --toggle-collect='furnace::integrators::path::PathTracer::trace' \
