@@ -575,7 +575,7 @@ const NAMES: [&str; 9] = [
 
 /// Checks the prototype against furnace (same mean Y, same samples at every lane count), then
 /// times the variants in alternating rounds (`ROUNDS`, default 7; `FURNACE_LANES_ONLY=i` times
-/// variant i alone, for a profiler).
+/// variant i alone, without the checks, for a profiler).
 fn main() {
     let rounds: usize = std::env::args()
         .skip(1)
@@ -604,7 +604,16 @@ fn main() {
         deadline: None,
         crop: None,
     };
-    for (furnace_queries, variants) in [(false, [1, 2, 3, 7]), (true, [4, 5, 6, 8])] {
+    let only: Option<usize> = std::env::var("FURNACE_LANES_ONLY")
+        .ok()
+        .and_then(|v| v.parse().ok());
+    // (a profile of one variant skips the checks)
+    let checks: &[(bool, [usize; 4])] = if only.is_some() {
+        &[]
+    } else {
+        &[(false, [1, 2, 3, 7]), (true, [4, 5, 6, 8])]
+    };
+    for &(furnace_queries, variants) in checks {
         let s1 = run_variant(variants[0], &room, &scene, 1).expect("scalar");
         for &v in &variants[1..] {
             if let Some(sv) = run_variant(v, &room, &scene, 1) {
@@ -630,9 +639,6 @@ fn main() {
     if !has_avx512() {
         println!("no AVX-512 on this CPU: its two variants are skipped");
     }
-    let only: Option<usize> = std::env::var("FURNACE_LANES_ONLY")
-        .ok()
-        .and_then(|v| v.parse().ok());
     let mut times = vec![Vec::new(); NAMES.len()];
     for round in 0..rounds {
         let seed = round as u64;
