@@ -31,7 +31,7 @@ fn main() {
         Ok(code) => std::process::exit(code),
         Err(f) => {
             // user input quoted in an error is bounded where it is quoted; this bounds the rest
-            let text = format!("{:#}", f.error);
+            let text = cli::error_text(&f.error);
             let cut: String = text.chars().take(4000).collect();
             let more = if cut.len() < text.len() { " …" } else { "" };
             eprintln!("error: {cut}{more}");

@@ -31,7 +31,10 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
         );
     }
     let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
-    if png == a.out {
+    if a.png.is_none() {
+        super::preview_beside(&a.out, &png)?;
+    }
+    if png == a.out && !super::is_device(&png) {
         return Err(anyhow::anyhow!(
             "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
             a.out.display()

@@ -139,6 +139,22 @@ impl<E: Into<anyhow::Error>> From<E> for Failure {
     }
 }
 
+/// An error and its causes joined by ": ", each cause left out when the text before it already
+/// holds it (library errors often quote their source, so `{:#}` would print it twice).
+pub fn error_text(e: &anyhow::Error) -> String {
+    let mut text = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if text.is_empty() {
+            text = c;
+        } else if !text.contains(&c) {
+            text.push_str(": ");
+            text.push_str(&c);
+        }
+    }
+    text
+}
+
 /// Runs the parsed command line; returns the exit code on success.
 pub fn run(cli: Cli) -> Result<i32, Failure> {
     use std::io::IsTerminal;
@@ -189,6 +205,26 @@ pub(crate) fn thread_count(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
+/// Whether `p` is an existing device, FIFO or socket (written in place; several outputs may go
+/// to one, e.g. /dev/null).
+pub(crate) fn is_device(p: &Path) -> bool {
+    std::fs::metadata(p).is_ok_and(|m| !m.is_file() && !m.is_dir())
+}
+
+/// Refuses the PNG preview's default path `png` beside an `--out` that is no regular file (a
+/// device such as /dev/null, or a pipe): the preview would be created as a new file there.
+pub(crate) fn preview_beside(out: &Path, png: &Path) -> Result<(), Failure> {
+    if is_device(out) {
+        return Err(anyhow::anyhow!(
+            "--out {} is no regular file (a device or a pipe), so the preview's default path beside it, {}, would be created there: give --png too (e.g. --png /dev/null)",
+            out.display(),
+            png.display()
+        )
+        .into());
+    }
+    Ok(())
+}
+
 /// The optional paths that were given, each with the option (role) that names it, for
 /// [`distinct_paths`].
 pub(crate) fn given<'a>(
@@ -229,7 +265,9 @@ pub(crate) fn distinct_paths(
     for (k, (out_role, out_path, out_id)) in ids.iter().enumerate().skip(inputs.len()) {
         let Some(out_id) = out_id else { continue };
         for (j, (role, _, id)) in ids[..k].iter().enumerate() {
-            if id.as_ref() == Some(out_id) {
+            // (outputs may share a device such as /dev/null)
+            let shared_device = j >= inputs.len() && is_device(out_path);
+            if id.as_ref() == Some(out_id) && !shared_device {
                 let what = if j < inputs.len() { "input" } else { "output" };
                 return Err(anyhow::anyhow!(
                     "{out_role} {} is the same file as {role}, an {what} of this run: writing it would destroy it; give another path",
@@ -238,6 +276,11 @@ pub(crate) fn distinct_paths(
                 .into());
             }
         }
+    }
+    // an output that cannot be written fails now, not after the run has spent its time
+    for &(role, p) in outputs {
+        furnace::io::check_writable(p)
+            .map_err(|e| anyhow::anyhow!("{role} {} cannot be written: {e}", p.display()))?;
     }
     Ok(())
 }

@@ -208,7 +208,10 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .png
         .clone()
         .unwrap_or_else(|| exr_path.with_extension("png"));
-    if exr_path == png_path {
+    if shard.is_none() && a.png.is_none() {
+        super::preview_beside(&exr_path, &png_path)?;
+    }
+    if exr_path == png_path && !super::is_device(&exr_path) {
         return Err(anyhow::anyhow!(
             "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
             exr_path.display()

@@ -189,7 +189,11 @@ impl PartialFilm {
                     }
                 }
             }
-            out.into_inner().map_err(|e| e.into_error())?.sync_all()
+            // (a device written in place, such as /dev/null, has nothing to synchronise)
+            match out.into_inner().map_err(|e| e.into_error())?.sync_all() {
+                Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
+                r => r,
+            }
         })
         .map_err(io_err(path))
     }

@@ -9,5 +9,6 @@ pub mod located;
 pub mod mesh;
 
 pub use located::{
-    parse_toml, read_capped, read_small_text, read_text, write_atomic, LocatedError, Source,
+    check_writable, parse_toml, read_capped, read_small_text, read_text, write_atomic,
+    LocatedError, Source,
 };

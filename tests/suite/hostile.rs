@@ -220,6 +220,73 @@ fn outputs_that_collide_or_fail_never_destroy_what_was_there() {
 }
 
 #[test]
+fn outputs_keep_devices_and_links_and_fail_before_the_work() {
+    let d = tmp("special-outputs");
+    std::fs::write(d.join("s.toml"), scene("2", "")).unwrap();
+    let is_device = |p: &str| {
+        use std::os::unix::fs::FileTypeExt;
+        std::fs::metadata(p).unwrap().file_type().is_char_device()
+    };
+    // a device is written in place, never replaced by a file; its preview needs a path of its own
+    let out = furnace(&d, &["render", "s.toml", "-o", "/dev/null", "-q"]);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr_of(&out, &d).contains("give --png too"),
+        "{}",
+        stderr_of(&out, &d)
+    );
+    let out = furnace(
+        &d,
+        &[
+            "render",
+            "s.toml",
+            "-o",
+            "/dev/null",
+            "--png",
+            "/dev/null",
+            "-q",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(0), "{}", stderr_of(&out, &d));
+    assert!(is_device("/dev/null"));
+    let json = furnace(&d, &["check", "m.toml", "--json", "/dev/stdout", "-q"]);
+    assert_eq!(json.status.code(), Some(2)); // (no m.toml here: the manifest error, not the output's)
+                                             // a symbolic link stays and the file it names is written
+    std::os::unix::fs::symlink(d.join("target.exr"), d.join("link.exr")).unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "link.exr", "-q"]);
+    assert_eq!(out.status.code(), Some(0), "{}", stderr_of(&out, &d));
+    assert!(std::fs::symlink_metadata(d.join("link.exr"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::metadata(d.join("target.exr")).unwrap().is_file());
+    // an output that cannot be written is refused before the render, naming the reason
+    std::fs::write(d.join("file"), "x").unwrap();
+    std::fs::create_dir(d.join("dir.exr")).unwrap();
+    for (path, reason) in [
+        ("dir.exr", "a folder is there"),
+        ("file/x.exr", "file is a file, not a folder"),
+    ] {
+        let t = Instant::now();
+        let out = furnace(
+            &d,
+            &["render", "s.toml", "--spp", "100000", "-o", path, "-q"],
+        );
+        assert_eq!(out.status.code(), Some(2), "{path}");
+        let msg = stderr_of(&out, &d);
+        assert!(
+            msg.contains("cannot be written") && msg.contains(reason),
+            "{path}: {msg}"
+        );
+        assert!(
+            t.elapsed() < Duration::from_secs(20),
+            "{path}: the render ran first"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&d);
+}
+
+#[test]
 fn an_output_naming_an_input_is_refused_and_the_input_kept() {
     let d = tmp("overwrite");
     let text = scene("2", "");
