@@ -19,6 +19,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct CheckArgs {
     /// Manifest files or folders [default: tests/manifests].
     manifests: Vec<PathBuf>,

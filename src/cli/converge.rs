@@ -11,6 +11,8 @@ use furnace::report::plot::Series;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct ConvergeArgs {
     /// Manifests with `convergence` or `reference_convergence` checks (others are skipped).
     manifests: Vec<PathBuf>,

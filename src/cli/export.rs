@@ -7,6 +7,8 @@ use furnace::scene::Scene;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct ExportArgs {
     /// The furnace scene (TOML).
     scene: PathBuf,

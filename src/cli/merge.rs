@@ -10,6 +10,8 @@ use std::collections::BTreeMap;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct MergeArgs {
     /// The shards' JSON results (`furnace check --shard K/N --json ...`), every shard of every renderer.
     #[arg(required = true)]

@@ -7,6 +7,8 @@ use clap::Args;
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct MergeFilmsArgs {
     /// The parts' partial films (`furnace render --shard K/N`), every part, in any order.
     #[arg(required = true)]

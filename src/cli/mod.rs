@@ -115,7 +115,7 @@ enum Command {
     Merge(merge::MergeArgs),
     /// Merge the partial films of a sharded `render --shard K/N` into the EXR and PNG the whole render writes, bit for bit; exit 2 when the parts do not make one render.
     MergeFilms(merge_films::MergeFilmsArgs),
-    /// Export a TOML scene to another renderer's format (mitsuba3: scene.xml plus meshes/*.ply in --out).
+    /// Export a TOML scene to another renderer's format (--format mitsuba3, json or pbrt-v4).
     Export(export::ExportArgs),
     /// Serve furnace's own BSDFs, phase functions and emitters over the model protocol on stdin/stdout (docs/model-protocol.md).
     ServeModels(serve_models::ServeModelsArgs),

@@ -14,6 +14,8 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct RenderArgs {
     /// The scene file (TOML).
     scene: PathBuf,
@@ -38,7 +40,7 @@ pub struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media) radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is not used).
+    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media), radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is not used).
     #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt", "mlt"])]
     integrator: String,
     /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each).

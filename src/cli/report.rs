@@ -8,6 +8,8 @@ use furnace::report::{html, json};
 use std::path::PathBuf;
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct ReportArgs {
     /// Check results (JSON from furnace check --json); repeatable.
     #[arg(long)]

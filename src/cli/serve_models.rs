@@ -9,6 +9,8 @@ use furnace::harness::model::local::LocalModels;
 use furnace::harness::model::server::{serve, Fault};
 
 #[derive(Debug, Args)]
+// a negative number is a value (refused by its parser), not an unknown option
+#[command(allow_negative_numbers = true)]
 pub struct ServeModelsArgs {
     /// Also serve two deliberately wrong BSDFs ("control/…"), which the model kinds must reject.
     #[arg(long)]

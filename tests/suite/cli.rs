@@ -768,3 +768,27 @@ fn converge_measures_reference_ladders_of_every_estimator() {
     assert!(page.contains("reference_convergence"), "{page}");
     std::fs::remove_dir_all(&dir).ok();
 }
+
+#[test]
+fn a_negative_number_is_refused_as_that_option_s_value_not_as_an_unknown_option() {
+    for (args, said) in [
+        (
+            &["render", "scenes/cornell-box.toml", "--spp", "-4"][..],
+            "invalid value '-4' for '--spp <SPP>'",
+        ),
+        (
+            &["render", "scenes/cornell-box.toml", "--max-depth", "-1"][..],
+            "invalid value '-1' for '--max-depth <MAX_DEPTH>'",
+        ),
+        (
+            &["check", "--power", "-0.1", "tests/manifests/furnace.toml"][..],
+            "--power -0.1 must be a relative bias in (0, 1)",
+        ),
+    ] {
+        let out = furnace().args(args).output().unwrap();
+        assert_eq!(out.status.code(), Some(2), "{args:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(said), "{args:?}: {err}");
+        assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
+    }
+}
