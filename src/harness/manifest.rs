@@ -383,9 +383,27 @@ fn substitute(text: &str, combo: &[(String, f64)]) -> Result<String, String> {
         out = out.replace(&key, &format!("{v:?}"));
     }
     if let Some(i) = out.find("${") {
-        let rest: String = out[i..].chars().take(24).collect();
+        // the placeholder as written (up to its `}`, at most 40 characters), and its line in
+        // the template (found in the text before substitution)
+        let rest: String = out[i..].chars().take(40).collect();
+        let name = match rest.find('}') {
+            Some(end) => rest[..=end].to_string(),
+            None => format!("{rest}…"),
+        };
+        let line = text.find(&name).map_or(String::new(), |j| {
+            format!(" (line {})", text[..j].matches('\n').count() + 1)
+        });
+        let key = name.trim_start_matches("${").trim_end_matches('}');
+        let example = if !key.is_empty()
+            && name.ends_with('}')
+            && key.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+        {
+            format!(", e.g. `vary = {{ {key} = [0.5] }}`")
+        } else {
+            String::new()
+        };
         return Err(format!(
-            "unresolved placeholder {rest:?}; give it a value in `vary`"
+            "unresolved placeholder {name}{line}; give it values in the check's `vary`{example}"
         ));
     }
     Ok(out)
