@@ -197,12 +197,15 @@ impl<'a> Keys<'a> {
             }
             if !allowed.iter().any(|k| k.name == key) {
                 let names: Vec<&str> = allowed.iter().map(|k| k.name).collect();
+                let common = ["name", "kind", "time_limit", "regression", "power", "fixed"];
                 return Err(keys.error(
                     v.span(),
                     key,
                     format!(
-                        "`{key}` is not a key of kind {:?}; its keys are: name, kind, time_limit, regression, power, fixed, {}",
+                        "`{key}` is not a key of kind {:?}{}; its keys are: {}, {}",
                         kind,
+                        super::names::did_you_mean(key, common.iter().chain(&names).copied()),
+                        common.join(", "),
                         names.join(", ")
                     ),
                 ));

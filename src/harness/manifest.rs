@@ -161,8 +161,9 @@ fn expand_check(
             kind_name.span(),
             "kind",
             format!(
-                "unknown check kind {:?}; allowed: {names}",
-                kind_name.get_ref()
+                "unknown check kind {:?}{}; allowed: {names}",
+                kind_name.get_ref(),
+                super::names::did_you_mean(kind_name.get_ref(), registry::names())
             ),
         )
     })?;
