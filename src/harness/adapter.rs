@@ -284,18 +284,27 @@ impl External {
         })
     }
 
-    /// Runs the probe; Err(message) when the renderer is not available.
+    /// Runs the probe; Err(message) when the renderer is not available, ending with the
+    /// table's description (which says how to install it) and where the README sets it up.
     pub fn probe(&self) -> Result<(), String> {
         let Some(p) = &self.desc.probe else {
             return Ok(());
         };
         let p = self.expand(p, &|_| None);
+        let help = match &self.desc.description {
+            Some(d) => format!(" [the table's entry: {d}; setting up a renderer: README, \"Judging another renderer\"]"),
+            None => " [setting up a renderer: README, \"Judging another renderer\"]".into(),
+        };
         let out = run_bounded(self.command(&p), self.timeout())
-            .map_err(|e| format!("{:?}: {e}", p.join(" ")))?;
+            .map_err(|e| format!("{:?}: {e}{help}", p.join(" ")))?;
         if out.success {
             Ok(())
         } else {
-            Err(format!("{:?} failed: {}", p.join(" "), tail(&out.stderr)))
+            Err(format!(
+                "{:?} failed: {}{help}",
+                p.join(" "),
+                tail(&out.stderr)
+            ))
         }
     }
 
