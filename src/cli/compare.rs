@@ -146,7 +146,7 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
             .fold(f64::INFINITY, f64::min);
         if k > 0 && fewest < 127.0 {
             super::say!(
-                "  (an image has {} samples per pixel: pixel tests on so few samples overstate this count; the region tests above decide the verdict)",
+                "  (an image's pixel variances rest on {} samples or batches: pixel tests on so few can overstate this count; the region tests above decide the verdict)",
                 fewest + 1.0
             );
         }

@@ -140,14 +140,14 @@ impl<E: Into<anyhow::Error>> From<E> for Failure {
 }
 
 /// An error and its causes joined by ": ", each cause left out when the text before it already
-/// holds it (library errors often quote their source, so `{:#}` would print it twice).
+/// ends with it (library errors often end with their source, so `{:#}` would print it twice).
 pub fn error_text(e: &anyhow::Error) -> String {
     let mut text = String::new();
     for cause in e.chain() {
         let c = cause.to_string();
         if text.is_empty() {
             text = c;
-        } else if !text.contains(&c) {
+        } else if !text.ends_with(&c) {
             text.push_str(": ");
             text.push_str(&c);
         }
@@ -205,18 +205,18 @@ pub(crate) fn thread_count(s: &str) -> Result<usize, String> {
     Ok(n)
 }
 
-/// Whether `p` is an existing device, FIFO or socket (written in place; several outputs may go
-/// to one, e.g. /dev/null).
+/// Whether `p` is a device or the process's own stream, which outputs are appended to in place
+/// (several outputs may go to one, e.g. /dev/null; see `io::Destination`).
 pub(crate) fn is_device(p: &Path) -> bool {
-    std::fs::metadata(p).is_ok_and(|m| !m.is_file() && !m.is_dir())
+    furnace::io::Destination::of(p).is_ok_and(|d| d == furnace::io::Destination::InPlace)
 }
 
-/// Refuses the PNG preview's default path `png` beside an `--out` that is no regular file (a
-/// device such as /dev/null, or a pipe): the preview would be created as a new file there.
+/// Refuses the PNG preview's default path `png` beside an `--out` that is a device or a stream
+/// (/dev/null, /dev/stdout): the preview would be created as a new file beside it.
 pub(crate) fn preview_beside(out: &Path, png: &Path) -> Result<(), Failure> {
     if is_device(out) {
         return Err(anyhow::anyhow!(
-            "--out {} is no regular file (a device or a pipe), so the preview's default path beside it, {}, would be created there: give --png too (e.g. --png /dev/null)",
+            "--out {} is a device or a stream, so the preview's default path beside it, {}, would be created there: give --png too (e.g. --png /dev/null)",
             out.display(),
             png.display()
         )
@@ -346,7 +346,8 @@ impl Outputs {
 /// others with the renderer's label before the extension) and one HTML page for all.
 pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Result<(), Failure> {
     let path_for = |p: &Path, i: usize, r: &RunReport| -> PathBuf {
-        if i == 0 {
+        // (a device or stream takes every renderer's file, one after the other)
+        if i == 0 || is_device(p) {
             return p.to_path_buf();
         }
         let label: String = r

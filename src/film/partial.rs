@@ -189,11 +189,7 @@ impl PartialFilm {
                     }
                 }
             }
-            // (a device written in place, such as /dev/null, has nothing to synchronise)
-            match out.into_inner().map_err(|e| e.into_error())?.sync_all() {
-                Err(e) if e.kind() == std::io::ErrorKind::InvalidInput => Ok(()),
-                r => r,
-            }
+            out.into_inner().map_err(|e| e.into_error())?.sync_all()
         })
         .map_err(io_err(path))
     }

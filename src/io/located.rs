@@ -84,94 +84,145 @@ pub fn read_text(path: &Path, what: &str) -> Result<String, LocatedError> {
 /// Writes a file through a temporary file in the same folder renamed over `path`, so that a
 /// failed or interrupted write leaves what was at `path` as it was; the temporary
 /// `.NAME.tmp-PID-N` is removed on failure and on Ctrl-C / SIGTERM (only SIGKILL can leave it
-/// behind). `write` writes the temporary file. A symbolic link at `path` stays: the file it
-/// points to is replaced. A device, FIFO or socket at `path` is written in place (`-o
-/// /dev/null` must not replace the device), so that write is not atomic; a folder is refused.
+/// behind). `write` writes the temporary file. A device (`/dev/null`) or one of the process's
+/// own streams (`/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N`) is appended to in place, never
+/// replaced; anything else that is no regular file (a folder, a symbolic link, a named pipe,
+/// a socket) is refused, see [`Destination`].
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&Path) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
     use std::sync::atomic::{AtomicU64, Ordering};
     static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let path = &link_target(path)?;
-    match std::fs::metadata(path) {
-        Ok(m) if m.is_dir() => {
-            return Err(std::io::Error::new(
-                std::io::ErrorKind::IsADirectory,
-                "a folder is there; give a file name",
-            ))
-        }
-        Ok(m) if !m.is_file() => return write(path),
-        _ => {}
-    }
     let name = path
         .file_name()
         .ok_or_else(|| std::io::Error::other("the path names no file"))?;
-    let tmp = path.with_file_name(format!(
+    let tmp_name = format!(
         ".{}.tmp-{}-{}",
         name.to_string_lossy(),
         std::process::id(),
         COUNTER.fetch_add(1, Ordering::Relaxed)
-    ));
-    // removed on failure, on drop after a successful rename (a no-op) and on interrupt
-    let tmp = super::cleanup::Pending::new(tmp);
-    write(tmp.path()).and_then(|_| std::fs::rename(tmp.path(), path))
-}
-
-/// `path` with its symbolic links followed to the file they name (which need not exist yet);
-/// `path` itself when it is no link. A chain of more than 40 links is an error (a loop).
-fn link_target(path: &Path) -> std::io::Result<std::path::PathBuf> {
-    // a link to a device or a pipe (/dev/stdout: /proc/self/fd/1, then "pipe:[N]", which names
-    // no file) is written through the link
-    if std::fs::metadata(path).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
-        return Ok(path.to_path_buf());
-    }
-    let mut p = path.to_path_buf();
-    for _ in 0..40 {
-        match std::fs::symlink_metadata(&p) {
-            Ok(m) if m.file_type().is_symlink() => {
-                let to = std::fs::read_link(&p)?;
-                p = match p.parent() {
-                    Some(dir) if to.is_relative() => dir.join(to),
-                    _ => to,
-                };
-            }
-            _ => return Ok(p),
+    );
+    match Destination::of(path)? {
+        Destination::File => {
+            // removed on failure, on drop after a successful rename (a no-op) and on interrupt
+            let tmp = super::cleanup::Pending::new(path.with_file_name(tmp_name));
+            write(tmp.path()).and_then(|_| std::fs::rename(tmp.path(), path))
+        }
+        Destination::InPlace => {
+            // written whole first, then appended (no truncation: `--json /dev/stdout >> log`
+            // keeps the log)
+            let tmp = super::cleanup::Pending::new(std::env::temp_dir().join(tmp_name));
+            write(tmp.path())?;
+            let mut from = std::fs::File::open(tmp.path())?;
+            let mut to = std::fs::OpenOptions::new().append(true).open(path)?;
+            std::io::copy(&mut from, &mut to).map(drop)
         }
     }
-    Err(std::io::Error::other(
-        "more than 40 symbolic links in a row (a loop?)",
-    ))
 }
 
-/// Whether [`write_atomic`] can write `path`, tested before a run spends its time: `Ok` for a
-/// device, FIFO or socket already there (written in place) and for a file whose nearest
-/// existing folder takes a new file (one is created and removed there, as the write's own
-/// temporary file will be); otherwise the reason, e.g. a folder at `path`, a file where a
-/// folder should be, or no permission.
-pub fn check_writable(path: &Path) -> std::io::Result<()> {
-    use std::io::{Error, ErrorKind};
-    let path = &link_target(path)?;
-    match std::fs::metadata(path) {
-        Ok(m) if m.is_dir() => {
-            return Err(Error::new(
+/// How [`write_atomic`] writes a path.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Destination {
+    /// A regular file, or nothing yet: a temporary file renamed over it.
+    File,
+    /// A character or block device, or the process's own stream: appended to in place.
+    InPlace,
+}
+
+impl Destination {
+    /// Where `path` leads, or why it cannot be written: a folder; a symbolic link to a file or
+    /// to nothing (renaming would replace the link, and following it ourselves would bypass
+    /// the kernel's protection of links in shared folders such as /tmp: give the file's own
+    /// path); a named pipe or a socket (a pipe someone else left could hang or read the run;
+    /// stream through `/dev/stdout`). Links are followed by the kernel only.
+    pub fn of(path: &Path) -> std::io::Result<Destination> {
+        use std::io::{Error, ErrorKind};
+        let own_stream = {
+            let s = path.to_string_lossy();
+            ["/dev/stdout", "/dev/stderr"].contains(&s.as_ref())
+                || s.starts_with("/dev/fd/")
+                || s.starts_with("/proc/self/fd/")
+        };
+        let link = match std::fs::symlink_metadata(path) {
+            // (a file standing where a folder should be: the write, or check_writable, says so)
+            Err(e) if matches!(e.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) => {
+                return Ok(Destination::File)
+            }
+            Err(e) => return Err(e),
+            Ok(m) if m.is_file() => return Ok(Destination::File),
+            Ok(m) => m.file_type().is_symlink(),
+        };
+        let m = std::fs::metadata(path).map_err(|e| match e.kind() {
+            ErrorKind::NotFound => Error::new(
+                ErrorKind::InvalidInput,
+                "a symbolic link to nothing: give the file's own path",
+            ),
+            _ => e,
+        })?;
+        let t = m.file_type();
+        if t.is_dir() {
+            Err(Error::new(
                 ErrorKind::IsADirectory,
                 "a folder is there; give a file name",
             ))
+        } else if own_stream || is_device(&t) {
+            Ok(Destination::InPlace)
+        } else if link && t.is_file() {
+            Err(Error::new(
+                ErrorKind::InvalidInput,
+                "a symbolic link: furnace replaces an output by renaming a new file over it, which would replace the link; give the file's own path",
+            ))
+        } else {
+            Err(Error::new(
+                ErrorKind::InvalidInput,
+                "a named pipe or a socket: outputs go to files or devices; to stream one, give /dev/stdout",
+            ))
         }
-        Ok(m) if !m.is_file() => return Ok(()),
-        _ => {}
+    }
+}
+
+/// A character or block device.
+#[cfg(unix)]
+fn is_device(t: &std::fs::FileType) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    t.is_char_device() || t.is_block_device()
+}
+
+/// A character or block device (none are told apart here).
+#[cfg(not(unix))]
+fn is_device(_: &std::fs::FileType) -> bool {
+    false
+}
+
+/// Whether [`write_atomic`] can write `path`, tested before a run spends its time: `Ok` for a
+/// device or the process's own stream (see [`Destination`]) and for a file whose nearest
+/// existing folder takes a new file (a probe file is created and removed there, as the write's
+/// own temporary file will be); otherwise the reason, e.g. a folder at `path`, a file where a
+/// folder should be, or no permission. Opens nothing at `path` itself.
+pub fn check_writable(path: &Path) -> std::io::Result<()> {
+    use std::io::{Error, ErrorKind};
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static PROBES: AtomicU64 = AtomicU64::new(0);
+    if Destination::of(path)? == Destination::InPlace {
+        return Ok(());
+    }
+    if path.file_name().is_none() || path.as_os_str().to_string_lossy().ends_with('/') {
+        return Err(Error::new(
+            ErrorKind::InvalidInput,
+            "the path names no file",
+        ));
     }
     // the nearest folder that exists (the write creates the missing ones below it)
     let mut dir = path.parent().unwrap_or(Path::new(""));
-    loop {
+    let here = loop {
         let here = if dir.as_os_str().is_empty() {
             Path::new(".")
         } else {
             dir
         };
         match std::fs::metadata(here) {
-            Ok(m) if m.is_dir() => break,
+            Ok(m) if m.is_dir() => break here,
             Ok(_) => {
                 return Err(Error::new(
                     ErrorKind::NotADirectory,
@@ -183,28 +234,28 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
             }
             Err(e) => return Err(e),
         }
-    }
-    let here = if dir.as_os_str().is_empty() {
-        Path::new(".")
-    } else {
-        dir
     };
-    let probe = super::cleanup::Pending::new(
-        here.join(format!(".furnace-write-test-{}", std::process::id())),
-    );
-    std::fs::OpenOptions::new()
+    // a name no other probe uses; registered for removal only once it was created here
+    let probe = here.join(format!(
+        ".furnace-write-test-{}-{}",
+        std::process::id(),
+        PROBES.fetch_add(1, Ordering::Relaxed)
+    ));
+    match std::fs::OpenOptions::new()
         .write(true)
         .create_new(true)
-        .open(probe.path())
-        .map(drop)
-        .or_else(|e| match e.kind() {
-            // a probe left by an earlier run of this process id: the folder takes files
-            ErrorKind::AlreadyExists => Ok(()),
-            _ => Err(Error::new(
-                e.kind(),
-                format!("cannot create a file in {}: {e}", here.display()),
-            )),
-        })
+        .open(&probe)
+    {
+        Ok(f) => {
+            drop(f);
+            drop(super::cleanup::Pending::new(probe));
+            Ok(())
+        }
+        Err(e) => Err(Error::new(
+            e.kind(),
+            format!("cannot create a file in {}: {e}", here.display()),
+        )),
+    }
 }
 
 /// A text file of at most [`crate::limits::MAX_TEXT_BYTES`] (see [`read_capped`]).
@@ -259,36 +310,76 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
-    #[cfg(unix)]
+    #[cfg(target_os = "linux")]
     #[test]
-    fn writes_go_through_links_and_into_devices_and_a_link_loop_is_an_error() {
+    fn streams_are_appended_to_and_links_pipes_and_folders_refused() {
+        use std::os::fd::AsRawFd;
         let d = std::env::temp_dir().join(format!("furnace-located-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
-        // a link stays a link; the file it names (created here) is written
+        // a stream of this process (a file opened for appending, as `>> log` opens stdout):
+        // appended to, never truncated or replaced
+        let log = d.join("log.txt");
+        std::fs::write(&log, "kept\n").unwrap();
+        let f = std::fs::OpenOptions::new().append(true).open(&log).unwrap();
+        let stream = PathBuf::from(format!("/proc/self/fd/{}", f.as_raw_fd()));
+        assert_eq!(Destination::of(&stream).unwrap(), Destination::InPlace);
+        check_writable(&stream).unwrap();
+        write_atomic(&stream, |p| {
+            assert_ne!(
+                p,
+                stream.as_path(),
+                "written whole to a temporary file first"
+            );
+            std::fs::write(p, "new\n")
+        })
+        .unwrap();
+        drop(f);
+        assert_eq!(std::fs::read_to_string(&log).unwrap(), "kept\nnew\n");
+        // a device is written in place (classified only: tests never write to /dev/null)
+        assert_eq!(
+            Destination::of(Path::new("/dev/null")).unwrap(),
+            Destination::InPlace
+        );
+        // a link to a file or to nothing, a folder, a named pipe, a file where a folder
+        // should be, a trailing slash: refused, and the link and its file left as they were
+        std::fs::write(d.join("t.txt"), "t").unwrap();
         std::os::unix::fs::symlink("t.txt", d.join("l.txt")).unwrap();
-        write_atomic(&d.join("l.txt"), |p| std::fs::write(p, "x")).unwrap();
+        std::os::unix::fs::symlink("gone.txt", d.join("dangling.txt")).unwrap();
+        assert!(std::process::Command::new("mkfifo")
+            .arg(d.join("pipe"))
+            .status()
+            .unwrap()
+            .success());
+        for bad in ["l.txt", "dangling.txt", "pipe", "t.txt/x", "sub/"] {
+            let p = d.join(bad);
+            assert!(check_writable(&p).is_err(), "{bad}");
+            assert!(
+                write_atomic(&p, |p| std::fs::write(p, "x")).is_err(),
+                "{bad}"
+            );
+        }
+        assert!(check_writable(&d).is_err());
         assert!(std::fs::symlink_metadata(d.join("l.txt"))
             .unwrap()
             .file_type()
             .is_symlink());
-        assert_eq!(std::fs::read_to_string(d.join("t.txt")).unwrap(), "x");
-        // a device is written in place
-        write_atomic(Path::new("/dev/null"), |p| {
-            assert_eq!(p, Path::new("/dev/null"));
-            std::fs::write(p, "x")
-        })
-        .unwrap();
-        check_writable(Path::new("/dev/null")).unwrap();
-        // a loop of links, a folder, and a file standing where a folder should be
-        std::os::unix::fs::symlink("b", d.join("a")).unwrap();
-        std::os::unix::fs::symlink("a", d.join("b")).unwrap();
-        assert!(write_atomic(&d.join("a"), |p| std::fs::write(p, "x")).is_err());
-        assert!(check_writable(&d).is_err());
-        assert!(check_writable(&d.join("t.txt/x")).is_err());
+        assert_eq!(std::fs::read_to_string(d.join("t.txt")).unwrap(), "t");
+        // a new file below folders still to be made: the check creates neither folder nor file
         check_writable(&d.join("new/deeper/x.txt")).unwrap();
-        assert!(!d.join("new").exists(), "the check creates no folder");
+        assert!(!d.join("new").exists());
+        let probes = std::fs::read_dir(&d)
+            .unwrap()
+            .flatten()
+            .filter(|e| {
+                e.file_name()
+                    .to_string_lossy()
+                    .starts_with(".furnace-write-test")
+            })
+            .count();
+        assert_eq!(probes, 0);
         let _ = std::fs::remove_dir_all(&d);
     }
 

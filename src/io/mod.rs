@@ -9,6 +9,6 @@ pub mod located;
 pub mod mesh;
 
 pub use located::{
-    check_writable, parse_toml, read_capped, read_small_text, read_text, write_atomic,
+    check_writable, parse_toml, read_capped, read_small_text, read_text, write_atomic, Destination,
     LocatedError, Source,
 };
