@@ -208,7 +208,7 @@ pub(crate) fn thread_count(s: &str) -> Result<usize, String> {
 /// Whether `p` is a device or the process's own stream, which outputs are appended to in place
 /// (several outputs may go to one, e.g. /dev/null; see `io::Destination`).
 pub(crate) fn is_device(p: &Path) -> bool {
-    furnace::io::Destination::of(p).is_ok_and(|d| d == furnace::io::Destination::InPlace)
+    furnace::io::Destination::of(p).is_ok_and(|d| d != furnace::io::Destination::File)
 }
 
 /// Refuses the PNG preview's default path `png` beside an `--out` that is a device or a stream

@@ -83,42 +83,82 @@ pub fn read_text(path: &Path, what: &str) -> Result<String, LocatedError> {
 
 /// Writes a file through a temporary file in the same folder renamed over `path`, so that a
 /// failed or interrupted write leaves what was at `path` as it was; the temporary
-/// `.NAME.tmp-PID-N` is removed on failure and on Ctrl-C / SIGTERM (only SIGKILL can leave it
-/// behind). `write` writes the temporary file. A device (`/dev/null`) or one of the process's
-/// own streams (`/dev/stdout`, `/dev/fd/N`, `/proc/self/fd/N`) is appended to in place, never
-/// replaced; anything else that is no regular file (a folder, a symbolic link, a named pipe,
-/// a socket) is refused, see [`Destination`].
+/// `.NAME.tmp-PID-N` is created afresh (never through a link or a pipe someone left under that
+/// name) and removed on failure and on Ctrl-C / SIGTERM (only SIGKILL can leave it behind).
+/// `write` writes the temporary file. A character device (`/dev/null`) is appended to in
+/// place and furnace's standard output or error (`/dev/stdout`, `/dev/fd/2`, …) written
+/// through the stream itself, never replaced or reopened; anything else that is no regular
+/// file is refused, see [`Destination`].
 pub fn write_atomic(
     path: &Path,
     write: impl FnOnce(&Path) -> std::io::Result<()>,
 ) -> std::io::Result<()> {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static COUNTER: AtomicU64 = AtomicU64::new(0);
-    let name = path
-        .file_name()
-        .ok_or_else(|| std::io::Error::other("the path names no file"))?;
-    let tmp_name = format!(
-        ".{}.tmp-{}-{}",
-        name.to_string_lossy(),
-        std::process::id(),
-        COUNTER.fetch_add(1, Ordering::Relaxed)
-    );
-    match Destination::of(path)? {
-        Destination::File => {
-            // removed on failure, on drop after a successful rename (a no-op) and on interrupt
-            let tmp = super::cleanup::Pending::new(path.with_file_name(tmp_name));
-            write(tmp.path()).and_then(|_| std::fs::rename(tmp.path(), path))
-        }
-        Destination::InPlace => {
-            // written whole first, then appended (no truncation: `--json /dev/stdout >> log`
-            // keeps the log)
-            let tmp = super::cleanup::Pending::new(std::env::temp_dir().join(tmp_name));
-            write(tmp.path())?;
+    use std::io::Write;
+    let destination = Destination::of(path)?;
+    let name = match path.file_name() {
+        Some(name) if !names_no_file(path) => name,
+        _ => return Err(std::io::Error::other("the path names no file")),
+    };
+    let dir = match destination {
+        Destination::File => path.parent().unwrap_or(Path::new("")).to_path_buf(),
+        _ => std::env::temp_dir(),
+    };
+    let tmp = fresh_file(&dir, &format!(".{}.tmp", name.to_string_lossy()))?;
+    write(tmp.path())?;
+    match destination {
+        Destination::File => std::fs::rename(tmp.path(), path),
+        Destination::Device => {
             let mut from = std::fs::File::open(tmp.path())?;
             let mut to = std::fs::OpenOptions::new().append(true).open(path)?;
             std::io::copy(&mut from, &mut to).map(drop)
         }
+        Destination::Stdout | Destination::Stderr => {
+            let bytes = std::fs::read(tmp.path())?;
+            if destination == Destination::Stdout {
+                let mut out = std::io::stdout().lock();
+                out.write_all(&bytes)?;
+                out.flush()
+            } else {
+                std::io::stderr().lock().write_all(&bytes)
+            }
+        }
     }
+}
+
+/// Whether `path` ends in no file name of its own: in `/`, `.` or `..` (`Path::file_name`
+/// reads `out.exr/.` as `out.exr`, where a rename would fail).
+fn names_no_file(path: &Path) -> bool {
+    let raw = path.as_os_str().to_string_lossy();
+    let last = raw.rsplit('/').next().unwrap_or("");
+    path.file_name().is_none() || matches!(last, "" | "." | "..")
+}
+
+/// A new, empty file `PREFIX-PID-N` in `dir` (the first N whose name is free), created with
+/// `create_new` so that a link or a pipe already under that name is never opened, and
+/// registered for removal (on drop, on failure and on interrupt) once it exists.
+fn fresh_file(dir: &Path, prefix: &str) -> std::io::Result<super::cleanup::Pending> {
+    use std::sync::atomic::{AtomicU64, Ordering};
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    for _ in 0..100 {
+        let p = dir.join(format!(
+            "{prefix}-{}-{}",
+            std::process::id(),
+            COUNTER.fetch_add(1, Ordering::Relaxed)
+        ));
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .create_new(true)
+            .open(&p)
+        {
+            Ok(_) => return Ok(super::cleanup::Pending::new(p)),
+            Err(e) if e.kind() == std::io::ErrorKind::AlreadyExists => continue,
+            Err(e) => return Err(e),
+        }
+    }
+    Err(std::io::Error::other(format!(
+        "no free temporary name {prefix}-… in {}",
+        dir.display()
+    )))
 }
 
 /// How [`write_atomic`] writes a path.
@@ -126,24 +166,34 @@ pub fn write_atomic(
 pub enum Destination {
     /// A regular file, or nothing yet: a temporary file renamed over it.
     File,
-    /// A character or block device, or the process's own stream: appended to in place.
-    InPlace,
+    /// A character device (`/dev/null`): appended to in place.
+    Device,
+    /// furnace's standard output (`/dev/stdout`, `/dev/fd/1`, `/proc/self/fd/1`): written
+    /// through the stream, so a redirection keeps its place and furnace's own lines.
+    Stdout,
+    /// furnace's standard error (`/dev/stderr`, `/dev/fd/2`, `/proc/self/fd/2`).
+    Stderr,
 }
 
 impl Destination {
     /// Where `path` leads, or why it cannot be written: a folder; a symbolic link to a file or
     /// to nothing (renaming would replace the link, and following it ourselves would bypass
     /// the kernel's protection of links in shared folders such as /tmp: give the file's own
-    /// path); a named pipe or a socket (a pipe someone else left could hang or read the run;
-    /// stream through `/dev/stdout`). Links are followed by the kernel only.
+    /// path); a named pipe, a socket or a block device; another process stream than standard
+    /// output or error. Links are followed by the kernel only.
     pub fn of(path: &Path) -> std::io::Result<Destination> {
         use std::io::{Error, ErrorKind};
-        let own_stream = {
-            let s = path.to_string_lossy();
-            ["/dev/stdout", "/dev/stderr"].contains(&s.as_ref())
-                || s.starts_with("/dev/fd/")
-                || s.starts_with("/proc/self/fd/")
-        };
+        match path.to_string_lossy().as_ref() {
+            "/dev/stdout" | "/dev/fd/1" | "/proc/self/fd/1" => return Ok(Destination::Stdout),
+            "/dev/stderr" | "/dev/fd/2" | "/proc/self/fd/2" => return Ok(Destination::Stderr),
+            s if s.starts_with("/dev/fd/") || s.starts_with("/proc/self/fd/") => {
+                return Err(Error::new(
+                    ErrorKind::InvalidInput,
+                    "a stream other than furnace's standard output or error; give /dev/stdout or /dev/stderr",
+                ))
+            }
+            _ => {}
+        }
         let link = match std::fs::symlink_metadata(path) {
             // (a file standing where a folder should be: the write, or check_writable, says so)
             Err(e) if matches!(e.kind(), ErrorKind::NotFound | ErrorKind::NotADirectory) => {
@@ -166,8 +216,8 @@ impl Destination {
                 ErrorKind::IsADirectory,
                 "a folder is there; give a file name",
             ))
-        } else if own_stream || is_device(&t) {
-            Ok(Destination::InPlace)
+        } else if is_char_device(&t) {
+            Ok(Destination::Device)
         } else if link && t.is_file() {
             Err(Error::new(
                 ErrorKind::InvalidInput,
@@ -176,38 +226,36 @@ impl Destination {
         } else {
             Err(Error::new(
                 ErrorKind::InvalidInput,
-                "a named pipe or a socket: outputs go to files or devices; to stream one, give /dev/stdout",
+                "a named pipe, a socket or a block device: outputs go to files or character devices; to stream one, give /dev/stdout",
             ))
         }
     }
 }
 
-/// A character or block device.
+/// A character device.
 #[cfg(unix)]
-fn is_device(t: &std::fs::FileType) -> bool {
+fn is_char_device(t: &std::fs::FileType) -> bool {
     use std::os::unix::fs::FileTypeExt;
-    t.is_char_device() || t.is_block_device()
+    t.is_char_device()
 }
 
-/// A character or block device (none are told apart here).
+/// A character device (none are told apart here).
 #[cfg(not(unix))]
-fn is_device(_: &std::fs::FileType) -> bool {
+fn is_char_device(_: &std::fs::FileType) -> bool {
     false
 }
 
 /// Whether [`write_atomic`] can write `path`, tested before a run spends its time: `Ok` for a
-/// device or the process's own stream (see [`Destination`]) and for a file whose nearest
-/// existing folder takes a new file (a probe file is created and removed there, as the write's
-/// own temporary file will be); otherwise the reason, e.g. a folder at `path`, a file where a
-/// folder should be, or no permission. Opens nothing at `path` itself.
+/// character device or furnace's own output stream (see [`Destination`]) and for a file whose
+/// nearest existing folder takes a new file (a probe file is created and removed there, as the
+/// write's own temporary file will be); otherwise the reason, e.g. a folder at `path`, a file
+/// where a folder should be, or no permission. Opens nothing at `path` itself.
 pub fn check_writable(path: &Path) -> std::io::Result<()> {
     use std::io::{Error, ErrorKind};
-    use std::sync::atomic::{AtomicU64, Ordering};
-    static PROBES: AtomicU64 = AtomicU64::new(0);
-    if Destination::of(path)? == Destination::InPlace {
+    if Destination::of(path)? != Destination::File {
         return Ok(());
     }
-    if path.file_name().is_none() || path.as_os_str().to_string_lossy().ends_with('/') {
+    if names_no_file(path) {
         return Err(Error::new(
             ErrorKind::InvalidInput,
             "the path names no file",
@@ -235,27 +283,15 @@ pub fn check_writable(path: &Path) -> std::io::Result<()> {
             Err(e) => return Err(e),
         }
     };
-    // a name no other probe uses; registered for removal only once it was created here
-    let probe = here.join(format!(
-        ".furnace-write-test-{}-{}",
-        std::process::id(),
-        PROBES.fetch_add(1, Ordering::Relaxed)
-    ));
-    match std::fs::OpenOptions::new()
-        .write(true)
-        .create_new(true)
-        .open(&probe)
-    {
-        Ok(f) => {
-            drop(f);
-            drop(super::cleanup::Pending::new(probe));
-            Ok(())
-        }
-        Err(e) => Err(Error::new(
-            e.kind(),
-            format!("cannot create a file in {}: {e}", here.display()),
-        )),
-    }
+    // created and removed at once (on drop)
+    fresh_file(here, ".furnace-write-test")
+        .map(drop)
+        .map_err(|e| {
+            Error::new(
+                e.kind(),
+                format!("cannot create a file in {}: {e}", here.display()),
+            )
+        })
 }
 
 /// A text file of at most [`crate::limits::MAX_TEXT_BYTES`] (see [`read_capped`]).
@@ -310,39 +346,27 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use std::path::PathBuf;
 
     #[cfg(target_os = "linux")]
     #[test]
-    fn streams_are_appended_to_and_links_pipes_and_folders_refused() {
-        use std::os::fd::AsRawFd;
+    fn streams_and_devices_are_told_apart_and_links_pipes_and_folders_refused() {
         let d = std::env::temp_dir().join(format!("furnace-located-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&d);
         std::fs::create_dir_all(&d).unwrap();
-        // a stream of this process (a file opened for appending, as `>> log` opens stdout):
-        // appended to, never truncated or replaced
-        let log = d.join("log.txt");
-        std::fs::write(&log, "kept\n").unwrap();
-        let f = std::fs::OpenOptions::new().append(true).open(&log).unwrap();
-        let stream = PathBuf::from(format!("/proc/self/fd/{}", f.as_raw_fd()));
-        assert_eq!(Destination::of(&stream).unwrap(), Destination::InPlace);
-        check_writable(&stream).unwrap();
-        write_atomic(&stream, |p| {
-            assert_ne!(
-                p,
-                stream.as_path(),
-                "written whole to a temporary file first"
-            );
-            std::fs::write(p, "new\n")
-        })
-        .unwrap();
-        drop(f);
-        assert_eq!(std::fs::read_to_string(&log).unwrap(), "kept\nnew\n");
-        // a device is written in place (classified only: tests never write to /dev/null)
-        assert_eq!(
-            Destination::of(Path::new("/dev/null")).unwrap(),
-            Destination::InPlace
-        );
+        // furnace's own streams by name only, never reopened; other descriptors refused;
+        // a character device written in place (classified only: tests never write to it)
+        for (path, to) in [
+            ("/dev/stdout", Destination::Stdout),
+            ("/dev/fd/1", Destination::Stdout),
+            ("/proc/self/fd/2", Destination::Stderr),
+            ("/dev/null", Destination::Device),
+        ] {
+            assert_eq!(Destination::of(Path::new(path)).unwrap(), to, "{path}");
+            check_writable(Path::new(path)).unwrap();
+        }
+        for other in ["/dev/fd/0", "/proc/self/fd/7", "/dev/fd/../x"] {
+            assert!(Destination::of(Path::new(other)).is_err(), "{other}");
+        }
         // a link to a file or to nothing, a folder, a named pipe, a file where a folder
         // should be, a trailing slash: refused, and the link and its file left as they were
         std::fs::write(d.join("t.txt"), "t").unwrap();
@@ -353,7 +377,14 @@ mod tests {
             .status()
             .unwrap()
             .success());
-        for bad in ["l.txt", "dangling.txt", "pipe", "t.txt/x", "sub/"] {
+        for bad in [
+            "l.txt",
+            "dangling.txt",
+            "pipe",
+            "t.txt/x",
+            "sub/",
+            "t.txt/.",
+        ] {
             let p = d.join(bad);
             assert!(check_writable(&p).is_err(), "{bad}");
             assert!(
