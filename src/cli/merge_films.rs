@@ -32,17 +32,7 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
             anyhow::anyhow!("--exposure {} must be a finite number >= 0", a.exposure).into(),
         );
     }
-    let png = a.png.clone().unwrap_or_else(|| a.out.with_extension("png"));
-    if a.png.is_none() {
-        super::preview_beside(&a.out, &png)?;
-    }
-    if png == a.out && !super::is_device(&png) {
-        return Err(anyhow::anyhow!(
-            "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
-            a.out.display()
-        )
-        .into());
-    }
+    let png = super::preview_path(&a.out, a.png.as_deref(), true)?;
     let inputs: Vec<(&str, &std::path::Path)> = a
         .parts
         .iter()

@@ -211,10 +211,17 @@ pub(crate) fn is_device(p: &Path) -> bool {
     furnace::io::Destination::of(p).is_ok_and(|d| d != furnace::io::Destination::File)
 }
 
-/// Refuses the PNG preview's default path `png` beside an `--out` that is a device or a stream
-/// (/dev/null, /dev/stdout): the preview would be created as a new file beside it.
-pub(crate) fn preview_beside(out: &Path, png: &Path) -> Result<(), Failure> {
-    if is_device(out) {
+/// The PNG preview's path beside the EXR `out`: `given`, else `out` with the extension .png.
+/// Refused when it is `out` itself (but for a device, which takes both), and, when the
+/// command `writes_preview`, the default beside an `--out` that is a device or a stream
+/// (/dev/null, /dev/stdout), where the preview would be created as a new file.
+pub(crate) fn preview_path(
+    out: &Path,
+    given: Option<&Path>,
+    writes_preview: bool,
+) -> Result<PathBuf, Failure> {
+    let png = given.map_or_else(|| out.with_extension("png"), Path::to_path_buf);
+    if writes_preview && given.is_none() && is_device(out) {
         return Err(anyhow::anyhow!(
             "--out {} is a device or a stream, so the preview's default path beside it, {}, would be created there: give --png too (e.g. --png /dev/null)",
             out.display(),
@@ -222,7 +229,14 @@ pub(crate) fn preview_beside(out: &Path, png: &Path) -> Result<(), Failure> {
         )
         .into());
     }
-    Ok(())
+    if png == out && !is_device(out) {
+        return Err(anyhow::anyhow!(
+            "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
+            out.display()
+        )
+        .into());
+    }
+    Ok(png)
 }
 
 /// The optional paths that were given, each with the option (role) that names it, for
@@ -266,8 +280,7 @@ pub(crate) fn distinct_paths(
         let Some(out_id) = out_id else { continue };
         for (j, (role, _, id)) in ids[..k].iter().enumerate() {
             // (outputs may share a device such as /dev/null)
-            let shared_device = j >= inputs.len() && is_device(out_path);
-            if id.as_ref() == Some(out_id) && !shared_device {
+            if id.as_ref() == Some(out_id) && !(j >= inputs.len() && is_device(out_path)) {
                 let what = if j < inputs.len() { "input" } else { "output" };
                 return Err(anyhow::anyhow!(
                     "{out_role} {} is the same file as {role}, an {what} of this run: writing it would destroy it; give another path",

@@ -206,20 +206,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    let png_path = a
-        .png
-        .clone()
-        .unwrap_or_else(|| exr_path.with_extension("png"));
-    if shard.is_none() && a.png.is_none() {
-        super::preview_beside(&exr_path, &png_path)?;
-    }
-    if exr_path == png_path && !super::is_device(&exr_path) {
-        return Err(anyhow::anyhow!(
-            "the EXR and the PNG preview would both be written to {}: give --png (or an --out ending in .exr)",
-            exr_path.display()
-        )
-        .into());
-    }
+    let png_path = super::preview_path(&exr_path, a.png.as_deref(), shard.is_none())?;
     super::distinct_paths(
         &[("the scene", &a.scene)],
         &[("--out", &exr_path), ("the PNG preview", &png_path)],

@@ -21,6 +21,9 @@ pub struct Key {
     pub doc: &'static str,
 }
 
+/// Keys every check takes, whatever its kind (read by the manifest, not by the kind).
+const CHECK_KEYS: [&str; 6] = ["name", "kind", "time_limit", "regression", "power", "fixed"];
+
 /// Keys several kinds share (the scene-level ones, image comparison's regions and observer).
 pub mod common {
     use super::Key;
@@ -190,22 +193,19 @@ impl<'a> Keys<'a> {
             table,
         };
         for (key, v) in table {
-            if ["name", "kind", "time_limit", "regression", "power", "fixed"]
-                .contains(&key.as_str())
-            {
+            if CHECK_KEYS.contains(&key.as_str()) {
                 continue;
             }
             if !allowed.iter().any(|k| k.name == key) {
                 let names: Vec<&str> = allowed.iter().map(|k| k.name).collect();
-                let common = ["name", "kind", "time_limit", "regression", "power", "fixed"];
                 return Err(keys.error(
                     v.span(),
                     key,
                     format!(
                         "`{key}` is not a key of kind {:?}{}; its keys are: {}, {}",
                         kind,
-                        super::names::did_you_mean(key, common.iter().chain(&names).copied()),
-                        common.join(", "),
+                        super::names::did_you_mean(key, CHECK_KEYS.iter().chain(&names).copied()),
+                        CHECK_KEYS.join(", "),
                         names.join(", ")
                     ),
                 ));
