@@ -128,7 +128,11 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
             r.difference_percent(),
             r.z,
             r.p,
-            if r.p <= c.alpha { "  DIFFERENT" } else { "" }
+            if r.p <= c.alpha {
+                format!("  {}", super::comparison_label(true))
+            } else {
+                String::new()
+            }
         );
     }
     if let Some(k) = c.flagged_pixels {
@@ -199,7 +203,7 @@ pub fn run(a: CompareArgs) -> Result<i32, Failure> {
         }
         debug_assert_eq!(differ, sec.comparison.differ);
     }
-    let verdict = if c.differ { "DIFFERENT" } else { "AGREE" };
+    let verdict = super::comparison_label(c.differ);
     super::say!(
         "{verdict}: {} region x channel tests at Sidak per-test alpha {:.2e} (family-wise {})",
         c.regions.len(),

@@ -25,7 +25,7 @@ use std::path::{Path, PathBuf};
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
-    /// Colour the verdicts: auto (when stdout is a terminal and NO_COLOR is not set), always or never.
+    /// Colour the verdict labels of check, merge and compare (PASS, FAIL, AGREE, DIFFERENT, ...): auto (when stdout is a terminal and NO_COLOR is not set), always or never; other commands print no verdicts.
     #[arg(long, global = true, value_enum, default_value_t = ColorWhen::Auto)]
     color: ColorWhen,
     /// Print nothing on stdout (no check lines, summaries or progress bars); errors and warnings still go to stderr and the exit code still tells. `check --format json` keeps its JSON lines.
@@ -97,6 +97,21 @@ pub(crate) fn verdict_line(o: &furnace::harness::outcome::Outcome) -> String {
         Verdict::Skipped => Style::new().dimmed(),
     };
     format!("{style}{label}{style:#}{rest}")
+}
+
+/// `compare`'s verdict word, coloured when `--color` says so (AGREE green, DIFFERENT red).
+pub(crate) fn comparison_label(differ: bool) -> String {
+    use anstyle::{AnsiColor, Style};
+    let label = if differ { "DIFFERENT" } else { "AGREE" };
+    if !COLOR.load(std::sync::atomic::Ordering::Relaxed) {
+        return label.to_string();
+    }
+    let style = if differ {
+        Style::new().bold().fg_color(Some(AnsiColor::Red.into()))
+    } else {
+        Style::new().fg_color(Some(AnsiColor::Green.into()))
+    };
+    format!("{style}{label}{style:#}")
 }
 
 #[derive(Debug, Subcommand)]

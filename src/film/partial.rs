@@ -376,7 +376,10 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Header, Film), PartialFilmError
         };
         let detail = match &e {
             TilingError::Overlap(r) => format!(" (in {})", files(r).join(" and ")),
-            TilingError::Missing(_) => format!(" ({} parts given)", parts.len()),
+            TilingError::Missing(_) => format!(
+                " (of the run's {total} blocks; {} parts given: is a `render --shard K/N` part missing?)",
+                parts.len()
+            ),
         };
         PartialFilmError::Tiling(e, detail)
     })?;

@@ -253,7 +253,11 @@ impl<'a> Keys<'a> {
             .clone()
             .try_into()
             .map_err(|e: toml::de::Error| {
-                self.error(span.clone(), key, e.message().trim_end().to_string())
+                self.error(
+                    span.clone(),
+                    key,
+                    crate::io::suggest::plain_message(e.message().trim_end()),
+                )
             })?;
         Ok(Some(Spanned::new(span, x)))
     }

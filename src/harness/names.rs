@@ -24,54 +24,11 @@ pub fn glob_match(pattern: &str, name: &str) -> bool {
     p[pi..].iter().all(|&c| c == '*')
 }
 
-/// The name among `known` closest to the misspelt `name` by edit distance (insertions,
-/// deletions, substitutions; Levenshtein 1966), when it is at most a third of the name's length
-/// (at least 1) away: for "did you mean" in errors. None when nothing is that close.
-pub fn nearest<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> Option<&'a str> {
-    let a: Vec<char> = name.chars().collect();
-    let limit = (a.len() / 3).max(1);
-    known
-        .into_iter()
-        .map(|k| {
-            // one row of the distance table at a time
-            let b: Vec<char> = k.chars().collect();
-            let mut row: Vec<usize> = (0..=b.len()).collect();
-            for (i, ca) in a.iter().enumerate() {
-                let mut prev = row[0];
-                row[0] = i + 1;
-                for (j, cb) in b.iter().enumerate() {
-                    let next = (row[j + 1] + 1)
-                        .min(row[j] + 1)
-                        .min(prev + usize::from(ca != cb));
-                    prev = row[j + 1];
-                    row[j + 1] = next;
-                }
-            }
-            (row[b.len()], k)
-        })
-        .filter(|&(d, _)| d <= limit)
-        .min_by_key(|&(d, _)| d)
-        .map(|(_, k)| k)
-}
-
-/// `; did you mean NAME?` for [`nearest`], or nothing.
-pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) -> String {
-    nearest(name, known).map_or(String::new(), |k| format!("; did you mean {k:?}?"))
-}
+pub use crate::io::suggest::{did_you_mean, nearest};
 
 #[cfg(test)]
 mod tests {
-    use super::{glob_match, nearest};
-
-    #[test]
-    fn the_nearest_name_is_found_within_a_third_of_its_length() {
-        let kinds = ["furnace", "lambert", "half_space"];
-        assert_eq!(nearest("furnance", kinds), Some("furnace"));
-        assert_eq!(nearest("lamber", kinds), Some("lambert"));
-        assert_eq!(nearest("sppp", ["spp", "width"]), Some("spp"));
-        assert_eq!(nearest("zzz", kinds), None);
-        assert_eq!(nearest("", ["a"]), Some("a"));
-    }
+    use super::glob_match;
 
     #[test]
     fn glob() {

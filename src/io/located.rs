@@ -339,7 +339,11 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
 pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> {
     toml::from_str(src.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
-        src.error(span, "", e.message().trim_end().to_string())
+        src.error(
+            span,
+            "",
+            super::suggest::plain_message(e.message().trim_end()),
+        )
     })
 }
 

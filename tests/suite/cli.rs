@@ -236,6 +236,18 @@ fn compare_agrees_with_itself_and_rejects_a_two_percent_tint_on_one_wall() {
         String::from_utf8_lossy(&same.stdout)
     );
     assert!(String::from_utf8_lossy(&same.stdout).contains("AGREE"));
+    // `--color always` colours compare's verdict too
+    let coloured = furnace()
+        .args(["--color", "always", "compare"])
+        .arg(&reference)
+        .arg(&reference)
+        .output()
+        .unwrap();
+    let coloured = String::from_utf8_lossy(&coloured.stdout);
+    assert!(
+        coloured.contains("\u{1b}[32mAGREE\u{1b}[0m: "),
+        "{coloured:?}"
+    );
     // tint the red wall's R by 2 % (x < 0.12 of the image)
     let mut img = read_exr(&reference).unwrap();
     let (w, h) = (img.width, img.height);
