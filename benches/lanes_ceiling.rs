@@ -1,5 +1,5 @@
 //! How much could paths in SIMD lanes gain? (issue 22; docs/performance.md, "Paths in lanes:
-//! a ceiling" and "Explicit kernels and regeneration".) One Cornell-Box-only path tracer
+//! a ceiling" and "Explicit kernels, regeneration and awaited queries".) One Cornell-Box-only path tracer
 //! written once over `L` lanes of f64 (each lane one path doing its scalar run's operations, so
 //! every variant gives the same image bit for bit), timed at L = 1, 4 and 8, alternating with
 //! furnace's own renderer on the same frame. Its variants: ray queries by furnace or by a
@@ -211,9 +211,9 @@ fn trace<const L: usize, const Q: u8>(
         let (t, tri) = match Q {
             LOOP_QUERIES => closest::<L>(room, o, d),
             #[cfg(target_arch = "x86_64")]
-            // SAFETY: AVX2 is in the build (`.cargo/config.toml`: native, AVX-512 left out;
-            // `main` refuses a build without it); AVX-512 kernels run only inside
-            // `render_avx512`, called where the CPU has it
+            // SAFETY: `run_variant` runs the AVX2 variants only where the CPU has AVX2, and
+            // the AVX-512 ones only inside `render_avx512` or `render_async_avx512`, where it
+            // has AVX-512 (the kernels assert it in debug builds)
             AVX2_QUERIES => unsafe { simd::closest::<L, 4>(room, o, d) },
             #[cfg(target_arch = "x86_64")]
             // SAFETY: as above
@@ -500,6 +500,7 @@ mod simd {
     #[inline]
     pub unsafe fn uniform8(key: &[u64; 8], dim: &[u64; 8]) -> [f64; 8] {
         use std::arch::x86_64::*;
+        debug_assert!(super::has_avx512());
         let c = |x: u64| _mm512_set1_epi64(x as i64);
         let k = _mm512_loadu_si512(key.as_ptr().cast());
         let d = _mm512_loadu_si512(dim.as_ptr().cast());
@@ -539,6 +540,11 @@ mod simd {
         d: &Lane3<L>,
     ) -> (Lane<L>, [usize; L]) {
         assert!(L.is_multiple_of(W));
+        debug_assert!(if W == 8 {
+            super::has_avx512()
+        } else {
+            super::has_avx2()
+        });
         let mut best = [f64::INFINITY; L];
         let mut tri = [0.0; L];
         for c in (0..L).step_by(W) {
@@ -564,6 +570,11 @@ mod simd {
         t_max: &Lane<L>,
     ) -> [bool; L] {
         assert!(L.is_multiple_of(W));
+        debug_assert!(if W == 8 {
+            super::has_avx512()
+        } else {
+            super::has_avx2()
+        });
         let mut hit = [0.0; L];
         for c in (0..L).step_by(W) {
             let (t, h) = (t_max[c..].as_ptr(), hit[c..].as_mut_ptr());
@@ -588,7 +599,8 @@ fn uniform<const L: usize>(key: &[u64; L], dim: u64) -> Lane<L> {
     u
 }
 
-/// One lane's scalar steps, shared by every variant's loop.
+// One lane's scalar steps, shared by every variant's loop.
+
 /// The camera ray's direction through image point (px + ux, py + uy), `tan` the tangent of
 /// half the vertical field of view.
 #[inline(always)]
@@ -615,8 +627,8 @@ fn emission_weight(room: &Room, prev_pdf: f64, t: f64, cos_l: f64) -> f64 {
 }
 
 /// Next-event estimation from `o` (normal `n`) toward the light's point (lu, lv): the
-/// direction, the shadow ray's length, and f·cos/p·w without ρ (0 where either side faces
-/// away).
+/// direction, the shadow ray's `t_max` (the distance less the fixed offset), and f·cos/p·w
+/// without ρ (0 where either side faces away).
 #[inline(always)]
 fn light_sample(room: &Room, o: [f64; 3], n: [f64; 3], lu: f64, lv: f64) -> ([f64; 3], f64, f64) {
     let q: [f64; 3] =
@@ -803,13 +815,13 @@ fn render_lanes<const L: usize, const Q: u8>(
                 let mut dist = [0.0; L];
                 let mut g = [0.0; L];
                 for l in 0..L {
-                    let at = |v: &Lane3<L>| [v[0][l], v[1][l], v[2][l]];
-                    let (w, len, gl) = light_sample(room, at(&o), at(&n), lu[l], lv[l]);
+                    let lane = |v: &Lane3<L>| [v[0][l], v[1][l], v[2][l]];
+                    let (w, t_max, gl) = light_sample(room, lane(&o), lane(&n), lu[l], lv[l]);
                     for ax in 0..3 {
                         wi[ax][l] = w[ax];
                     }
                     g[l] = if alive[l] { gl } else { 0.0 };
-                    dist[l] = len;
+                    dist[l] = t_max;
                 }
                 let wanted: [bool; L] = std::array::from_fn(|l| g[l] > 0.0);
                 let shadowed = shadowed::<L, Q>(room, scene, &o, &wi, &dist, &on, &wanted);
@@ -877,7 +889,7 @@ fn render_regen<const L: usize, const Q: u8>(
     let mut radiance = [[0.0; L]; 4];
     let mut prev_pdf = [0.0; L];
     let mut on = [IDLE; L];
-    let at = |key: &[u64; L], dims: [u64; L]| -> Lane<L> {
+    let draw = |key: &[u64; L], dims: [u64; L]| -> Lane<L> {
         #[cfg(target_arch = "x86_64")]
         if Q == AVX512_QUERIES && L == 8 {
             let (k8, d8): (&[u64; 8], &[u64; 8]) =
@@ -974,20 +986,20 @@ fn render_regen<const L: usize, const Q: u8>(
         }
         // next-event estimation: a uniform point on the light
         let (lu, lv) = (
-            at(&key, depth.map(|k| 4 + 4 * k)),
-            at(&key, depth.map(|k| 5 + 4 * k)),
+            draw(&key, depth.map(|k| 4 + 4 * k)),
+            draw(&key, depth.map(|k| 5 + 4 * k)),
         );
         let mut wi: Lane3<L> = [[0.0; L]; 3];
         let mut dist = [0.0; L];
         let mut g = [0.0; L];
         for l in 0..L {
-            let at = |v: &Lane3<L>| [v[0][l], v[1][l], v[2][l]];
-            let (w, len, gl) = light_sample(room, at(&o), at(&n), lu[l], lv[l]);
+            let lane = |v: &Lane3<L>| [v[0][l], v[1][l], v[2][l]];
+            let (w, t_max, gl) = light_sample(room, lane(&o), lane(&n), lu[l], lv[l]);
             for ax in 0..3 {
                 wi[ax][l] = w[ax];
             }
             g[l] = if go[l] { gl } else { 0.0 };
-            dist[l] = len;
+            dist[l] = t_max;
         }
         let wanted: [bool; L] = std::array::from_fn(|l| g[l] > 0.0);
         let shadowed = shadowed::<L, Q>(room, scene, &o, &wi, &dist, &on, &wanted);
@@ -1000,8 +1012,8 @@ fn render_regen<const L: usize, const Q: u8>(
         }
         // cosine-weighted bounce (Shirley & Chiu 1997 concentric disk, Malley's lift)
         let (ua, ub) = (
-            at(&key, depth.map(|k| 6 + 4 * k)),
-            at(&key, depth.map(|k| 7 + 4 * k)),
+            draw(&key, depth.map(|k| 6 + 4 * k)),
+            draw(&key, depth.map(|k| 7 + 4 * k)),
         );
         for l in 0..L {
             if !go[l] {
@@ -1135,14 +1147,14 @@ async fn path_async(
         }
         let refl = rho[room.material[shape]];
         // next-event estimation: a uniform point on the light
-        let (wi, len, g) = light_sample(room, o, n, u(4 + 4 * depth), u(5 + 4 * depth));
+        let (wi, t_max, g) = light_sample(room, o, n, u(4 + 4 * depth), u(5 + 4 * depth));
         if g > 0.0 {
             let shadow = Query {
                 batch,
                 lane,
                 ray: Some((o, wi)),
             };
-            if shadow.await.0 >= len {
+            if shadow.await.0 >= t_max {
                 for i in 0..4 {
                     radiance[i] += beta[i] * refl[i] * g * le[i];
                 }
@@ -1162,7 +1174,7 @@ async fn path_async(
 /// when its path ends), then answers the eight queries with one AVX-512 kernel.
 ///
 /// # Safety
-/// The CPU has AVX-512F.
+/// The CPU has AVX-512F, VL, DQ and BW ([`has_avx512`]).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,avx512vl,avx512dq,avx512bw")]
 fn render_async_avx512(room: &Room, seed: u64) -> Stats {
@@ -1208,6 +1220,7 @@ fn render_async_avx512(room: &Room, seed: u64) -> Stats {
         if waiting == 0 {
             break;
         }
+        // (here a lane-step is one query, not one bounce: a bounce asks two)
         stats.lane_bounces += 8;
         stats.live_lane_bounces += waiting;
         let (o, d) = (batch.o.borrow(), batch.d.borrow());
@@ -1241,6 +1254,14 @@ fn render_avx512<const Q: u8, const REGEN: bool>(room: &Room, scene: &Scene, see
     } else {
         render_lanes::<8, Q>(room, scene, seed, MAX_DEPTH)
     }
+}
+
+/// Whether this CPU runs the explicit AVX2 kernels.
+fn has_avx2() -> bool {
+    #[cfg(target_arch = "x86_64")]
+    return std::arch::is_x86_feature_detected!("avx2");
+    #[cfg(not(target_arch = "x86_64"))]
+    false
 }
 
 /// Whether this CPU runs [`render_avx512`].
@@ -1278,11 +1299,11 @@ fn run_variant(v: usize, room: &Room, scene: &Scene, seed: u64) -> Option<Stats>
         // SAFETY: as above
         11 if has_avx512() => unsafe { render_avx512::<LOOP, true>(r, sc, seed) },
         #[cfg(target_arch = "x86_64")]
-        12 => render_lanes::<4, AVX2_QUERIES>(r, sc, seed, m),
+        12 if has_avx2() => render_lanes::<4, AVX2_QUERIES>(r, sc, seed, m),
         #[cfg(target_arch = "x86_64")]
-        13 => render_regen::<4, AVX2_QUERIES>(r, sc, seed, m),
+        13 if has_avx2() => render_regen::<4, AVX2_QUERIES>(r, sc, seed, m),
         #[cfg(target_arch = "x86_64")]
-        14 => render_regen::<8, AVX2_QUERIES>(r, sc, seed, m),
+        14 if has_avx2() => render_regen::<8, AVX2_QUERIES>(r, sc, seed, m),
         #[cfg(target_arch = "x86_64")]
         // SAFETY: as above
         15 if has_avx512() => unsafe { render_avx512::<AVX512_QUERIES, false>(r, sc, seed) },
@@ -1392,7 +1413,7 @@ fn main() {
         );
     }
     if !has_avx512() {
-        println!("no AVX-512 on this CPU: its two variants are skipped");
+        println!("no AVX-512 on this CPU: its variants are skipped");
     }
     let mut times = vec![Vec::new(); NAMES.len()];
     for round in 0..rounds {

@@ -39,8 +39,9 @@ pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
         .map(|p| ("a partial film", p.as_path()))
         .collect();
     super::distinct_paths(&inputs, &[("--out", &a.out), ("the PNG preview", &png)])?;
-    let (header, film) =
-        furnace::film::partial::merge_files(&a.parts).context("cannot merge the partial films")?;
+    let (header, film) = furnace::film::partial::merge_files(&a.parts).context(
+        "cannot merge the partial films (each `render --shard K/N` writes one; give all N)",
+    )?;
     let written = super::render::write_film(
         film,
         header.attributes,

@@ -377,8 +377,11 @@ pub fn merge_files(paths: &[PathBuf]) -> Result<(Header, Film), PartialFilmError
         let detail = match &e {
             TilingError::Overlap(r) => format!(" (in {})", files(r).join(" and ")),
             TilingError::Missing(_) => format!(
-                " (of the run's {total} blocks; {} parts given: is a `render --shard K/N` part missing?)",
-                parts.len()
+                " (of the run's {total} blocks; {} given: is a part missing?)",
+                match parts.len() {
+                    1 => "1 part".to_string(),
+                    n => format!("{n} parts"),
+                }
             ),
         };
         PartialFilmError::Tiling(e, detail)

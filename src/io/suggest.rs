@@ -36,11 +36,13 @@ pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) ->
     nearest(name, known).map_or(String::new(), |k| format!("; did you mean {k:?}?"))
 }
 
-/// serde's message for a TOML value, in a user's words: Rust's integer and float type names
-/// become "an integer" and "a number", and an unknown field gets "did you mean" for the
-/// nearest of the fields the message lists.
+/// serde's message for a TOML value, in a user's words: in a wrong-type message ("invalid
+/// type: …"), Rust's integer and float type names become "an integer" and "a number" (an
+/// out-of-range value's message keeps its type name, which states the range); an unknown
+/// field gets "did you mean" for the nearest of the fields the message lists.
 pub fn plain_message(message: &str) -> String {
     let mut out = message.to_string();
+    let wrong_type = message.starts_with("invalid type:");
     for (rust, plain) in [
         ("expected i64", "expected an integer"),
         ("expected u64", "expected a whole number ≥ 0"),
@@ -49,11 +51,12 @@ pub fn plain_message(message: &str) -> String {
         ("expected f64", "expected a number"),
         ("expected f32", "expected a number"),
     ] {
-        if let Some(rest) = out.strip_suffix(rust) {
+        if let Some(rest) = out.strip_suffix(rust).filter(|_| wrong_type) {
             out = format!("{rest}{plain}");
         }
     }
-    // serde: "unknown field `X`, expected one of `a`, `b`" ("expected `a`" names its one field)
+    // serde: "unknown field `X`, expected one of `a`, `b`". A table of one field gets
+    // "expected `a`", which already names the only choice, so no suggestion is added.
     if let Some(rest) = out.strip_prefix("unknown field `") {
         if let Some((name, listed)) = rest.split_once("`, expected one of ") {
             let known: Vec<&str> = listed
@@ -62,7 +65,9 @@ pub fn plain_message(message: &str) -> String {
                 .step_by(2)
                 .filter(|k| !k.is_empty())
                 .collect();
-            out.push_str(&did_you_mean(name, known));
+            if let Some(k) = nearest(name, known) {
+                out.push_str(&format!("; did you mean `{k}`?"));
+            }
         }
     }
     out
@@ -94,13 +99,18 @@ mod tests {
         );
         assert_eq!(
             plain_message("unknown field `sppp`, expected one of `width`, `height`, `spp`"),
-            "unknown field `sppp`, expected one of `width`, `height`, `spp`; did you mean \"spp\"?"
+            "unknown field `sppp`, expected one of `width`, `height`, `spp`; did you mean `spp`?"
         );
         assert_eq!(
             plain_message("unknown field `spq`, expected `spp`"),
             "unknown field `spq`, expected `spp`"
         );
-        // other messages unchanged
+        // other messages unchanged, among them an out-of-range value's (its type states the
+        // range)
+        assert_eq!(
+            plain_message("invalid value: integer `5000000000`, expected u32"),
+            "invalid value: integer `5000000000`, expected u32"
+        );
         assert_eq!(
             plain_message("missing field `camera`"),
             "missing field `camera`"
