@@ -7,7 +7,7 @@
 //! Details: docs/rendering.md, "`integrators::path`".
 
 use super::{EmissionCache, ReflectanceCache};
-use crate::geometry::{ray, Ray, Skip, SurfacePoint};
+use crate::geometry::{ray, Hit, Ray, Skip, SurfacePoint};
 use crate::lights::{area_radiance, Light};
 use crate::math::frame::Frame;
 use crate::math::rng::SampleStream;
@@ -83,12 +83,14 @@ impl PathTracer {
     /// error box): one light chosen uniformly, a point or direction on it sampled, and the
     /// contribution f·c·L·T·w/pdf before the path throughput, where `scatter(wi)` gives the
     /// vertex's f and scalar factor c (the BSDF and |cos θi|, or 1 and the phase function;
-    /// None when zero), T is the shadow ray's transmittance (with `MEDIA`, starting in
-    /// `medium_of(wi)` and stepping through null boundaries; otherwise its visibility) and w the
-    /// power heuristic against the vertex's own sampling pdf `scatter_pdf(wi)`. Draws four
-    /// numbers whatever the strategy. `leaving`: the planar shape `at` lies on, which the
-    /// shadow ray cannot meet (see [`Skip`]).
+    /// None when zero), T is the shadow ray's transmittance and w the power heuristic against
+    /// the vertex's own sampling pdf `scatter_pdf(wi)`. With `MEDIA`, T is followed here,
+    /// starting in `medium_of(wi)` and stepping through null boundaries; without, T is the
+    /// visibility of the returned query's ray, which the caller answers. Draws four numbers
+    /// whatever the strategy. `leaving`: the planar shape `at` lies on, which the shadow ray
+    /// cannot meet (see [`Skip`]).
     #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
     fn next_event<const MEDIA: bool>(
         &self,
         scene: &Scene,
@@ -100,7 +102,7 @@ impl PathTracer {
         rng: &mut SampleStream,
         wl: &Wavelengths,
         emission: &mut EmissionCache,
-    ) -> Option<SampledSpectrum> {
+    ) -> Option<ShadowQuery> {
         let u_light = rng.next_f64();
         let u_select = rng.next_f64();
         let u_pos = rng.next_2d();
@@ -118,32 +120,36 @@ impl PathTracer {
             return None;
         }
         let (f, c) = scatter(ls.wi)?;
-        let tr = if MEDIA {
-            shadow_transmittance(scene, at, ls.wi, ls.point.as_ref(), medium_of(ls.wi), wl)?
-        } else {
-            let occluded = match &ls.point {
-                Some(target) => {
-                    let (shadow, t_max) = ray::spawn_to(at, target);
-                    // a planar emitter cannot shadow a point on itself
-                    let emitter = super::emitter_plane(scene, light);
-                    // (a point on the planar emitter itself skips it too: the segment then
-                    // joins two points of one plane and may cross it (see super::planar), but
-                    // its geometry term is zero up to rounding, so what the skip lets through
-                    // is of the order of rounding squared; not testing that case keeps the
-                    // loop as it is, measured 0.4 % fewer instructions than with it)
-                    let skip = Skip::shapes(leaving, emitter);
-                    scene.aggregate.occluded_except(&shadow, t_max, skip)
-                }
-                None => scene.aggregate.occluded_except(
-                    &ray::spawn(at, ls.wi),
-                    f64::INFINITY,
-                    Skip::shapes(leaving, None),
-                ),
-            };
-            if occluded {
-                return None;
+        let mut tr = SampledSpectrum::ONE;
+        let (ray, t_max, skip) = match &ls.point {
+            _ if MEDIA => {
+                tr = shadow_transmittance(
+                    scene,
+                    at,
+                    ls.wi,
+                    ls.point.as_ref(),
+                    medium_of(ls.wi),
+                    wl,
+                )?;
+                // (no query left for the caller)
+                (Ray { o: at.p, d: ls.wi }, 0.0, Skip::NONE)
             }
-            SampledSpectrum::ONE
+            Some(target) => {
+                let (shadow, t_max) = ray::spawn_to(at, target);
+                // a planar emitter cannot shadow a point on itself
+                let emitter = super::emitter_plane(scene, light);
+                // (a point on the planar emitter itself skips it too: the segment then
+                // joins two points of one plane and may cross it (see super::planar), but
+                // its geometry term is zero up to rounding, so what the skip lets through
+                // is of the order of rounding squared; not testing that case keeps the
+                // loop as it is, measured 0.4 % fewer instructions than with it)
+                (shadow, t_max, Skip::shapes(leaving, emitter))
+            }
+            None => (
+                ray::spawn(at, ls.wi),
+                f64::INFINITY,
+                Skip::shapes(leaving, None),
+            ),
         };
         let light_pdf = (1.0 / n_lights as f64) * ls.pdf;
         let w = if ls.delta || self.strategy == Strategy::LightOnly {
@@ -151,8 +157,17 @@ impl PathTracer {
         } else {
             power_heuristic(light_pdf, scatter_pdf(ls.wi))
         };
-        let contrib = f * ls.radiance * (c * w / light_pdf);
-        Some(if MEDIA { tr * contrib } else { contrib })
+        let contribution = f * ls.radiance * (c * w / light_pdf);
+        Some(ShadowQuery {
+            ray,
+            t_max,
+            skip,
+            contribution: if MEDIA {
+                tr * contribution
+            } else {
+                contribution
+            },
+        })
     }
 
     /// Radiance along `camera_ray` at the wavelengths `wl`; the camera sits in
@@ -185,7 +200,10 @@ impl PathTracer {
 
     /// [`PathTracer::radiance`] with the media code compiled in (`MEDIA`) or out. Public so
     /// that a benchmark can measure what leaving it out saves on surface-only scenes; both
-    /// variants give the same image there.
+    /// variants give the same image there. The path is a [`Walk`] advanced by
+    /// [`Self::step`] from one ray query to the next; this loop answers the queries one
+    /// path at a time (a loop answering several paths' queries together can drive the same
+    /// steps: docs/performance.md, "Explicit kernels, regeneration and awaited queries").
     pub fn radiance_variant<const MEDIA: bool>(
         &self,
         scene: &Scene,
@@ -193,227 +211,344 @@ impl PathTracer {
         wl: &mut Wavelengths,
         rng: &mut SampleStream,
     ) -> (SampledSpectrum, bool) {
-        let shapes = scene.aggregate.shapes();
-        let n_lights = scene.lights.len() as f64;
-        let select_pdf = 1.0 / n_lights;
-        let mut l = SampledSpectrum::ZERO;
-        let mut beta = SampledSpectrum::ONE;
-        // The radiance scaling η² that refractions put into beta, undone for roulette only
-        // (Veach 1997, §5.2: radiance across an interface scales with η²; pbrt-v3 §14.3's
-        // etaScale): without it a path inside glass of index 1.5 survives with 1/2.25 of its
-        // probability and doubles the glossy box's noise (docs/performance.md).
-        let mut eta_scale = SampledSpectrum::ONE;
-        let mut ray = camera_ray;
-        // pdf of the BSDF sample that produced `ray` (solid angle), None after a camera or delta vertex
-        let mut prev_bsdf_pdf: Option<f64> = None;
-        let mut prev_p = ray.o;
-        let mut depth: u32 = 0;
-        let mut medium = if MEDIA { scene.camera.medium } else { None };
-        // Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
-        let mut r = SampledSpectrum::ONE;
-        let mut emission = EmissionCache::default();
-        let mut reflectance = ReflectanceCache::default();
-        // The planar shape `ray` leaves, which it cannot meet again (see [`Skip`]).
-        let mut leaving: Option<u32> = None;
+        let mut walk = Walk::new(camera_ray, if MEDIA { scene.camera.medium } else { None });
         let mut events: u32 = 0;
         loop {
             // path-length guard: every surface, boundary or medium event counts
             events += 1;
             if events > super::MAX_PATH_EVENTS {
-                return (l, true);
+                return (walk.l, true);
             }
-            let hit =
-                scene
-                    .aggregate
-                    .intersect_except(&ray, f64::INFINITY, Skip::shapes(leaving, None));
-            leaving = None;
-            if MEDIA && hit.is_none() {
-                // No surface ahead: the ray has left every medium (media are bounded by the
-                // scene's shapes; the scene loader refuses a camera in an unbounded medium).
-                // This also covers a collision rounded just past a boundary, whose next ray
-                // leaving the medium no longer meets it.
-                medium = None;
-            }
-            if MEDIA {
-                if let Some(m) = medium {
-                    let med = &scene.media[m as usize];
-                    let t_max = hit.as_ref().map_or(f64::INFINITY, |h| h.t);
-                    let sigma_t = med.sigma_t(wl);
-                    if med.absorbs_only() {
-                        beta *= transmittance(sigma_t, t_max);
-                    } else {
-                        let ff = sample_free_flight(sigma_t, t_max, rng.next_f64());
-                        if ff.collided {
-                            beta *= med.sigma_s.sample(wl) * ff.weight;
-                        } else {
-                            beta *= ff.weight;
-                        }
-                        // Keep the lane-mean of the path's density ratios at 1, so that beta
-                        // is the balance-heuristic weight itself (see sample_free_flight).
-                        r *= ff.pdf_ratio;
-                        let lanes = wl.active_lanes();
-                        let mean = r.0[..lanes].iter().sum::<f64>() / lanes as f64;
-                        if !(mean > 0.0 && mean.is_finite()) {
-                            break;
-                        }
-                        beta = beta / mean;
-                        r = r / mean;
-                        if ff.collided {
-                            // A scattering event in the medium: one bounce.
-                            if beta.is_black() || self.max_depth.is_some_and(|d| depth >= d) {
-                                break;
-                            }
-                            let p = ray.at(ff.t);
-                            let wo = -ray.d;
-                            let phase = &med.phase;
-                            let here = SurfacePoint {
-                                p,
-                                p_error: Vec3::ZERO,
-                                n: ray.d,
-                            };
-                            let nee = self.next_event::<true>(
-                                scene,
-                                &here,
-                                None,
-                                |_| Some(m),
-                                |wi| {
-                                    let f = phase.eval(wo, wi);
-                                    (f > 0.0).then_some((SampledSpectrum::ONE, f))
-                                },
-                                |wi| phase.pdf(wo, wi),
-                                rng,
-                                wl,
-                                &mut emission,
-                            );
-                            if let Some(c) = nee {
-                                l += beta * c;
-                            }
-                            let ps = phase.sample(wo, rng.next_2d());
-                            beta *= ps.weight;
-                            prev_bsdf_pdf = Some(ps.pdf);
-                            prev_p = p;
-                            ray = Ray { o: p, d: ps.wi };
-                            depth += 1;
-                            let u_rr = rng.next_f64();
-                            if self.rr_depth.is_some_and(|d| depth >= d)
-                                && !super::roulette(&mut beta, eta_scale, u_rr)
-                            {
-                                break;
-                            }
-                            continue;
-                        }
-                    }
-                    if beta.is_black() {
-                        break;
-                    }
+            let hit = scene
+                .aggregate
+                .intersect_except(&walk.ray, f64::INFINITY, walk.skip);
+            let next = self.step::<MEDIA>(scene, &mut walk, hit, wl, rng);
+            if next.shadow {
+                let s = &walk.shadow;
+                if !scene.aggregate.occluded_except(&s.ray, s.t_max, s.skip) {
+                    walk.l += s.contribution;
                 }
             }
-            let Some(hit) = hit else {
-                for (li, light) in scene.lights.iter().enumerate() {
-                    if let Light::Environment { .. } = light {
-                        let le = emission.get(li, || light.spectrum().sample(wl));
-                        let w = self.emitted_weight(prev_bsdf_pdf, || {
-                            select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF
-                        });
-                        l += beta * le * w;
-                    }
-                }
-                break;
-            };
-            let sp = hit.point;
-            let wo_world = -ray.d;
-            if let Some(li) = scene.shape_light[hit.shape as usize] {
-                let light = &scene.lights[li as usize];
-                if let Light::Area { two_sided, .. } = light {
-                    let le = area_radiance(*two_sided, sp.n, wo_world, || {
-                        emission.get(li as usize, || light.spectrum().sample(wl))
-                    });
-                    if !le.is_black() {
-                        let w = self.emitted_weight(prev_bsdf_pdf, || {
-                            select_pdf * light.pdf_area_hit(prev_p, &sp, shapes)
-                        });
-                        l += beta * le * w;
-                    }
-                }
-            }
-            let bsdf = &scene.bsdfs[hit.shape as usize];
-            if MEDIA && bsdf.is_null() {
-                // A medium boundary without scattering: step through, no bounce; the MIS
-                // state (prev_bsdf_pdf, prev_p) stays that of the last real vertex.
-                medium = scene.medium_after(hit.shape, sp.n, ray.d, medium);
-                ray = ray::spawn(&sp, ray.d);
-                continue;
-            }
-            if self.max_depth.is_some_and(|d| depth >= d) {
-                break;
-            }
-            // Dispersion: the hero alone goes on, with its own pdf (the lane mixture undone).
-            if bsdf.separates_wavelengths() && wl.disperse(&mut beta, r.0[0]) {
-                r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
-            }
-            let wl = &*wl;
-            let material = scene.material_of[hit.shape as usize] as usize;
-            let vertex_bsdf = SampledBsdf::with_reflectance(bsdf, wl, |r| {
-                reflectance.get(material, || r.sample(wl))
-            });
-            let on_plane = shapes[hit.shape as usize].is_planar().then_some(hit.shape);
-            let frame = Frame::from_normal(sp.n);
-            let wo = frame.to_local(wo_world);
-
-            // Next-event estimation.
-            let nee = self.next_event::<MEDIA>(
-                scene,
-                &sp,
-                on_plane,
-                |wi| scene.medium_after(hit.shape, sp.n, wi, medium),
-                |wi| {
-                    let wi = frame.to_local(wi);
-                    let f = vertex_bsdf.eval(wo, wi);
-                    (!f.is_black()).then_some((f, wi.z.abs()))
-                },
-                |wi| vertex_bsdf.pdf(wo, frame.to_local(wi)),
-                rng,
-                wl,
-                &mut emission,
-            );
-            if let Some(c) = nee {
-                l += beta * c;
-            }
-
-            // Continue the path by sampling the BSDF.
-            let u_lobe = rng.next_f64();
-            let u_dir = rng.next_2d();
-            let Some(bs) = vertex_bsdf.sample(wo, u_dir, u_lobe) else {
-                break;
-            };
-            beta *= bs.weight;
-            if beta.is_black() {
-                break;
-            }
-            if bs.wi.z * wo.z < 0.0 {
-                // a transmission (a reflection's factor is 1)
-                eta_scale *= bsdf.eta_ratio_squared(wo, bs.wi, wl);
-            }
-            prev_bsdf_pdf = if bs.delta { None } else { Some(bs.pdf) };
-            prev_p = sp.p;
-            let wi_world = frame.to_world(bs.wi);
-            if MEDIA {
-                medium = scene.medium_after(hit.shape, sp.n, wi_world, medium);
-            }
-            ray = ray::spawn(&sp, wi_world);
-            leaving = on_plane;
-            depth += 1;
-
-            // Russian roulette (see super::roulette).
-            let u_rr = rng.next_f64();
-            if self.rr_depth.is_some_and(|d| depth >= d)
-                && !super::roulette(&mut beta, eta_scale, u_rr)
-            {
-                break;
+            if !next.goes_on {
+                return (walk.l, false);
             }
         }
-        (l, false)
     }
+
+    /// One event of `walk` after its closest-hit query answered `hit`: a medium collision
+    /// (with `MEDIA`), a null boundary, or a surface: emission found, the light sample's
+    /// shadow query (asked in `walk.shadow` on surfaces without media, followed through
+    /// media at once with them), the BSDF sample and roulette. Leaves the next ray in
+    /// `walk.ray` when the path goes on.
+    #[inline(always)]
+    fn step<const MEDIA: bool>(
+        &self,
+        scene: &Scene,
+        walk: &mut Walk,
+        hit: Option<Hit>,
+        wl: &mut Wavelengths,
+        rng: &mut SampleStream,
+    ) -> Next {
+        const END: Next = Next {
+            shadow: false,
+            goes_on: false,
+        };
+        const ON: Next = Next {
+            shadow: false,
+            goes_on: true,
+        };
+        let shapes = scene.aggregate.shapes();
+        let select_pdf = 1.0 / scene.lights.len() as f64;
+        let Walk {
+            l,
+            beta,
+            eta_scale,
+            ray,
+            prev_bsdf_pdf,
+            prev_p,
+            depth,
+            medium,
+            r,
+            emission,
+            reflectance,
+            skip: leaving_skip,
+            shadow: asked,
+        } = walk;
+        *leaving_skip = Skip::NONE;
+        if MEDIA && hit.is_none() {
+            // No surface ahead: the ray has left every medium (media are bounded by the
+            // scene's shapes; the scene loader refuses a camera in an unbounded medium).
+            // This also covers a collision rounded just past a boundary, whose next ray
+            // leaving the medium no longer meets it.
+            *medium = None;
+        }
+        if MEDIA {
+            if let Some(m) = *medium {
+                let med = &scene.media[m as usize];
+                let t_max = hit.as_ref().map_or(f64::INFINITY, |h| h.t);
+                let sigma_t = med.sigma_t(wl);
+                if med.absorbs_only() {
+                    *beta *= transmittance(sigma_t, t_max);
+                } else {
+                    let ff = sample_free_flight(sigma_t, t_max, rng.next_f64());
+                    if ff.collided {
+                        *beta *= med.sigma_s.sample(wl) * ff.weight;
+                    } else {
+                        *beta *= ff.weight;
+                    }
+                    // Keep the lane-mean of the path's density ratios at 1, so that beta
+                    // is the balance-heuristic weight itself (see sample_free_flight).
+                    *r *= ff.pdf_ratio;
+                    let lanes = wl.active_lanes();
+                    let mean = r.0[..lanes].iter().sum::<f64>() / lanes as f64;
+                    if !(mean > 0.0 && mean.is_finite()) {
+                        return END;
+                    }
+                    *beta = *beta / mean;
+                    *r = *r / mean;
+                    if ff.collided {
+                        // A scattering event in the medium: one bounce.
+                        if beta.is_black() || self.max_depth.is_some_and(|d| *depth >= d) {
+                            return END;
+                        }
+                        let p = ray.at(ff.t);
+                        let wo = -ray.d;
+                        let phase = &med.phase;
+                        let here = SurfacePoint {
+                            p,
+                            p_error: Vec3::ZERO,
+                            n: ray.d,
+                        };
+                        let nee = self.next_event::<true>(
+                            scene,
+                            &here,
+                            None,
+                            |_| Some(m),
+                            |wi| {
+                                let f = phase.eval(wo, wi);
+                                (f > 0.0).then_some((SampledSpectrum::ONE, f))
+                            },
+                            |wi| phase.pdf(wo, wi),
+                            rng,
+                            wl,
+                            emission,
+                        );
+                        if let Some(q) = nee {
+                            *l += *beta * q.contribution;
+                        }
+                        let ps = phase.sample(wo, rng.next_2d());
+                        *beta *= ps.weight;
+                        *prev_bsdf_pdf = Some(ps.pdf);
+                        *prev_p = p;
+                        *ray = Ray { o: p, d: ps.wi };
+                        *depth += 1;
+                        let u_rr = rng.next_f64();
+                        if self.rr_depth.is_some_and(|d| *depth >= d)
+                            && !super::roulette(beta, *eta_scale, u_rr)
+                        {
+                            return END;
+                        }
+                        return ON;
+                    }
+                }
+                if beta.is_black() {
+                    return END;
+                }
+            }
+        }
+        let Some(hit) = hit else {
+            for (li, light) in scene.lights.iter().enumerate() {
+                if let Light::Environment { .. } = light {
+                    let le = emission.get(li, || light.spectrum().sample(wl));
+                    let w = self.emitted_weight(*prev_bsdf_pdf, || {
+                        select_pdf * crate::math::warp::UNIFORM_SPHERE_PDF
+                    });
+                    *l += *beta * le * w;
+                }
+            }
+            return END;
+        };
+        let sp = hit.point;
+        let wo_world = -ray.d;
+        if let Some(li) = scene.shape_light[hit.shape as usize] {
+            let light = &scene.lights[li as usize];
+            if let Light::Area { two_sided, .. } = light {
+                let le = area_radiance(*two_sided, sp.n, wo_world, || {
+                    emission.get(li as usize, || light.spectrum().sample(wl))
+                });
+                if !le.is_black() {
+                    let w = self.emitted_weight(*prev_bsdf_pdf, || {
+                        select_pdf * light.pdf_area_hit(*prev_p, &sp, shapes)
+                    });
+                    *l += *beta * le * w;
+                }
+            }
+        }
+        let bsdf = &scene.bsdfs[hit.shape as usize];
+        if MEDIA && bsdf.is_null() {
+            // A medium boundary without scattering: step through, no bounce; the MIS
+            // state (prev_bsdf_pdf, prev_p) stays that of the last real vertex.
+            *medium = scene.medium_after(hit.shape, sp.n, ray.d, *medium);
+            *ray = ray::spawn(&sp, ray.d);
+            return ON;
+        }
+        if self.max_depth.is_some_and(|d| *depth >= d) {
+            return END;
+        }
+        // Dispersion: the hero alone goes on, with its own pdf (the lane mixture undone).
+        if bsdf.separates_wavelengths() && wl.disperse(beta, r.0[0]) {
+            *r = SampledSpectrum([1.0, 0.0, 0.0, 0.0]);
+        }
+        let wl = &*wl;
+        let material = scene.material_of[hit.shape as usize] as usize;
+        let vertex_bsdf =
+            SampledBsdf::with_reflectance(bsdf, wl, |r| reflectance.get(material, || r.sample(wl)));
+        let on_plane = shapes[hit.shape as usize].is_planar().then_some(hit.shape);
+        let frame = Frame::from_normal(sp.n);
+        let wo = frame.to_local(wo_world);
+
+        // Next-event estimation: without media its shadow query waits in `asked` (answered
+        // after this step, before anything else adds to `l`); with media its transmittance
+        // is followed now.
+        let query = self.next_event::<MEDIA>(
+            scene,
+            &sp,
+            on_plane,
+            |wi| scene.medium_after(hit.shape, sp.n, wi, *medium),
+            |wi| {
+                let wi = frame.to_local(wi);
+                let f = vertex_bsdf.eval(wo, wi);
+                (!f.is_black()).then_some((f, wi.z.abs()))
+            },
+            |wi| vertex_bsdf.pdf(wo, frame.to_local(wi)),
+            rng,
+            wl,
+            emission,
+        );
+        let mut shadow = false;
+        if let Some(q) = query {
+            if MEDIA {
+                *l += *beta * q.contribution;
+            } else {
+                *asked = ShadowQuery {
+                    contribution: *beta * q.contribution,
+                    ..q
+                };
+                shadow = true;
+            }
+        }
+
+        // Continue the path by sampling the BSDF.
+        let u_lobe = rng.next_f64();
+        let u_dir = rng.next_2d();
+        let end = Next {
+            shadow,
+            goes_on: false,
+        };
+        let Some(bs) = vertex_bsdf.sample(wo, u_dir, u_lobe) else {
+            return end;
+        };
+        *beta *= bs.weight;
+        if beta.is_black() {
+            return end;
+        }
+        if bs.wi.z * wo.z < 0.0 {
+            // a transmission (a reflection's factor is 1)
+            *eta_scale *= bsdf.eta_ratio_squared(wo, bs.wi, wl);
+        }
+        *prev_bsdf_pdf = if bs.delta { None } else { Some(bs.pdf) };
+        *prev_p = sp.p;
+        let wi_world = frame.to_world(bs.wi);
+        if MEDIA {
+            *medium = scene.medium_after(hit.shape, sp.n, wi_world, *medium);
+        }
+        *ray = ray::spawn(&sp, wi_world);
+        *leaving_skip = Skip::shapes(on_plane, None);
+        *depth += 1;
+
+        // Russian roulette (see super::roulette).
+        let u_rr = rng.next_f64();
+        if self.rr_depth.is_some_and(|d| *depth >= d) && !super::roulette(beta, *eta_scale, u_rr) {
+            return end;
+        }
+        Next {
+            shadow,
+            goes_on: true,
+        }
+    }
+}
+
+/// A light sample's shadow query and what it brings: the shadow ray, its length and the shapes
+/// it skips, and the contribution it adds when nothing is in the way (radiance,
+/// W·sr⁻¹·m⁻²·nm⁻¹, per unit path throughput; times the throughput once a [`Walk`] holds it).
+/// With media the transmittance is already in the contribution, and no query is left.
+#[derive(Debug, Clone, Copy)]
+struct ShadowQuery {
+    ray: Ray,
+    t_max: f64,
+    skip: Skip,
+    contribution: SampledSpectrum,
+}
+
+/// A path between its ray queries: what it has gathered (`l`), its throughput and MIS state,
+/// the medium it is in, its per-path spectra, the next ray with the shapes that ray skips,
+/// and the shadow query its last step asked.
+struct Walk {
+    l: SampledSpectrum,
+    beta: SampledSpectrum,
+    /// The radiance scaling η² that refractions put into beta, undone for roulette only
+    /// (Veach 1997, §5.2: radiance across an interface scales with η²; pbrt-v3 §14.3's
+    /// etaScale): without it a path inside glass of index 1.5 survives with 1/2.25 of its
+    /// probability and doubles the glossy box's noise (docs/performance.md).
+    eta_scale: SampledSpectrum,
+    ray: Ray,
+    /// pdf of the BSDF sample that produced `ray` (solid angle), None after a camera or delta
+    /// vertex
+    prev_bsdf_pdf: Option<f64>,
+    prev_p: Vec3,
+    depth: u32,
+    medium: Option<u32>,
+    /// Media only: each lane's path density relative to the hero's, normalised to lane-mean 1.
+    r: SampledSpectrum,
+    emission: EmissionCache,
+    reflectance: ReflectanceCache,
+    /// The planar shape `ray` leaves, which it cannot meet again (see [`Skip`]).
+    skip: Skip,
+    shadow: ShadowQuery,
+}
+
+impl Walk {
+    /// A path starting along `camera_ray` in `medium`.
+    fn new(camera_ray: Ray, medium: Option<u32>) -> Walk {
+        Walk {
+            l: SampledSpectrum::ZERO,
+            beta: SampledSpectrum::ONE,
+            eta_scale: SampledSpectrum::ONE,
+            ray: camera_ray,
+            prev_bsdf_pdf: None,
+            prev_p: camera_ray.o,
+            depth: 0,
+            medium,
+            r: SampledSpectrum::ONE,
+            emission: EmissionCache::default(),
+            reflectance: ReflectanceCache::default(),
+            skip: Skip::NONE,
+            shadow: ShadowQuery {
+                ray: camera_ray,
+                t_max: 0.0,
+                skip: Skip::NONE,
+                contribution: SampledSpectrum::ZERO,
+            },
+        }
+    }
+}
+
+/// What a [`PathTracer::step`] leaves to its caller: a shadow query to answer, and whether
+/// the path goes on along its next ray.
+#[derive(Debug, Clone, Copy)]
+struct Next {
+    shadow: bool,
+    goes_on: bool,
 }
 
 /// Transmittance from `from` towards a light in direction `wi` (to the point `target`, or to
