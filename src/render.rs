@@ -86,6 +86,10 @@ pub const TILE: usize = 16;
 /// fixed merge tree and of a sharded render.
 pub const BLOCK_SAMPLES: u64 = 16;
 
+/// Blocks of samples between two looks at the deadline within one pixel (1024 samples: a few
+/// milliseconds of a typical path, against the ~20 ns of a look at the clock).
+const DEADLINE_BLOCKS: u64 = 64;
+
 /// Blocks of a render of `spp` samples per pixel (the last may hold fewer samples).
 pub fn sample_blocks(spp: u64) -> u64 {
     spp.div_ceil(BLOCK_SAMPLES)
@@ -564,7 +568,19 @@ fn render_blocks(
                     }
                     let pixel_index = (y * w + x) as u64;
                     let mut fold = BlockFold::new(blocks.start);
+                    let mut stopped = false;
                     for b in blocks.clone() {
+                        // the deadline within a pixel too, every DEADLINE_BLOCKS blocks, so
+                        // that a pixel of many samples cannot outlast it by much
+                        if (b - blocks.start) % DEADLINE_BLOCKS == DEADLINE_BLOCKS - 1
+                            && settings
+                                .deadline
+                                .is_some_and(|d| std::time::Instant::now() >= d)
+                        {
+                            out_of_time.store(true, Ordering::Relaxed);
+                            stopped = true;
+                            break;
+                        }
                         let mut px = Pixel::default();
                         let first = b * BLOCK_SAMPLES;
                         for s in first..(first + BLOCK_SAMPLES).min(settings.spp) {
@@ -600,6 +616,12 @@ fn render_blocks(
                             px.add(xyz, observer.xyz_to_rgb(xyz));
                         }
                         fold.push(px, &merge);
+                    }
+                    if stopped {
+                        // the pixel's samples so far are dropped with the render
+                        rendered -= 1;
+                        pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
+                        continue;
                     }
                     if whole {
                         pixels.push(fold.finish(&merge).unwrap_or_default());
@@ -753,6 +775,24 @@ mod tests {
         match render(&scene, &s, &|_| {}) {
             Err(RenderError::OutOfTime { done, total, .. }) => {
                 assert_eq!((done, total), (0, 12 * 12 * 8));
+            }
+            other => panic!("expected OutOfTime, got {other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_pixel_of_many_samples_stops_at_the_deadline_within_it() {
+        // one pixel of 2^22 samples (seconds of work); the deadline passes inside it
+        let scene = cornell_box();
+        let s = RenderSettings {
+            width: 1,
+            height: 1,
+            deadline: Some(std::time::Instant::now() + std::time::Duration::from_millis(20)),
+            ..settings(1 << 22, 1)
+        };
+        match render(&scene, &s, &|_| {}) {
+            Err(RenderError::OutOfTime { done, total, .. }) => {
+                assert_eq!((done, total), (0, 1 << 22));
             }
             other => panic!("expected OutOfTime, got {other:?}"),
         }

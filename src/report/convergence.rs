@@ -16,10 +16,30 @@ pub struct ManifestLadders {
     pub series: Vec<Series>,
 }
 
-/// A table line for a terminal.
-pub fn line(r: &LadderSummary) -> String {
+/// The column heads of [`line`]'s table.
+pub fn header() -> String {
     format!(
-        "{:<34} {:<11} {:>7.3} ± {:<5.3} {:>10.3e} {:>10.3e} {:>11.3e} {:>9.0} {:>9.3e}",
+        "{:<7} {:<34} {:<11} {:>15} {:>10} {:>10} {:>11} {:>9} {:>9}",
+        "verdict",
+        "ladder",
+        "sampler",
+        "slope ± 95 %",
+        "C",
+        "s/sample",
+        "efficiency",
+        "N*",
+        "time (s)"
+    )
+}
+
+/// A table line for a terminal, with its verdict at per-ladder level `alpha` ([`verdict`]):
+/// the fitted slope of log RMSE against log spp with its 95 % half-width, the fit's constant
+/// C (RMSE ≈ C·spp^slope), seconds per sample, efficiency 1/(MSE·time) at the top rung, and
+/// the samples per pixel N* and seconds to reach the target relative error.
+pub fn line(r: &LadderSummary, alpha: f64) -> String {
+    format!(
+        "{:<7} {:<34} {:<11} {:>7.3} ± {:<5.3} {:>10.3e} {:>10.3e} {:>11.3e} {:>9.2e} {:>9.3e}",
+        verdict(r, alpha),
         r.name,
         r.sampler,
         r.slope,

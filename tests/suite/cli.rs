@@ -769,15 +769,24 @@ fn converge_measures_reference_ladders_of_every_estimator() {
         String::from_utf8_lossy(&out.stderr)
     );
     for label in [
+        "verdict ladder",
         "tiny/path",
         "tiny/light",
         "tiny/sppm",
         "sppm a=0.6667, 500 photons/it",
+        "ladders at their predicted rate",
     ] {
         assert!(text.contains(label), "{label} missing:\n{text}");
     }
     let page = std::fs::read_to_string(&html).unwrap();
     assert!(page.contains("reference_convergence"), "{page}");
+    // a manifest without ladders is an error, not an empty table
+    let none = furnace()
+        .args(["converge", "tests/manifests/lambert.toml"])
+        .output()
+        .unwrap();
+    assert_eq!(none.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&none.stderr).contains("no `convergence`"));
     std::fs::remove_dir_all(&dir).ok();
 }
 

@@ -1,6 +1,8 @@
 //! Closed forms averaged over pixel footprints: a value along each camera ray through a pixel,
 //! integrated by k×k midpoint quadrature over the pixel (the box filter's footprint). Rays and
 //! hits come from the closed forms' own camera and caster (`witness`), not the renderer's.
+//! Per-pixel closed forms stop at the deadline of the check running on their thread
+//! ([`with_deadline`], set by the runner), so a large image cannot outlast its time limit.
 
 use super::witness::{self, Eye};
 use crate::geometry::{Hit, Ray};
@@ -10,6 +12,26 @@ use crate::scene::Scene;
 
 /// Quadrature points per pixel side of the checks' closed-form footprint averages.
 pub const FOOTPRINT_K: usize = 9;
+
+thread_local! {
+    /// The deadline of the check this thread runs, if any ([`with_deadline`]).
+    static DEADLINE: std::cell::Cell<Option<std::time::Instant>> =
+        const { std::cell::Cell::new(None) };
+}
+
+/// Runs `f` with `deadline` as this thread's closed-form deadline (the previous one comes back
+/// afterwards, also when `f` panics): per-pixel closed forms computed inside stop there with
+/// an error.
+pub fn with_deadline<R>(deadline: Option<std::time::Instant>, f: impl FnOnce() -> R) -> R {
+    struct Restore(Option<std::time::Instant>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            DEADLINE.set(self.0);
+        }
+    }
+    let _restore = Restore(DEADLINE.replace(deadline));
+    f()
+}
 
 /// A closed form of whole camera rays averaged over `region` by k×k midpoint quadrature.
 pub fn ray_average(
@@ -109,8 +131,17 @@ pub fn per_pixel_rays_n<const N: usize>(
     k: usize,
 ) -> Result<Vec<[f64; N]>, CheckError> {
     let mut v = Vec::new();
+    let (start, deadline) = (std::time::Instant::now(), DEADLINE.get());
+    let pixels = (region[2] - region[0]) * (region[3] - region[1]);
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
+            if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                return Err(CheckError::Setup(format!(
+                    "its closed-form reference stopped at the check's time limit after {:.1} s, {} of {pixels} pixels done ({k}x{k} rays each): give the check fewer pixels (width, height, region) or a larger time_limit",
+                    start.elapsed().as_secs_f64(),
+                    v.len()
+                )));
+            }
             v.push(ray_average_n(
                 scene,
                 width,
@@ -126,3 +157,28 @@ pub fn per_pixel_rays_n<const N: usize>(
 
 /// A closed form evaluated along one camera ray: its first hit (None: it escapes) and direction.
 pub type RayClosedForm<'a> = dyn Fn(Option<&Hit>, Vec3) -> Result<f64, CheckError> + 'a;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn per_pixel_closed_forms_stop_at_the_threads_check_deadline() {
+        let scene = Scene::load(
+            &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml"),
+        )
+        .unwrap();
+        let f = |_: Ray| Ok(1.0);
+        let past = Some(std::time::Instant::now());
+        let stopped = with_deadline(past, || per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2));
+        let e = stopped.unwrap_err().to_string();
+        assert!(
+            e.contains("time limit") && e.contains("0 of 16 pixels"),
+            "{e}"
+        );
+        // the deadline is the scope's only: outside it (and with none) the same call runs
+        assert_eq!(DEADLINE.get(), None);
+        let v = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2).unwrap();
+        assert_eq!(v, vec![1.0; 16]);
+    }
+}
