@@ -213,6 +213,14 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     )?;
     furnace::limits::image(settings.width as u64, settings.height as u64)
         .context("the image is too large")?;
+    if ["path", "radiosity"].contains(&a.integrator.as_str()) {
+        let pixels = (settings.width * settings.height) as u64;
+        furnace::limits::memory(
+            &format!("a {}x{} render", settings.width, settings.height),
+            furnace::limits::BASE_BYTES + pixels * furnace::limits::CAMERA_RENDER_PIXEL_BYTES,
+        )
+        .context("the render does not fit in memory")?;
+    }
     let light = a.integrator == "light";
     if a.keep_runs && !["light", "sppm", "bdpt", "mlt"].contains(&a.integrator.as_str()) {
         return Err(anyhow::anyhow!(
