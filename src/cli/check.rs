@@ -296,8 +296,14 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
                         .context("progress bar template")?,
                 );
                 let streaming = opts.correction == Correction::Sidak;
-                if a.renderers.len() > 1 && a.format == "text" {
-                    bar.println(format!("== {}", subject.renderer.name()));
+                if a.renderers.len() > 1 && a.format == "text" && !super::quiet() {
+                    // (a hidden bar, as without a terminal, prints nothing itself)
+                    let head = format!("== {}", subject.renderer.name());
+                    if bar.is_hidden() {
+                        println!("{head}");
+                    } else {
+                        bar.println(head);
+                    }
                 }
                 let running = Watchdog::start(label);
                 let r = harness::run_with(&specs, &opts, subject, names.clone(), &mut |event| {
@@ -356,7 +362,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         for s in &skipped {
             let mut o = Outcome::new(&s.name, s.kind_name());
             o.verdict = Verdict::Skipped;
-            o.message = "not matching --filter".into();
+            o.message = harness::outcome::FILTERED_OUT.into();
             report.outcomes.push(o);
         }
         if a.format == "json" {

@@ -32,6 +32,19 @@ pub struct MergeArgs {
 
 /// Runs `furnace merge`; returns the exit code.
 pub fn run(a: MergeArgs) -> Result<i32, Failure> {
+    // the outputs are checked before anything is read or printed
+    let out = Outputs {
+        json: a.json,
+        junit: a.junit,
+        markdown: a.markdown,
+        report: a.report,
+    };
+    let inputs: Vec<(&str, &std::path::Path)> = a
+        .results
+        .iter()
+        .map(|p| ("a shard's results", p.as_path()))
+        .collect();
+    super::distinct_paths(&inputs, &out.roles())?;
     // shards grouped by renderer, in the order the renderers first appear
     let mut order: Vec<String> = Vec::new();
     let mut groups: BTreeMap<String, Vec<(String, RunReport)>> = BTreeMap::new();
@@ -60,18 +73,6 @@ pub fn run(a: MergeArgs) -> Result<i32, Failure> {
         }
         reports.push(merged);
     }
-    let out = Outputs {
-        json: a.json,
-        junit: a.junit,
-        markdown: a.markdown,
-        report: a.report,
-    };
-    let inputs: Vec<(&str, &std::path::Path)> = a
-        .results
-        .iter()
-        .map(|p| ("a shard's results", p.as_path()))
-        .collect();
-    super::distinct_paths(&inputs, &out.roles())?;
     write_results(&reports, &out, "furnace check (merged shards)")?;
     let failed = reports
         .iter()

@@ -96,6 +96,10 @@ pub enum Statistic {
     None,
 }
 
+/// The message of a check left out by `--filter` (a SKIP outcome), which summaries count
+/// apart from checks that did not apply.
+pub const FILTERED_OUT: &str = "not matching --filter";
+
 /// One check's outcome, with every number a reader needs to judge it.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Outcome {

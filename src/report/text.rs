@@ -310,6 +310,15 @@ pub fn summary(r: &RunReport) -> String {
     let mut last = format!("{} passed, {} failed", t.passed, t.failing());
     if t.skipped > 0 {
         let _ = write!(last, ", {} skipped", t.skipped);
+        let filtered = r
+            .outcomes
+            .iter()
+            .filter(|o| !o.regression && o.verdict == Verdict::Skipped)
+            .filter(|o| o.message == crate::harness::outcome::FILTERED_OUT)
+            .count();
+        if filtered > 0 {
+            let _ = write!(last, " ({filtered} of them not matching --filter)");
+        }
     }
     lines.push(last);
     lines.join("\n")
