@@ -339,11 +339,14 @@ pub fn read_capped(path: &Path, cap: u64) -> std::io::Result<Vec<u8>> {
 pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> {
     toml::from_str(src.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
-        src.error(
-            span,
-            "",
-            super::suggest::plain_message(e.message().trim_end()),
-        )
+        let message = super::suggest::plain_message(e.message().trim_end());
+        // a wrong value names its key: the one its line assigns, when the value is on it
+        let key = if message.starts_with("invalid ") || message.starts_with("out of range") {
+            super::suggest::key_of_line(src.text, span.start)
+        } else {
+            String::new()
+        };
+        src.error(span, key, message)
     })
 }
 

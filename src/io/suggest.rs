@@ -43,6 +43,26 @@ pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) ->
 pub fn plain_message(message: &str) -> String {
     let mut out = message.to_string();
     let wrong_type = message.starts_with("invalid type:");
+    // a whole number beyond its type ("integer `…` as i128, expected i64", "invalid value:
+    // integer `…`, expected u32") is out of range, not of the wrong type: say the range
+    let integer = message.starts_with("invalid type: integer") && message.contains(" as i128")
+        || message.starts_with("invalid value: integer");
+    if integer {
+        for (rust, range) in [
+            ("i64", "-9223372036854775808 to 9223372036854775807"),
+            ("u64", "0 to 18446744073709551615"),
+            ("u32", "0 to 4294967295"),
+        ] {
+            if let Some(rest) = message.strip_suffix(&format!("expected {rust}")) {
+                let rest = rest.replacen("invalid type:", "out of range:", 1).replacen(
+                    "invalid value:",
+                    "out of range:",
+                    1,
+                );
+                return format!("{rest}expected an integer from {range}");
+            }
+        }
+    }
     for (rust, plain) in [
         ("expected i64", "expected an integer"),
         ("expected u64", "expected a whole number ≥ 0"),
@@ -73,9 +93,40 @@ pub fn plain_message(message: &str) -> String {
     out
 }
 
+/// The key assigned on the line of `text` holding byte `at` (`spp` for `spp = "1024"`), when
+/// `at` lies after that line's `=`; empty otherwise (an array's later line, a table header).
+pub fn key_of_line(text: &str, at: usize) -> String {
+    let at = at.min(text.len());
+    let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
+    let line = &text[start..];
+    let line = &line[..line.find('\n').unwrap_or(line.len())];
+    let Some(eq) = line.find('=') else {
+        return String::new();
+    };
+    let key = line[..eq].trim();
+    let plain = !key.is_empty()
+        && key
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
+    if plain && at - start > eq {
+        key.to_string()
+    } else {
+        String::new()
+    }
+}
+
 #[cfg(test)]
 mod tests {
-    use super::{nearest, plain_message};
+    use super::{key_of_line, nearest, plain_message};
+
+    #[test]
+    fn the_key_of_a_values_line_is_found() {
+        let text = "[render]\nspp = \"1024\"\nwidth = [\n  1,\n]\n";
+        assert_eq!(key_of_line(text, text.find("\"1024").unwrap()), "spp");
+        assert_eq!(key_of_line(text, text.find("1,").unwrap()), "");
+        assert_eq!(key_of_line(text, 1), "");
+        assert_eq!(key_of_line(text, text.len() + 5), "");
+    }
 
     #[test]
     fn the_nearest_name_is_found_within_a_third_of_its_length() {
@@ -105,11 +156,14 @@ mod tests {
             plain_message("unknown field `spq`, expected `spp`"),
             "unknown field `spq`, expected `spp`"
         );
-        // other messages unchanged, among them an out-of-range value's (its type states the
-        // range)
+        // other messages unchanged; an out-of-range integer says its range
         assert_eq!(
             plain_message("invalid value: integer `5000000000`, expected u32"),
-            "invalid value: integer `5000000000`, expected u32"
+            "out of range: integer `5000000000`, expected an integer from 0 to 4294967295"
+        );
+        assert_eq!(
+            plain_message("invalid type: integer `99999999999999999999` as i128, expected i64"),
+            "out of range: integer `99999999999999999999` as i128, expected an integer from -9223372036854775808 to 9223372036854775807"
         );
         assert_eq!(
             plain_message("missing field `camera`"),
