@@ -236,7 +236,14 @@ impl Scene {
     /// Validates scene text; `path` names it in errors and its folder resolves relative files.
     pub fn parse(text: &str, path: &Path) -> Result<Scene, SceneError> {
         let src = Source { path, text };
-        let desc: SceneDesc = crate::io::parse_toml(&src)?;
+        let desc: SceneDesc = crate::io::parse_toml(&src).map_err(|mut e| {
+            if text.contains("${") {
+                e.message.push_str(
+                    " (this scene holds ${…} placeholders: it is a check's template, filled in by its manifest's `vary`; run the check, or render a copy with the values written in)",
+                );
+            }
+            e
+        })?;
         Builder {
             src,
             base: path.parent().map(Path::to_path_buf).unwrap_or_default(),

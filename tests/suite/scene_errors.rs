@@ -55,6 +55,7 @@ fn error_messages() {
         ("no_light", error_of("[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"m\"\n")),
         ("two_sided_without_emission", error_of(&format!("[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = 1\nmaterial = \"m\"\ntwo_sided = true\n{LIGHT}"))),
         ("negative_spp", error_of(&format!("[render]\nspp = -4\n{LIGHT}"))),
+        ("template_placeholder", error_of("[[light]]\ntype = \"environment\"\nradiance = ${r}\n")),
         ("spp_as_string", error_of(&format!("[render]\nspp = \"1024\"\n{LIGHT}"))),
         ("unknown_filter", error_of(&format!("[render]\nfilter = \"mitchell\"\n{LIGHT}"))),
         ("two_environment_lights", error_of(&format!("{LIGHT}{LIGHT}"))),
