@@ -813,3 +813,54 @@ fn a_negative_number_is_refused_as_that_option_s_value_not_as_an_unknown_option(
         assert!(!err.contains("unexpected argument"), "{args:?}: {err}");
     }
 }
+
+#[test]
+fn serve_models_refuses_a_hello_of_another_protocol_and_flags_transmitted_samples() {
+    use std::io::{BufRead, Read, Write};
+    let mut child = furnace()
+        .arg("serve-models")
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let mut out = std::io::BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    stdin
+        .write_all(b"{\"op\":\"hello\",\"protocol\":2}\n")
+        .unwrap();
+    out.read_line(&mut line).unwrap();
+    assert!(
+        line.contains("speaks protocol 1; the hello asked for 2"),
+        "{line}"
+    );
+    stdin
+        .write_all(b"{\"op\":\"hello\",\"protocol\":1}\n")
+        .unwrap();
+    line.clear();
+    out.read_line(&mut line).unwrap();
+    assert!(line.contains("\"ok\":true"), "{line}");
+    // a smooth glass's sample straight down (wo = +z, uc = 0.99 picks refraction): flags
+    // 1 | 4 (sampled, transmitted) beside 2 (delta)
+    let name = "dielectric/smooth η=1.5";
+    assert!(line.contains(name), "{line}");
+    let header = format!("{{\"op\":\"bsdf.sample\",\"model\":\"{name}\",\"n\":1,\"width\":10}}\n");
+    stdin.write_all(header.as_bytes()).unwrap();
+    for v in [0.0f64, 0.0, 1.0, 0.5, 0.5, 0.99, 550.0, 550.0, 550.0, 550.0] {
+        stdin.write_all(&v.to_le_bytes()).unwrap();
+    }
+    stdin.flush().unwrap();
+    line.clear();
+    out.read_line(&mut line).unwrap();
+    assert!(line.contains("\"ok\":true"), "{line}");
+    let mut payload = [0u8; 9 * 8];
+    out.read_exact(&mut payload).unwrap();
+    let v: Vec<f64> = payload
+        .chunks_exact(8)
+        .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
+        .collect();
+    assert!(v[2] < 0.0, "refracted down: {v:?}");
+    assert_eq!(v[8], 7.0, "flags {v:?}");
+    drop(stdin);
+    child.wait().unwrap();
+}

@@ -171,7 +171,7 @@ fn a_misbehaving_server_makes_the_check_an_error_with_its_words() {
     let e = RemoteModels::start(&server(&["--fault", "version"], 2.0))
         .err()
         .unwrap();
-    assert!(e.0.contains("speaks protocol Some(2)"), "{e}");
+    assert!(e.0.contains("speaks protocol 2; furnace speaks 1"), "{e}");
     let e = RemoteModels::start(&ServerCommand {
         argv: vec!["/nonexistent/server".into()],
         ..server(&[], 2.0)

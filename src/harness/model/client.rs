@@ -232,7 +232,8 @@ impl RemoteModels {
         let version = h.get("protocol").and_then(Value::as_u64);
         if version != Some(protocol::VERSION) {
             return Err(conn.fail(format!(
-                "speaks protocol {version:?}; furnace speaks {}",
+                "speaks protocol {}; furnace speaks {}",
+                version.map_or("(none given)".to_string(), |v| v.to_string()),
                 protocol::VERSION
             )));
         }

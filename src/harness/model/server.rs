@@ -103,6 +103,18 @@ pub fn serve(
             return Ok(());
         }
         if op == "hello" {
+            let asked = msg.header.get("protocol").and_then(Value::as_u64);
+            if asked != Some(protocol::VERSION) {
+                error(
+                    output,
+                    &format!(
+                        "this server speaks protocol {}; the hello asked for {}",
+                        protocol::VERSION,
+                        asked.map_or("none".to_string(), |v| v.to_string())
+                    ),
+                )?;
+                continue;
+            }
             let h = hello(source, renderer, fault).map_err(io::Error::other)?;
             write_message(output, h, 0, &[])?;
             said_hello = true;
@@ -243,14 +255,26 @@ fn answer(
         }
         "bsdf.sample" => {
             let b = find(bsdfs, model)?;
-            for s in by_wavelengths(&rs, |rs, wl| {
+            let dispersive = b.flags().dispersive;
+            let samples = by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| (v3(r), [r[3], r[4]], r[5])).collect();
                 b.sample(&q, wl).map_err(e)
-            })? {
+            })?;
+            for (s, r) in samples.into_iter().zip(&rs) {
                 match s {
                     None => out.extend([0.0; 9]),
                     Some(s) => {
-                        let flags = FLAG_SAMPLE | if s.delta { FLAG_DELTA } else { 0 };
+                        // a transmission crosses the surface (wi and wo on opposite sides); a
+                        // dispersive model's transmission carries the hero wavelength alone
+                        let through = s.wi.z * v3(r).z < 0.0;
+                        let flags = FLAG_SAMPLE
+                            | if s.delta { FLAG_DELTA } else { 0 }
+                            | if through { FLAG_TRANSMISSION } else { 0 }
+                            | if through && dispersive {
+                                FLAG_DISPERSIVE
+                            } else {
+                                0
+                            };
                         out.extend([s.wi.x, s.wi.y, s.wi.z]);
                         out.extend(s.weight.0);
                         out.extend([s.pdf, flags as f64]);
