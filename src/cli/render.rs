@@ -200,6 +200,16 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         Some(k) => Path::new("out").join(format!("{stem}.part-{}-of-{}.film", k.index, k.count)),
         None => Path::new("out").join(format!("{stem}.exr")),
     });
+    if shard.is_some()
+        && exr_path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("exr") || e.eq_ignore_ascii_case("png"))
+    {
+        return Err(anyhow::anyhow!(
+            "--shard writes a partial film, not an image: give -o a name such as out/part-K.film (`furnace merge-films` writes the EXR)"
+        )
+        .into());
+    }
     if shard.is_some() && a.png.is_some() {
         return Err(anyhow::anyhow!(
             "--png with --shard: a part writes no preview; give --png to `furnace merge-films`"
@@ -860,7 +870,7 @@ fn render_shard(
     };
     let Some(range) = k.part_of(blocks) else {
         return Err(anyhow::anyhow!(
-            "--shard {}/{}: the render has {blocks} {} to share out, fewer than {} parts",
+            "--shard {}/{}: the render has {blocks} {} to share out, fewer than {} parts{}",
             k.index,
             k.count,
             if light {
@@ -868,7 +878,12 @@ fn render_shard(
             } else {
                 "blocks of 16 samples per pixel"
             },
-            k.count
+            k.count,
+            if light {
+                String::new()
+            } else {
+                format!(" (give --spp {} or more, or fewer parts)", 16 * k.count)
+            }
         )
         .into());
     };
