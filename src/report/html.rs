@@ -149,6 +149,25 @@ fn counts_where(runs: &[Value], keep: impl Fn(&Value) -> bool) -> Vec<(String, u
     c.into_iter().collect()
 }
 
+/// The counts of each verdict of a check run, its validation checks apart from its regression
+/// baselines (`2 PASS, 1 FAIL; regression baselines (not validation): 2 PASS`).
+fn verdict_counts(run: &Value) -> String {
+    let baseline = |o: &Value| o["regression"].as_bool() == Some(true);
+    let text = |c: Vec<(String, usize)>| {
+        c.into_iter()
+            .map(|(v, n)| format!("{n} {v}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    let c = text(counts_where(std::slice::from_ref(run), |o| !baseline(o)));
+    let b = text(counts_where(std::slice::from_ref(run), baseline));
+    if b.is_empty() {
+        c
+    } else {
+        format!("{c}; regression baselines (not validation): {b}")
+    }
+}
+
 /// True when every check passed (or was skipped) and no comparison found a difference.
 pub fn all_pass(runs: &[Value], comparisons: &[ComparisonSection]) -> bool {
     let checks = runs.iter().all(|r| {
@@ -255,13 +274,6 @@ pub fn page_with_notes(
 fn banner(runs: &[Value], comparisons: &[ComparisonSection]) -> Markup {
     let ok = all_pass(runs, comparisons);
     let bad = not_passed(runs);
-    let counts = |run: &Value| -> String {
-        counts_where(std::slice::from_ref(run), |_| true)
-            .into_iter()
-            .map(|(v, n)| format!("{n} {v}"))
-            .collect::<Vec<_>>()
-            .join(", ")
-    };
     html! {
         div #verdict class=(if ok { "pass" } else { "fail" }) {
             p {
@@ -270,7 +282,7 @@ fn banner(runs: &[Value], comparisons: &[ComparisonSection]) -> Markup {
             }
             @if !runs.is_empty() {
                 ul {
-                    @for run in runs { li { (renderer_of(run)) ": " (counts(run)) } }
+                    @for run in runs { li { (renderer_of(run)) ": " (verdict_counts(run)) } }
                 }
             }
             @if !bad.is_empty() {
@@ -635,27 +647,13 @@ pub fn markdown(runs: &[Value], comparisons: &[ComparisonSection]) -> String {
         "## furnace: {}\n",
         if ok { "all pass" } else { "failures" }
     );
-    let baseline = |o: &Value| o["regression"].as_bool() == Some(true);
     for run in runs {
-        let text = |c: Vec<(String, usize)>| {
-            c.into_iter()
-                .map(|(v, n)| format!("{n} {v}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
-        let c = text(counts_where(std::slice::from_ref(run), |o| !baseline(o)));
-        let b = text(counts_where(std::slice::from_ref(run), baseline));
-        if !c.is_empty() || !b.is_empty() {
+        let counts = verdict_counts(run);
+        if !counts.is_empty() {
             let _ = writeln!(
                 m,
-                "Checks ({}): {}{}\n",
+                "Checks ({}): {counts}\n",
                 run["renderer"].as_str().unwrap_or("furnace"),
-                c,
-                if b.is_empty() {
-                    String::new()
-                } else {
-                    format!("; regression baselines (not validation): {b}")
-                }
             );
         }
     }
