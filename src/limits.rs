@@ -98,46 +98,83 @@ pub fn image(width: u64, height: u64) -> Result<(), LimitError> {
 /// sample per pixel (docs/hostile-input.md).
 pub const CAMERA_RENDER_PIXEL_BYTES: u64 = 270;
 
+/// Bytes a film keeps per pixel: the count, and the mean and second to fourth central sums
+/// in f64 for six channels.
+pub const FILM_PIXEL_BYTES: u64 = 200;
+
 /// Memory a process needs besides its images, bytes (the binary, the scene, the thread stacks).
 pub const BASE_BYTES: u64 = 32 << 20;
 
-/// Memory this process may still take, bytes, where the system says: the smaller of the
-/// available memory and free swap (`/proc/meminfo`) and what the address-space limit leaves
-/// (`/proc/self/limits` less `/proc/self/status`'s VmSize). None where neither is known.
-pub fn memory_available() -> Option<u64> {
+/// Memory this process may take, bytes, where the system says: `hard`, what it cannot pass
+/// (the least of what the address-space limit leaves, `/proc/self/limits` less
+/// `/proc/self/status`'s VmSize; what the cgroup's `memory.max` leaves over `memory.current`;
+/// and the machine's memory and swap), and `soft`, what is free now (`/proc/meminfo`'s
+/// MemAvailable and SwapFree; some reclaimable caches are not counted there). None where
+/// unknown.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct MemoryRoom {
+    /// Bytes no allocation can pass.
+    pub hard: Option<u64>,
+    /// Bytes free now.
+    pub soft: Option<u64>,
+}
+
+/// This process's [`MemoryRoom`].
+pub fn memory_room() -> MemoryRoom {
     let field = |text: &str, key: &str| -> Option<u64> {
         let line = text.lines().find(|l| l.starts_with(key))?;
         line[key.len()..].split_whitespace().next()?.parse().ok()
     };
-    let system = std::fs::read_to_string("/proc/meminfo").ok().and_then(|m| {
-        Some((field(&m, "MemAvailable:")? + field(&m, "SwapFree:").unwrap_or(0)) * 1024)
-    });
-    let address_space = std::fs::read_to_string("/proc/self/limits")
-        .ok()
+    let read = |p: &str| std::fs::read_to_string(p).ok();
+    let meminfo = read("/proc/meminfo");
+    let kib = |key: &str| {
+        meminfo
+            .as_deref()
+            .and_then(|m| field(m, key))
+            .map(|k| k * 1024)
+    };
+    let machine = kib("MemTotal:").map(|t| t + kib("SwapTotal:").unwrap_or(0));
+    let soft = kib("MemAvailable:").map(|a| a + kib("SwapFree:").unwrap_or(0));
+    let address_space = read("/proc/self/limits")
         .and_then(|l| field(&l, "Max address space"))
         .and_then(|limit| {
-            let status = std::fs::read_to_string("/proc/self/status").ok()?;
+            let status = read("/proc/self/status")?;
             Some(limit.saturating_sub(field(&status, "VmSize:")? * 1024))
         });
-    match (system, address_space) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        (a, b) => a.or(b),
-    }
+    // cgroup v2: "max" (no limit) does not parse
+    let cgroup = read("/sys/fs/cgroup/memory.max")
+        .and_then(|m| m.trim().parse::<u64>().ok())
+        .map(|max| {
+            let current = read("/sys/fs/cgroup/memory.current")
+                .and_then(|c| c.trim().parse::<u64>().ok())
+                .unwrap_or(0);
+            max.saturating_sub(current)
+        });
+    let hard = [address_space, cgroup, machine].into_iter().flatten().min();
+    MemoryRoom { hard, soft }
 }
 
-/// Checks that `need` bytes for `what` fit in [`memory_available`] (nothing is checked where
-/// that is unknown), so that a render too large for the machine is refused by name before it
-/// allocates rather than aborted when an allocation fails.
-pub fn memory(what: &str, need: u64) -> Result<(), LimitError> {
-    match memory_available() {
-        Some(free) if need > free => Err(LimitError {
+/// Checks that `need` bytes for `what` fit in this process's [`memory_room`]: past the hard
+/// room it is refused by name (before anything is allocated, rather than aborted when an
+/// allocation fails); past what is free now, the answer is a warning to print. Nothing is
+/// checked where the system says nothing.
+pub fn memory(what: &str, need: u64) -> Result<Option<String>, LimitError> {
+    let room = memory_room();
+    if let Some(hard) = room.hard.filter(|&h| need > h) {
+        return Err(LimitError {
             what: format!("the memory (bytes) {what} needs"),
             value: need,
-            limit: free,
-            how: " (what this process may take: available memory and swap, or what its address-space limit leaves); render fewer pixels, or free memory".into(),
-        }),
-        _ => Ok(()),
+            limit: hard,
+            how: " (what this process may take: its address-space limit, its cgroup's memory.max, or the machine's memory and swap); render fewer pixels".into(),
+        });
     }
+    Ok(room.soft.filter(|&s| need > s).map(|s| {
+        format!(
+            "{what} needs about {:.1} GiB, more than the {:.1} GiB free now (memory and swap): it may be slow or killed",
+            need as f64 / (1u64 << 30) as f64,
+            s as f64 / (1u64 << 30) as f64
+        )
+    }))
 }
 
 /// `s` cut to [`MAX_QUOTED`] characters (with "…" when cut), for quoting user input.
@@ -158,7 +195,7 @@ mod tests {
     #[test]
     fn memory_beyond_what_the_process_may_take_is_refused_by_name() {
         // the system reports its memory here (Linux); a need past any machine's is refused
-        if memory_available().is_some() {
+        if memory_room().hard.is_some() {
             let e = memory("a test", u64::MAX).unwrap_err().to_string();
             assert!(
                 e.starts_with(
@@ -166,7 +203,7 @@ mod tests {
                 ),
                 "{e}"
             );
-            assert!(memory("a test", 1).is_ok());
+            assert_eq!(memory("a test", 1), Ok(None));
         }
     }
 

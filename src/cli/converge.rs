@@ -40,12 +40,10 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
     if !(a.target > 0.0 && a.target < 1.0) {
         return Err(anyhow::anyhow!("--target {} must lie in (0, 1)", a.target).into());
     }
-    if !(a.time_limit > 0.0 && a.time_limit.is_finite()) {
-        return Err(anyhow::anyhow!(
-            "--time-limit {} must be a number of seconds > 0",
-            a.time_limit
-        )
-        .into());
+    if !(a.time_limit > 0.0 && a.time_limit <= 1e6) {
+        return Err(
+            anyhow::anyhow!("--time-limit {} must be seconds in (0, 1e6]", a.time_limit).into(),
+        );
     }
     if a.manifests.is_empty() {
         return Err(anyhow::anyhow!(
@@ -65,11 +63,8 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         }
     }
     if let Some(out) = &a.report {
-        let inputs: Vec<(&str, &std::path::Path)> = a
-            .manifests
-            .iter()
-            .map(|p| ("a manifest", p.as_path()))
-            .collect();
+        let inputs: Vec<(&str, &std::path::Path)> =
+            files.iter().map(|p| ("a manifest", p.as_path())).collect();
         super::distinct_paths(&inputs, &[("--report", out)])?;
     }
     let mut manifests = Vec::new();

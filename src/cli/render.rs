@@ -225,11 +225,20 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .context("the image is too large")?;
     if ["path", "radiosity"].contains(&a.integrator.as_str()) {
         let pixels = (settings.width * settings.height) as u64;
-        furnace::limits::memory(
+        // a part of a sharded render keeps one film per piece of its sample blocks
+        let pieces = shard
+            .and_then(|k| k.part_of(furnace::render::sample_blocks(settings.spp)))
+            .map_or(1, |range| furnace::film::blocks::spans(range).len() as u64);
+        let per_pixel = furnace::limits::CAMERA_RENDER_PIXEL_BYTES
+            + (pieces - 1) * furnace::limits::FILM_PIXEL_BYTES;
+        let warning = furnace::limits::memory(
             &format!("a {}x{} render", settings.width, settings.height),
-            furnace::limits::BASE_BYTES + pixels * furnace::limits::CAMERA_RENDER_PIXEL_BYTES,
+            furnace::limits::BASE_BYTES.saturating_add(pixels.saturating_mul(per_pixel)),
         )
         .context("the render does not fit in memory")?;
+        if let Some(w) = warning {
+            eprintln!("warning: {w}");
+        }
     }
     let light = a.integrator == "light";
     if a.keep_runs && !["light", "sppm", "bdpt", "mlt"].contains(&a.integrator.as_str()) {

@@ -46,7 +46,10 @@ pub fn isolate(
             deadline: Some(Instant::now() + Duration::from_secs_f64(left)),
             ..*ctx
         };
-        let verdict = match rung.check.kind.run(&rung.check, &rung_ctx) {
+        let ran = super::closed_form::footprint::with_deadline(rung_ctx.deadline, || {
+            rung.check.kind.run(&rung.check, &rung_ctx)
+        });
+        let verdict = match ran {
             Ok(ms) => {
                 let v = judge(&ms, ctx.alpha);
                 let numbers = match (ms.estimate, ms.std_error, ms.expected, ms.p_value) {

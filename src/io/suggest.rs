@@ -54,11 +54,10 @@ pub fn plain_message(message: &str) -> String {
             ("u32", "0 to 4294967295"),
         ] {
             if let Some(rest) = message.strip_suffix(&format!("expected {rust}")) {
-                let rest = rest.replacen("invalid type:", "out of range:", 1).replacen(
-                    "invalid value:",
-                    "out of range:",
-                    1,
-                );
+                let rest = rest
+                    .replacen("invalid type:", "out of range:", 1)
+                    .replacen("invalid value:", "out of range:", 1)
+                    .replacen(" as i128", "", 1);
                 return format!("{rest}expected an integer from {range}");
             }
         }
@@ -93,22 +92,25 @@ pub fn plain_message(message: &str) -> String {
     out
 }
 
-/// The key assigned on the line of `text` holding byte `at` (`spp` for `spp = "1024"`), when
-/// `at` lies after that line's `=`; empty otherwise (an array's later line, a table header).
+/// The key a value at byte `at` of `text` is assigned to: the last `key =` before it on its
+/// line, inside an inline table too (`scale` for `sun = { blackbody = 5800, scale = "x" }`);
+/// empty when the value does not follow a `=` on its line (an array's later line).
 pub fn key_of_line(text: &str, at: usize) -> String {
-    let at = at.min(text.len());
+    let mut at = at.min(text.len());
+    while !text.is_char_boundary(at) {
+        at -= 1;
+    }
     let start = text[..at].rfind('\n').map_or(0, |i| i + 1);
-    let line = &text[start..];
-    let line = &line[..line.find('\n').unwrap_or(line.len())];
-    let Some(eq) = line.find('=') else {
+    let Some(eq) = text[start..at].rfind('=') else {
         return String::new();
     };
-    let key = line[..eq].trim();
+    let head = &text[start..start + eq];
+    let key = head.rsplit(['{', ',']).next().unwrap_or("").trim();
     let plain = !key.is_empty()
         && key
             .chars()
             .all(|c| c.is_ascii_alphanumeric() || matches!(c, '_' | '-' | '.'));
-    if plain && at - start > eq {
+    if plain {
         key.to_string()
     } else {
         String::new()
@@ -126,6 +128,11 @@ mod tests {
         assert_eq!(key_of_line(text, text.find("1,").unwrap()), "");
         assert_eq!(key_of_line(text, 1), "");
         assert_eq!(key_of_line(text, text.len() + 5), "");
+        let inline = "sun = { blackbody = 5800.0, scale = \"x\" }\n";
+        assert_eq!(key_of_line(inline, inline.find("\"x").unwrap()), "scale");
+        // a byte inside a multi-byte character steps back to its start
+        let wide = "name = \"é\"";
+        assert_eq!(key_of_line(wide, wide.find('é').unwrap() + 1), "name");
     }
 
     #[test]
@@ -163,7 +170,7 @@ mod tests {
         );
         assert_eq!(
             plain_message("invalid type: integer `99999999999999999999` as i128, expected i64"),
-            "out of range: integer `99999999999999999999` as i128, expected an integer from -9223372036854775808 to 9223372036854775807"
+            "out of range: integer `99999999999999999999`, expected an integer from -9223372036854775808 to 9223372036854775807"
         );
         assert_eq!(
             plain_message("missing field `camera`"),

@@ -161,10 +161,10 @@ fn verdict_counts(run: &Value) -> String {
     };
     let c = text(counts_where(std::slice::from_ref(run), |o| !baseline(o)));
     let b = text(counts_where(std::slice::from_ref(run), baseline));
-    if b.is_empty() {
-        c
-    } else {
-        format!("{c}; regression baselines (not validation): {b}")
+    match (c.is_empty(), b.is_empty()) {
+        (_, true) => c,
+        (true, false) => format!("regression baselines (not validation): {b}"),
+        (false, false) => format!("{c}; regression baselines (not validation): {b}"),
     }
 }
 
