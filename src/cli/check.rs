@@ -124,17 +124,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     } else {
         a.manifests.clone()
     };
-    let mut files = Vec::new();
-    for p in &inputs {
-        if p.is_dir() {
-            files.extend(
-                manifest::manifests_in(p)
-                    .with_context(|| format!("cannot list manifests in {}", p.display()))?,
-            );
-        } else {
-            files.push(p.clone());
-        }
-    }
+    let files = super::manifest_files(&inputs)?;
     if files.is_empty() {
         return Err(anyhow::anyhow!("no manifests found in {:?}", inputs).into());
     }

@@ -51,17 +51,7 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         )
         .into());
     }
-    let mut files = Vec::new();
-    for p in &a.manifests {
-        if p.is_dir() {
-            files.extend(
-                manifest::manifests_in(p)
-                    .with_context(|| format!("cannot list manifests in {}", p.display()))?,
-            );
-        } else {
-            files.push(p.clone());
-        }
-    }
+    let files = super::manifest_files(&a.manifests)?;
     if let Some(out) = &a.report {
         let inputs: Vec<(&str, &std::path::Path)> =
             files.iter().map(|p| ("a manifest", p.as_path())).collect();

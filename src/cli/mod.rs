@@ -99,6 +99,22 @@ pub(crate) fn verdict_line(o: &furnace::harness::outcome::Outcome) -> String {
     format!("{style}{label}{style:#}{rest}")
 }
 
+/// The manifest files of `inputs`: a file as given, a folder's `*.toml` files sorted by name.
+pub(crate) fn manifest_files(inputs: &[PathBuf]) -> Result<Vec<PathBuf>, Failure> {
+    let mut files = Vec::new();
+    for p in inputs {
+        if p.is_dir() {
+            files.extend(
+                furnace::harness::manifest::manifests_in(p)
+                    .with_context(|| format!("cannot list manifests in {}", p.display()))?,
+            );
+        } else {
+            files.push(p.clone());
+        }
+    }
+    Ok(files)
+}
+
 /// `compare`'s verdict word, coloured when `--color` says so (AGREE green, DIFFERENT red).
 pub(crate) fn comparison_label(differ: bool) -> String {
     use anstyle::{AnsiColor, Style};

@@ -200,8 +200,8 @@ impl PathTracer {
 
     /// [`PathTracer::radiance`] with the media code compiled in (`MEDIA`) or out. Public so
     /// that a benchmark can measure what leaving it out saves on surface-only scenes; both
-    /// variants give the same image there. The path is a [`Walk`] advanced by
-    /// [`Self::step`] from one ray query to the next; this loop answers the queries one
+    /// variants give the same image there. The path is a `Walk` advanced by
+    /// `step` from one ray query to the next; this loop answers the queries one
     /// path at a time (a loop answering several paths' queries together can drive the same
     /// steps: docs/performance.md, "Explicit kernels, regeneration and awaited queries").
     pub fn radiance_variant<const MEDIA: bool>(

@@ -16,7 +16,7 @@ pub struct ManifestLadders {
     pub series: Vec<Series>,
 }
 
-/// The column heads of [`line`]'s table.
+/// The column heads of [`line()`]'s table.
 pub fn header() -> String {
     format!(
         "{:<7} {:<34} {:<11} {:>15} {:>10} {:>10} {:>11} {:>9} {:>9}",
