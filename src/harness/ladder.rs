@@ -232,8 +232,18 @@ pub fn measurement(
         estimate: Some(f.slope),
         std_error: Some(f.se_slope),
         expected: Some(mid),
-        statistic: Some(Statistic::Z {
-            z: (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE),
+        // the slope's distance from the range's middle in standard errors, which the fit
+        // estimates with `dof` degrees of freedom (a t score where those are finite)
+        statistic: Some({
+            let score = (f.slope - mid) / f.se_slope.max(f64::MIN_POSITIVE);
+            if f.dof.is_finite() {
+                Statistic::T {
+                    t: score,
+                    dof: f.dof,
+                }
+            } else {
+                Statistic::Z { z: score }
+            }
         }),
         p_value: Some(p),
         samples,
