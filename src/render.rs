@@ -542,6 +542,11 @@ fn render_blocks(
     let truncated = AtomicU64::new(0);
     let out_of_time = AtomicBool::new(false);
     let start = std::time::Instant::now();
+    let past_deadline = || {
+        settings
+            .deadline
+            .is_some_and(|d| std::time::Instant::now() >= d)
+    };
     let work = || {
         tiles.par_iter().for_each(|&(tx, ty)| {
             let (x0, y0) = (tx * TILE, ty * TILE);
@@ -557,11 +562,7 @@ fn render_blocks(
                         continue;
                     }
                     rendered += 1;
-                    if out_of_time.load(Ordering::Relaxed)
-                        || settings
-                            .deadline
-                            .is_some_and(|d| std::time::Instant::now() >= d)
-                    {
+                    if out_of_time.load(Ordering::Relaxed) || past_deadline() {
                         out_of_time.store(true, Ordering::Relaxed);
                         pixels.extend(std::iter::repeat_n(Pixel::default(), n_pieces));
                         continue;
@@ -573,9 +574,7 @@ fn render_blocks(
                         // the deadline within a pixel too, every DEADLINE_BLOCKS blocks, so
                         // that a pixel of many samples cannot outlast it by much
                         if (b - blocks.start) % DEADLINE_BLOCKS == DEADLINE_BLOCKS - 1
-                            && settings
-                                .deadline
-                                .is_some_and(|d| std::time::Instant::now() >= d)
+                            && past_deadline()
                         {
                             out_of_time.store(true, Ordering::Relaxed);
                             stopped = true;
