@@ -133,6 +133,13 @@ pub fn per_pixel_rays_n<const N: usize>(
     let mut v = Vec::new();
     let (start, deadline) = (std::time::Instant::now(), DEADLINE.get());
     let pixels = (region[2] - region[0]) * (region[3] - region[1]);
+    if deadline.is_some_and(|d| start >= d) {
+        // Reached past the limit, e.g. after waiting for another check's computation of the
+        // same reference that stopped at its own limit: say so rather than "after 0.0 s".
+        return Err(CheckError::Setup(format!(
+            "the check's time limit had passed before its closed-form reference ({pixels} pixels, {k}x{k} rays each) began: earlier steps, or a wait for another check computing the same reference, used it; give the check a larger time_limit or fewer pixels (width, height, region)"
+        )));
+    }
     for y in region[1]..region[3] {
         for x in region[0]..region[2] {
             if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
@@ -172,8 +179,19 @@ mod tests {
         let past = Some(std::time::Instant::now());
         let stopped = with_deadline(past, || per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2));
         let e = stopped.unwrap_err().to_string();
+        assert!(e.contains("time limit had passed before"), "{e}");
+        // a limit reached on the way says how far it got (each pixel takes 4 rays of 10 ms)
+        let slow = |_: Ray| {
+            std::thread::sleep(std::time::Duration::from_millis(10));
+            Ok(1.0)
+        };
+        let soon = Some(std::time::Instant::now() + std::time::Duration::from_millis(20));
+        let stopped = with_deadline(soon, || {
+            per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &slow, 2)
+        });
+        let e = stopped.unwrap_err().to_string();
         assert!(
-            e.contains("time limit") && e.contains("0 of 16 pixels"),
+            e.contains("stopped at the check's time limit") && e.contains("1 of 16 pixels"),
             "{e}"
         );
         // the deadline is the scope's only: outside it (and with none) the same call runs
