@@ -7,7 +7,7 @@ use super::keys::{common, Keys, Table};
 use super::kind::{Check, RenderOverrides};
 use super::registry;
 use crate::io::{LocatedError, Source};
-use crate::scene::Scene;
+use crate::scene::{desc::SceneDesc, Scene};
 use serde::Deserialize;
 use std::collections::BTreeMap;
 use std::ops::Range;
@@ -22,6 +22,83 @@ pub type ManifestError = LocatedError;
 struct ManifestDesc {
     #[serde(default)]
     check: Vec<Spanned<Table>>,
+}
+
+/// A manifest read again for one check's inline `[check.scene]` table, deserialized from the
+/// manifest's own text so that the scene's errors name the manifest's lines.
+#[derive(Deserialize)]
+struct InlineScenes {
+    #[serde(default)]
+    check: Vec<InlineScene>,
+}
+
+/// A check table seen only for its `scene` (None: a path, or no scene).
+struct InlineScene(Option<SceneDesc>);
+
+impl<'de> Deserialize<'de> for InlineScene {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct CheckTable;
+        impl<'de> serde::de::Visitor<'de> for CheckTable {
+            type Value = InlineScene;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a check table")
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut m: A,
+            ) -> Result<InlineScene, A::Error> {
+                let mut scene = None;
+                while let Some(key) = m.next_key::<String>()? {
+                    if key == "scene" {
+                        scene = m.next_value::<SceneOrPath>()?.0;
+                    } else {
+                        m.next_value::<serde::de::IgnoredAny>()?;
+                    }
+                }
+                Ok(InlineScene(scene))
+            }
+        }
+        d.deserialize_map(CheckTable)
+    }
+}
+
+/// A check's `scene` value: an inline table's description, or None for a path.
+struct SceneOrPath(Option<SceneDesc>);
+
+impl<'de> Deserialize<'de> for SceneOrPath {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct Either;
+        impl<'de> serde::de::Visitor<'de> for Either {
+            type Value = SceneOrPath;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a scene path or an inline scene table")
+            }
+            fn visit_str<E: serde::de::Error>(self, _: &str) -> Result<SceneOrPath, E> {
+                Ok(SceneOrPath(None))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                m: A,
+            ) -> Result<SceneOrPath, A::Error> {
+                SceneDesc::deserialize(serde::de::value::MapAccessDeserializer::new(m))
+                    .map(|d| SceneOrPath(Some(d)))
+            }
+        }
+        d.deserialize_any(Either)
+    }
+}
+
+/// The inline scene of check `index`, validated with the manifest's text as its source.
+fn inline_scene(src: &Source, index: usize, whole: Range<usize>) -> Result<Scene, ManifestError> {
+    let mut all: InlineScenes = crate::io::parse_toml(src)?;
+    match all.check.get_mut(index).and_then(|c| c.0.take()) {
+        Some(desc) => Scene::from_desc(desc, *src, whole),
+        None => Err(src.error(
+            0..0,
+            "scene",
+            format!("check {index} has no inline scene table"),
+        )),
+    }
 }
 
 /// Reads a manifest and expands it into runnable checks, validating every scene.
@@ -319,23 +396,7 @@ fn expand_check(
                     .map_err(|m| err(scene.span(), "scene", format!("{}: {m}", p.display())))?;
                 Scene::parse(&text, &p)?
             }
-            Value::Table(t) => {
-                let text =
-                    toml::to_string(t).map_err(|e| err(scene.span(), "scene", e.to_string()))?;
-                Scene::parse(
-                    &text,
-                    Path::new(&format!("{}#{}.scene", src.path.display(), at)),
-                )
-                .map_err(|mut e| {
-                    let (l, col) = src.line_column(scene.span().start);
-                    e.message = format!(
-                        "{} (inline scene at {}:{l}:{col})",
-                        e.message,
-                        src.path.display()
-                    );
-                    e
-                })?
-            }
+            Value::Table(_) => inline_scene(src, index, scene.span())?,
             other => {
                 return Err(err(
                     scene.span(),

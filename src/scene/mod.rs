@@ -244,9 +244,21 @@ impl Scene {
             }
             e
         })?;
+        Scene::from_desc(desc, src, 0..0)
+    }
+
+    /// Validates a scene description deserialized from `src` (whose spans its fields carry,
+    /// e.g. a table inside a manifest); errors about the whole scene point at `whole` (bytes of
+    /// `src.text`), and `src.path`'s folder resolves relative files.
+    pub fn from_desc(
+        desc: SceneDesc,
+        src: Source<'_>,
+        whole: Range<usize>,
+    ) -> Result<Scene, SceneError> {
         Builder {
+            base: src.path.parent().map(Path::to_path_buf).unwrap_or_default(),
             src,
-            base: path.parent().map(Path::to_path_buf).unwrap_or_default(),
+            whole,
         }
         .build(desc)
     }
@@ -258,6 +270,8 @@ type BuiltShape = (Shape, Bsdf, Option<(Spectrum, bool)>);
 struct Builder<'a> {
     src: Source<'a>,
     base: PathBuf,
+    /// Where errors about the whole scene point (0..0: the file's start).
+    whole: Range<usize>,
 }
 
 const SHAPE_COMMON: [&str; 7] = [
@@ -296,7 +310,7 @@ impl Builder<'_> {
             Some(c) => self.camera(c)?,
             None => {
                 return Err(self.err(
-                    0..0,
+                    self.whole.clone(),
                     "camera",
                     "missing [camera] table; a scene needs a camera",
                 ))
@@ -391,7 +405,7 @@ impl Builder<'_> {
         }
         if lights.is_empty() {
             return Err(self.err(
-                0..0,
+                self.whole.clone(),
                 "",
                 "the scene has no light: give a shape an `emission` or add a [[light]] (point or environment)",
             ));
@@ -407,7 +421,7 @@ impl Builder<'_> {
                 .map(|(lo, hi)| (i, lo, hi))
         }) {
             return Err(self.err(
-                0..0,
+                self.whole.clone(),
                 format!("shape[{i}]"),
                 format!(
                     "its bounds {:?} .. {:?} reach beyond {:e} scene units; coordinates and radii must stay within that",
@@ -427,7 +441,7 @@ impl Builder<'_> {
             (extent < crate::limits::MIN_EXTENT).then_some((i, extent))
         }) {
             return Err(self.err(
-                0..0,
+                self.whole.clone(),
                 format!("shape[{i}]"),
                 format!(
                     "it is {extent:e} scene units across; shapes must be at least {:e} across (choose a larger unit)",
@@ -592,7 +606,7 @@ impl Builder<'_> {
                 .width
                 .as_ref()
                 .or(r.height.as_ref())
-                .map_or(0..0, |s| s.span());
+                .map_or(self.whole.clone(), |s| s.span());
             return Err(self.err(span, "render", e.to_string()));
         }
         if let Some(f) = &r.filter {

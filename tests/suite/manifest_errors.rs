@@ -26,6 +26,9 @@ fn manifest_error_messages() {
         ("missing_scene", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\n")),
         ("missing_scene_file", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/nope.toml\"\n")),
         ("invalid_scene", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\n[check.scene]\ncamera = 3\n")),
+        // an inline scene's errors name the manifest's own lines, in the second check too
+        ("inline_scene_unknown_key", error_of("[[check]]\nname = \"y\"\nkind = \"hg\"\n\n[[check]]\nname = \"x\"\nkind = \"furnace\"\n[check.scene]\n[check.scene.camera]\nlook_at = [0, 0, 0]\neye = [0, 0, 5]\n")),
+        ("inline_scene_without_camera", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\n\n[check.scene]\n[[check.scene.shape]]\ntype = \"sphere\"\n")),
         ("unresolved_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\n")),
         ("unknown_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [0.5], colour = [1.0] }\n")),
         ("empty_vary", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [] }\n")),
