@@ -113,6 +113,17 @@ pub fn sin_cos_turn(u: f64) -> (f64, f64) {
     (ring[k], ring[(k + 1) & 3])
 }
 
+/// Direction `i` of `n` spread evenly over the unit sphere (a Fibonacci sphere: equal-area
+/// bands in z, the golden angle between neighbours; González 2010, "Measurement of Areas on a
+/// Sphere Using Fibonacci and Latitude–Longitude Lattices", Math. Geosci. 42(1)): a
+/// deterministic probe of every direction.
+pub fn fibonacci_sphere(i: usize, n: usize) -> Vec3 {
+    let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
+    let rho = (1.0 - z * z).max(0.0).sqrt();
+    let phi = i as f64 * 2.399_963_229_728_653; // the golden angle π(3 − √5)
+    Vec3::new(rho * phi.cos(), rho * phi.sin(), z)
+}
+
 /// Uniform direction on the unit sphere (Archimedes' hat-box theorem: z uniform in [-1,1]).
 pub fn uniform_sphere(u: [f64; 2]) -> Vec3 {
     let z = 1.0 - 2.0 * u[0];

@@ -472,10 +472,7 @@ impl Builder<'_> {
             // camera medium must be enclosed: probe 256 directions (a Fibonacci sphere).
             let n = 256;
             for i in 0..n {
-                let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
-                let rho = (1.0 - z * z).max(0.0).sqrt();
-                let phi = i as f64 * 2.399_963_229_728_653; // golden angle
-                let d = Vec3::new(rho * phi.cos(), rho * phi.sin(), z);
+                let d = crate::math::warp::fibonacci_sphere(i, n);
                 let ray = crate::geometry::Ray {
                     o: scene.camera.position,
                     d,

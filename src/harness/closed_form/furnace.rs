@@ -152,6 +152,98 @@ pub fn validate_view(
             }
         }
         Ok(0.0)
-    })
-    .map(|_| ())
+    })?;
+    if white {
+        return Ok(());
+    }
+    enclosed(scene)
+}
+
+/// Directions probed from the camera, and from the middle of each probe ray, by [`enclosed`].
+const PROBES: usize = 256;
+const PROBES_FROM_MIDDLES: usize = 64;
+
+/// Checks that the enclosure is closed around the camera: rays in [`PROBES`] directions from
+/// the camera, and in [`PROBES_FROM_MIDDLES`] directions from the middle of each (free space
+/// inside), all meet a surface that emits towards them. A gap the camera's own rays miss (an
+/// open wall behind it) lets light leave: the scene reads less than the closed form, and the
+/// check would fail for a reason that is not the renderer's. The probes use the closed forms'
+/// own caster, not the renderer's intersection code.
+fn enclosed(scene: &Scene) -> Result<(), CheckError> {
+    use crate::math::warp::fibonacci_sphere;
+    let caster = super::witness::Caster::new(scene.aggregate.shapes());
+    let o = scene.camera.position;
+    let probe = |o: crate::math::Vec3, d: crate::math::Vec3| -> Result<f64, CheckError> {
+        let v = |a: crate::math::Vec3| format!("[{:.3}, {:.3}, {:.3}]", a.x, a.y, a.z);
+        let ray = crate::geometry::Ray { o, d };
+        let Some(hit) = caster.nearest_hit(&ray) else {
+            return Err(format!("the enclosure is open: the ray from {} towards {} meets no surface, so light leaves and the scene reads less than the closed form; close the enclosure around the camera", v(o), v(d)).into());
+        };
+        match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
+            Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {
+                Ok(hit.t)
+            }
+            _ => Err(format!("the ray from {} towards {} meets shape[{}] on a side that does not emit: every surface the enclosure's inside sees must emit towards it (emitting inward, with the camera inside)", v(o), v(d), hit.shape).into()),
+        }
+    };
+    for i in 0..PROBES {
+        let d = fibonacci_sphere(i, PROBES);
+        let middle = o + d * (0.5 * probe(o, d)?);
+        for j in 0..PROBES_FROM_MIDDLES {
+            probe(middle, fibonacci_sphere(j, PROBES_FROM_MIDDLES))?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    fn box_scene(edit: impl Fn(&str) -> String) -> Scene {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/manifests/scenes/furnace-box-0.5.toml");
+        Scene::parse(&edit(&std::fs::read_to_string(&p).unwrap()), &p).unwrap()
+    }
+
+    // the wall z = 0, behind the camera (which looks towards +z): outside its view
+    const BACK_WALL: &str =
+        "corner = [0.0, 0.0, 0.0]\nedge_u = [1.0, 0.0, 0.0]\nedge_v = [0.0, 1.0, 0.0]";
+
+    #[test]
+    fn an_enclosure_open_or_emitting_outward_behind_the_camera_is_refused() {
+        let closed = box_scene(str::to_string);
+        validate_view(&closed, 8, 8, [3, 3, 5, 5]).unwrap();
+        // negative controls: the wall behind the camera gone, or turned to emit outward; the
+        // camera's own rays see neither
+        let open = box_scene(|t| {
+            t.replace(
+                BACK_WALL,
+                "corner = [0.0, 0.0, -5.0]\nedge_u = [0.1, 0.0, 0.0]\nedge_v = [0.0, 0.1, 0.0]",
+            )
+        });
+        let escapes = per_pixel(
+            &open,
+            8,
+            8,
+            [3, 3, 5, 5],
+            &|h, _| Ok(h.map_or(1.0, |_| 0.0)),
+        );
+        assert_eq!(escapes.unwrap(), vec![0.0; 4], "the region sees the gap");
+        let e = validate_view(&open, 8, 8, [3, 3, 5, 5])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("the enclosure is open"), "{e}");
+        let outward = box_scene(|t| {
+            t.replace(
+                BACK_WALL,
+                "corner = [0.0, 0.0, 0.0]\nedge_u = [0.0, 1.0, 0.0]\nedge_v = [1.0, 0.0, 0.0]",
+            )
+        });
+        let e = validate_view(&outward, 8, 8, [3, 3, 5, 5])
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("does not emit"), "{e}");
+    }
 }
