@@ -168,7 +168,16 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
     // smooth = roughness 0 in pbrt-v4
     let rough = |m: Option<Ggx>| {
         let (ax, ay) = m.map_or((0.0, 0.0), |g| (g.alpha_x, g.alpha_y));
-        format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" [ false ]")
+        if ax != ay {
+            // pbrt's u and v follow its own (u, v) parameterisation of each shape (default
+            // triangle uvs, sphere φ/θ), not furnace's tangent frame
+            return Err(ExportError::Unsupported {
+                format: FORMAT,
+                what: format!("shape[{i}] material"),
+                why: "anisotropic roughness: pbrt-v4's u and v directions follow its own shape parameterisation, not furnace's tangent frame, so uroughness/vroughness would not line up; use equal alpha_x and alpha_y".into(),
+            });
+        }
+        Ok(format!("\"float uroughness\" [ {ax} ] \"float vroughness\" [ {ay} ] \"bool remaproughness\" [ false ]"))
     };
     Ok(match b {
         Bsdf::Diffuse(l) => format!(
@@ -182,7 +191,7 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
                     format!("{} {}", spectrum("eta", eta), spectrum("k", k))
                 }
             };
-            format!("Material \"conductor\" {f} {}", rough(c.microfacet))
+            format!("Material \"conductor\" {f} {}", rough(c.microfacet)?)
         }
         Bsdf::Dielectric(d) => {
             let eta = match &d.ior {
@@ -195,7 +204,7 @@ fn material(i: usize, b: &Bsdf) -> Result<String, ExportError> {
                     format!("\"spectrum eta\" [ {} ]", pairs.join(" "))
                 }
             };
-            format!("Material \"dielectric\" {eta} {}", rough(d.microfacet))
+            format!("Material \"dielectric\" {eta} {}", rough(d.microfacet)?)
         }
         Bsdf::Null(_) => {
             return Err(ExportError::Unsupported {

@@ -626,3 +626,23 @@ fn a_purely_absorbing_chromatic_medium_exports_a_uniform_albedo() {
     let sigma_t = &medium.child_named("spectrum", "sigma_t").unwrap().attrs["value"];
     assert!(sigma_t.starts_with("360:2,"), "{sigma_t}");
 }
+
+#[test]
+fn anisotropic_roughness_is_refused_by_name_in_pbrt_and_mitsuba() {
+    // pbrt's u/v and Mitsuba's tangent frame are not furnace's: α_x ≠ α_y would not line up
+    let text = std::fs::read_to_string(root("scenes/cornell-glossy.toml"))
+        .unwrap()
+        .replace(
+            "ior = 1.5\nalpha = 0.15",
+            "ior = 1.5\nalpha_x = 0.1\nalpha_y = 0.3",
+        );
+    let s = Scene::parse(&text, &root("scenes/cornell-glossy.toml")).unwrap();
+    let e = furnace::export::pbrt::export(&s, "out.exr")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("anisotropic roughness"), "{e}");
+    let e = furnace::export::mitsuba::export(&s)
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("anisotropic roughness"), "{e}");
+}
