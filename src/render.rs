@@ -536,7 +536,18 @@ fn render_blocks(
         })
         .collect();
     // the finished tiles are copied in as they finish, so the image is held once, not also as
-    // a list of every tile's pixels (half the peak memory of a large render)
+    // a list of every tile's pixels (half the peak memory of a large render); refused by name
+    // beforehand where it cannot fit (a check's large image under a cgroup's memory.max)
+    let film_bytes = ((w * h * n_pieces) as u64).saturating_mul(crate::limits::FILM_PIXEL_BYTES);
+    crate::limits::memory(
+        &if n_pieces == 1 {
+            format!("a {w}x{h} film")
+        } else {
+            format!("a {w}x{h} film in {n_pieces} pieces")
+        },
+        crate::limits::BASE_BYTES.saturating_add(film_bytes),
+    )
+    .map_err(|e| RenderError::Settings(e.to_string()))?;
     let pieces = Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);

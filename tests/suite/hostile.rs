@@ -578,3 +578,59 @@ fn shapes_below_the_smallest_extent_are_refused() {
     assert_eq!(code, Some(2));
     insta::assert_snapshot!("sphere_radius_1e-320", msg);
 }
+
+/// A check whose image cannot fit in what the process may take (here an address-space limit
+/// of 1 GiB, as a CI container's cgroup would set) ends as ERROR naming the memory, before the
+/// film is allocated, and the run goes on: no out-of-memory abort. `furnace render` refuses
+/// the same image the same way.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_check_too_large_for_the_memory_limit_is_an_error_not_an_abort() {
+    let d = tmp("memory");
+    std::fs::write(d.join("s.toml"), scene("1", "")).unwrap();
+    std::fs::write(
+        d.join("m.toml"),
+        "[[check]]\nname = \"huge\"\nkind = \"furnace\"\nscene = \"s.toml\"\nwidth = 4096\nheight = 4096\nspp = 2\nregion = [2040, 2040, 2056, 2056]\n\n[[check]]\nname = \"small\"\nkind = \"furnace\"\nscene = \"s.toml\"\nspp = 64\nregion = [3, 3, 5, 5]\n",
+    )
+    .unwrap();
+    let limited = |args: &str| {
+        Command::new("sh")
+            .current_dir(&d)
+            .arg("-c")
+            .arg(format!("ulimit -v 1048576 && exec \"$0\" {args}"))
+            .arg(env!("CARGO_BIN_EXE_furnace"))
+            .output()
+            .unwrap()
+    };
+    let out = limited("check m.toml --threads 1");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "{text}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("ERROR") && l.contains("huge") && l.contains("memory")),
+        "{text}"
+    );
+    assert!(
+        text.lines()
+            .any(|l| l.starts_with("PASS") && l.contains("small")),
+        "{text}"
+    );
+    let out = limited("render s.toml --width 4096 --height 4096 --spp 1 --out big.exr");
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        stderr_of(&out, &d).contains("memory"),
+        "{}",
+        stderr_of(&out, &d)
+    );
+    assert!(!d.join("big.exr").exists());
+}
