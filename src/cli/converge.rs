@@ -77,13 +77,10 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
                 threads: a.threads,
                 alpha: 0.01,
             };
-            let in_time = |f: &dyn Fn() -> _| {
-                harness::closed_form::footprint::with_deadline(Some(deadline), f)
-            };
             let measured = if let Some(p) = check.params_as::<convergence::Params>() {
-                in_time(&|| convergence::ladder(check, p, &ctx).map(|l| (l, p.slope)))
+                convergence::ladder(check, p, &ctx).map(|l| (l, p.slope))
             } else if let Some(p) = check.params_as::<reference_convergence::Params>() {
-                in_time(&|| reference_convergence::ladder(check, p, &ctx).map(|l| (l, p.slope)))
+                reference_convergence::ladder(check, p, &ctx).map(|l| (l, p.slope))
             } else {
                 continue;
             };

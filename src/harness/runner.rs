@@ -295,9 +295,7 @@ fn run_one(
     };
     let t0 = Instant::now();
     let result = match plan {
-        Ok(plan) => super::closed_form::footprint::with_deadline(ctx.deadline, || {
-            budget::run(check, &ctx, plan)
-        }),
+        Ok(plan) => budget::run(check, &ctx, plan),
         Err(why) => Err(super::error::CheckError::Setup(why.clone())),
     };
     let seconds = t0.elapsed().as_secs_f64();

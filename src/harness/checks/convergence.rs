@@ -70,9 +70,14 @@ pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckE
                         p.of, s.width, s.height
                     );
                     let px = ctx.closed_form(scene, &request, || match p.of {
-                        Of::Emission => {
-                            emitted_along_k(scene, s.width, s.height, region, REFERENCE_K)
-                        }
+                        Of::Emission => emitted_along_k(
+                            scene,
+                            s.width,
+                            s.height,
+                            region,
+                            REFERENCE_K,
+                            ctx.deadline,
+                        ),
                         _ => per_pixel_k(
                             scene,
                             s.width,
@@ -80,6 +85,7 @@ pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckE
                             region,
                             &|h, d| reflected(scene, h, d),
                             REFERENCE_K,
+                            ctx.deadline,
                         ),
                     })?;
                     px.to_vec()

@@ -181,7 +181,15 @@ impl Kind for HalfSpace {
             }
             Ok(env * r_of(mu))
         };
-        let px = per_pixel_rays(scene, s.width, s.height, region, &expected_ray, FOOTPRINT_K)?;
+        let px = per_pixel_rays(
+            scene,
+            s.width,
+            s.height,
+            region,
+            &expected_ray,
+            FOOTPRINT_K,
+            ctx.deadline,
+        )?;
         let expected = px.iter().sum::<f64>() / px.len() as f64;
         let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
         Ok(region_measurement(

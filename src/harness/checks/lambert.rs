@@ -38,7 +38,7 @@ impl Kind for Lambert {
         let scene = check.scene()?;
         let s = settings_for(check, scene, ctx, ctx.seed, Some(1), Strategy::Mis);
         let region = region_of(check, &s)?;
-        let (expected, px) = expectation(scene, s.width, s.height, region)?;
+        let (expected, px) = expectation(scene, s.width, s.height, region, ctx.deadline)?;
         let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
         Ok(region_measurement(
             &r,

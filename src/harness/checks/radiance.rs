@@ -71,7 +71,7 @@ impl Kind for RadianceInvariance {
                 Strategy::Mis,
             );
             let region = region_of(check, &s)?;
-            let px = emitted_along(&scene, s.width, s.height, region)?;
+            let px = emitted_along(&scene, s.width, s.height, region, ctx.deadline)?;
             let expected = px.iter().sum::<f64>() / px.len() as f64;
             let r = render_region(
                 ctx,

@@ -48,7 +48,15 @@ impl Kind for Refraction {
             })?;
         let s = settings_for(check, scene, ctx, ctx.seed, Some(max_depth), Strategy::Mis);
         let region = region_of(check, &s)?;
-        let expected = expectation(scene, s.width, s.height, region, max_depth, &s.observer)?;
+        let expected = expectation(
+            scene,
+            s.width,
+            s.height,
+            region,
+            max_depth,
+            &s.observer,
+            ctx.deadline,
+        )?;
         let film = ctx.renderer.render(scene, &s)?;
         let what = format!(
             "smooth dielectrics followed per wavelength (Snell, Fresnel), {max_depth} bounces; path tracer, {} spp",

@@ -182,13 +182,24 @@ impl Kind for ScaleInvariance {
                 let region = region_of(check, &settings)?;
                 let (expected, px, what) = match of {
                     Of::Furnace => {
-                        validate_view(&scene, settings.width, settings.height, region)?;
+                        validate_view(
+                            &scene,
+                            settings.width,
+                            settings.height,
+                            region,
+                            ctx.deadline,
+                        )?;
                         let (e, w) = furnace_expectation(&scene, max_depth)?;
                         (e, None, w)
                     }
                     Of::Lambert => {
-                        let (e, px) =
-                            lambert_expectation(&scene, settings.width, settings.height, region)?;
+                        let (e, px) = lambert_expectation(
+                            &scene,
+                            settings.width,
+                            settings.height,
+                            region,
+                            ctx.deadline,
+                        )?;
                         (e, Some(px), "Lambert closed form".to_string())
                     }
                     Of::Transmittance => {
@@ -197,6 +208,7 @@ impl Kind for ScaleInvariance {
                             settings.width,
                             settings.height,
                             region,
+                            ctx.deadline,
                         )?;
                         let what =
                             "emission through absorbing media, Σ ȳ Le exp(−Σ σa d) per pixel";

@@ -47,7 +47,8 @@ impl Kind for Transmittance {
         }
         let s = settings_for(check, scene, ctx, ctx.seed, Some(0), Strategy::Mis);
         let region = region_of(check, &s)?;
-        let (expected, px) = transmittance::expectation(scene, s.width, s.height, region)?;
+        let (expected, px) =
+            transmittance::expectation(scene, s.width, s.height, region, ctx.deadline)?;
         let r = render_region(ctx, scene, &s, region, Some(&px), diagnosis_alpha(ctx, 1))?;
         Ok(combine(vec![(
             "transmittance".into(),

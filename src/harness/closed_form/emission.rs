@@ -2,6 +2,7 @@
 //! two-sided emitter), the environment's where the ray escapes; Y as the exact integral a
 //! renderer estimates.
 
+use super::footprint::Deadline;
 use super::footprint::{per_pixel_k, FOOTPRINT_K};
 use crate::harness::error::CheckError;
 use crate::lights::Light;
@@ -22,8 +23,9 @@ pub fn emitted_along(
     width: usize,
     height: usize,
     region: [usize; 4],
+    deadline: Deadline,
 ) -> Result<Vec<f64>, CheckError> {
-    emitted_along_k(scene, width, height, region, FOOTPRINT_K)
+    emitted_along_k(scene, width, height, region, FOOTPRINT_K, deadline)
 }
 
 /// [`emitted_along`] with k×k midpoint quadrature per pixel.
@@ -33,6 +35,7 @@ pub fn emitted_along_k(
     height: usize,
     region: [usize; 4],
     k: usize,
+    deadline: Deadline,
 ) -> Result<Vec<f64>, CheckError> {
     // each light's Y once, not at every one of the k² rays of every pixel (an integral over
     // the CMF table: it was 87 % of a convergence check's time)
@@ -71,5 +74,6 @@ pub fn emitted_along_k(
             }),
         },
         k,
+        deadline,
     )
 }

@@ -1,8 +1,8 @@
 //! Closed forms averaged over pixel footprints: a value along each camera ray through a pixel,
 //! integrated by k×k midpoint quadrature over the pixel (the box filter's footprint). Rays and
 //! hits come from the closed forms' own camera and caster (`witness`), not the renderer's.
-//! Per-pixel closed forms stop at the deadline of the check running on their thread
-//! ([`with_deadline`], set by the runner), so a large image cannot outlast its time limit.
+//! Per-pixel closed forms stop at the deadline they are given (the check's), so a large image
+//! cannot outlast its time limit.
 
 use super::witness::{self, Eye};
 use crate::geometry::{Hit, Ray};
@@ -10,28 +10,11 @@ use crate::harness::error::CheckError;
 use crate::math::Vec3;
 use crate::scene::Scene;
 
+/// When a per-pixel closed form must stop (None: never): the check's deadline.
+pub type Deadline = Option<std::time::Instant>;
+
 /// Quadrature points per pixel side of the checks' closed-form footprint averages.
 pub const FOOTPRINT_K: usize = 9;
-
-thread_local! {
-    /// The deadline of the check this thread runs, if any ([`with_deadline`]).
-    static DEADLINE: std::cell::Cell<Option<std::time::Instant>> =
-        const { std::cell::Cell::new(None) };
-}
-
-/// Runs `f` with `deadline` as this thread's closed-form deadline (the previous one comes back
-/// afterwards, also when `f` panics): per-pixel closed forms computed inside stop there with
-/// an error.
-pub fn with_deadline<R>(deadline: Option<std::time::Instant>, f: impl FnOnce() -> R) -> R {
-    struct Restore(Option<std::time::Instant>);
-    impl Drop for Restore {
-        fn drop(&mut self) {
-            DEADLINE.set(self.0);
-        }
-    }
-    let _restore = Restore(DEADLINE.replace(deadline));
-    f()
-}
 
 /// A closed form of whole camera rays averaged over `region` by k×k midpoint quadrature.
 pub fn ray_average(
@@ -83,8 +66,9 @@ pub fn per_pixel(
     height: usize,
     region: [usize; 4],
     f: &RayClosedForm<'_>,
+    deadline: Deadline,
 ) -> Result<Vec<f64>, CheckError> {
-    per_pixel_k(scene, width, height, region, f, FOOTPRINT_K)
+    per_pixel_k(scene, width, height, region, f, FOOTPRINT_K, deadline)
 }
 
 /// [`per_pixel`] with k×k midpoint quadrature per pixel.
@@ -95,6 +79,7 @@ pub fn per_pixel_k(
     region: [usize; 4],
     f: &RayClosedForm<'_>,
     k: usize,
+    deadline: Deadline,
 ) -> Result<Vec<f64>, CheckError> {
     let caster = witness::Caster::new(scene.aggregate.shapes());
     per_pixel_rays(
@@ -104,6 +89,7 @@ pub fn per_pixel_k(
         region,
         &|ray| f(caster.nearest_hit(&ray).as_ref(), ray.d),
         k,
+        deadline,
     )
 }
 
@@ -116,8 +102,9 @@ pub fn per_pixel_rays(
     region: [usize; 4],
     f: &dyn Fn(Ray) -> Result<f64, CheckError>,
     k: usize,
+    deadline: Deadline,
 ) -> Result<Vec<f64>, CheckError> {
-    let v = per_pixel_rays_n(scene, width, height, region, &|r| Ok([f(r)?]), k)?;
+    let v = per_pixel_rays_n(scene, width, height, region, &|r| Ok([f(r)?]), k, deadline)?;
     Ok(v.into_iter().map(|[x]| x).collect())
 }
 
@@ -129,9 +116,10 @@ pub fn per_pixel_rays_n<const N: usize>(
     region: [usize; 4],
     f: &dyn Fn(Ray) -> Result<[f64; N], CheckError>,
     k: usize,
+    deadline: Deadline,
 ) -> Result<Vec<[f64; N]>, CheckError> {
     let mut v = Vec::new();
-    let (start, deadline) = (std::time::Instant::now(), DEADLINE.get());
+    let start = std::time::Instant::now();
     let pixels = (region[2] - region[0]) * (region[3] - region[1]);
     if deadline.is_some_and(|d| start >= d) {
         // Reached past the limit, e.g. after waiting for another check's computation of the
@@ -170,14 +158,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn per_pixel_closed_forms_stop_at_the_threads_check_deadline() {
+    fn per_pixel_closed_forms_stop_at_their_deadline() {
         let scene = Scene::load(
             &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("scenes/cornell-box.toml"),
         )
         .unwrap();
         let f = |_: Ray| Ok(1.0);
         let past = Some(std::time::Instant::now());
-        let stopped = with_deadline(past, || per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2));
+        let stopped = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2, past);
         let e = stopped.unwrap_err().to_string();
         assert!(e.contains("time limit had passed before"), "{e}");
         // a limit reached on the way says how far it got (each pixel takes 4 rays of 10 ms)
@@ -186,17 +174,13 @@ mod tests {
             Ok(1.0)
         };
         let soon = Some(std::time::Instant::now() + std::time::Duration::from_millis(20));
-        let stopped = with_deadline(soon, || {
-            per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &slow, 2)
-        });
+        let stopped = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &slow, 2, soon);
         let e = stopped.unwrap_err().to_string();
         assert!(
             e.contains("stopped at the check's time limit") && e.contains("1 of 16 pixels"),
             "{e}"
         );
-        // the deadline is the scope's only: outside it (and with none) the same call runs
-        assert_eq!(DEADLINE.get(), None);
-        let v = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2).unwrap();
+        let v = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2, None).unwrap();
         assert_eq!(v, vec![1.0; 16]);
     }
 }

@@ -6,6 +6,7 @@
 //! (radiative transfer with σa = 0; Chandrasekhar 1960, *Radiative Transfer*, §1.5).
 
 use super::footprint::per_pixel;
+use super::footprint::Deadline;
 use crate::harness::error::CheckError;
 use crate::lights::Light;
 use crate::scattering::Bsdf;
@@ -123,6 +124,7 @@ pub fn validate_view(
     width: usize,
     height: usize,
     region: [usize; 4],
+    deadline: Deadline,
 ) -> Result<(), CheckError> {
     let white = scene
         .lights
@@ -143,7 +145,7 @@ pub fn validate_view(
     if white && scene.aggregate.shapes().len() != 1 {
         return Err("the white-furnace form needs exactly one (convex) object unless every surface is lossless: others would be lit by its reflection".into());
     }
-    per_pixel(scene, width, height, region, &|hit, d| {
+    let view = |hit: Option<&crate::geometry::Hit>, d: crate::math::Vec3| {
         let hit = hit.ok_or("a camera ray of the region escapes: the region must see only the object (white furnace) or the enclosure")?;
         if !white {
             match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
@@ -152,7 +154,8 @@ pub fn validate_view(
             }
         }
         Ok(0.0)
-    })?;
+    };
+    per_pixel(scene, width, height, region, &view, deadline)?;
     if white {
         return Ok(());
     }
@@ -214,7 +217,7 @@ mod tests {
     #[test]
     fn an_enclosure_open_or_emitting_outward_behind_the_camera_is_refused() {
         let closed = box_scene(str::to_string);
-        validate_view(&closed, 8, 8, [3, 3, 5, 5]).unwrap();
+        validate_view(&closed, 8, 8, [3, 3, 5, 5], None).unwrap();
         // negative controls: the wall behind the camera gone, or turned to emit outward; the
         // camera's own rays see neither
         let open = box_scene(|t| {
@@ -229,9 +232,10 @@ mod tests {
             8,
             [3, 3, 5, 5],
             &|h, _| Ok(h.map_or(1.0, |_| 0.0)),
+            None,
         );
         assert_eq!(escapes.unwrap(), vec![0.0; 4], "the region sees the gap");
-        let e = validate_view(&open, 8, 8, [3, 3, 5, 5])
+        let e = validate_view(&open, 8, 8, [3, 3, 5, 5], None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("the enclosure is open"), "{e}");
@@ -241,7 +245,7 @@ mod tests {
                 "corner = [0.0, 0.0, 0.0]\nedge_u = [0.0, 1.0, 0.0]\nedge_v = [1.0, 0.0, 0.0]",
             )
         });
-        let e = validate_view(&outward, 8, 8, [3, 3, 5, 5])
+        let e = validate_view(&outward, 8, 8, [3, 3, 5, 5], None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("does not emit"), "{e}");

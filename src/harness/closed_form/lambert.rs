@@ -9,6 +9,7 @@
 //! occluders.
 
 use super::footprint::per_pixel;
+use super::footprint::Deadline;
 use crate::geometry::{Hit, Shape, SurfacePoint};
 use crate::harness::error::CheckError;
 use crate::lights::Light;
@@ -169,7 +170,15 @@ pub fn expectation(
     width: usize,
     height: usize,
     region: [usize; 4],
+    deadline: Deadline,
 ) -> Result<(f64, Vec<f64>), CheckError> {
-    let px = per_pixel(scene, width, height, region, &|h, d| reflected(scene, h, d))?;
+    let px = per_pixel(
+        scene,
+        width,
+        height,
+        region,
+        &|h, d| reflected(scene, h, d),
+        deadline,
+    )?;
     Ok((px.iter().sum::<f64>() / px.len() as f64, px))
 }

@@ -6,6 +6,7 @@
 //! sum, Fresnel equations and refraction vector.
 
 use super::footprint::per_pixel_rays_n;
+use super::footprint::Deadline;
 use super::witness::Caster;
 use crate::geometry::{Ray, Shape};
 use crate::harness::error::CheckError;
@@ -244,6 +245,7 @@ pub fn expectation(
     region: [usize; 4],
     max_depth: u32,
     observer: &Observer,
+    deadline: Deadline,
 ) -> Result<[Vec<f64>; 3], CheckError> {
     if matches!(observer, Observer::Responses(_)) {
         return Err(CheckError::Setup(
@@ -269,6 +271,7 @@ pub fn expectation(
         region,
         &|ray| ray_xyz(scene, &caster, ray, max_depth, observer),
         FOOTPRINT_K,
+        deadline,
     )?;
     Ok([0, 1, 2].map(|c| px.iter().map(|v| v[c]).collect()))
 }

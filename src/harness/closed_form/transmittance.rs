@@ -5,6 +5,7 @@
 //! segments come from the closed forms' own caster and boundary rule (`witness`), not the
 //! tracer's.
 
+use super::footprint::Deadline;
 use super::footprint::{per_pixel_rays, FOOTPRINT_K};
 use super::witness;
 use crate::geometry::Ray;
@@ -116,6 +117,7 @@ pub fn expectation(
     width: usize,
     height: usize,
     region: [usize; 4],
+    deadline: Deadline,
 ) -> Result<(f64, Vec<f64>), CheckError> {
     let caster = witness::Caster::new(scene.aggregate.shapes());
     let grid = OnGrid::new(scene);
@@ -126,6 +128,7 @@ pub fn expectation(
         region,
         &|r| along(scene, &caster, &grid, r),
         FOOTPRINT_K,
+        deadline,
     )?;
     let expected = px.iter().sum::<f64>() / px.len() as f64;
     Ok((expected, px))
