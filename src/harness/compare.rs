@@ -23,6 +23,18 @@ use serde::Deserialize;
 /// Colour channels compared.
 pub const CHANNELS: [&str; 3] = ["R", "G", "B"];
 
+/// The channels (indices into [`CHANNELS`]) to test in furnace's own images of a scene: a
+/// grey scene's R, G and B are one radiance times three constants (every pixel's XYZ is L
+/// times the observer's white), so their tests are one test, G alone, lest a Šidák
+/// combination count it three times.
+pub fn tested_channels(grey: bool) -> &'static [usize] {
+    if grey {
+        &[1]
+    } else {
+        &[0, 1, 2]
+    }
+}
+
 /// A linear RGB image with optional per-pixel variance of the mean.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RgbImage {

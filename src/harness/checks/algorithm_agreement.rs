@@ -16,8 +16,8 @@
 
 use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::compare::{
-    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, whole_image,
-    RegionChoice, RgbImage, CHANNELS,
+    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, tested_channels,
+    whole_image, RegionChoice, RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -270,10 +270,11 @@ impl Kind for AlgorithmAgreement {
         let mut rs = s.clone();
         rs.seed = mix64(ctx.seed ^ 0x5241_4449_4f53_4954);
         let (test, coarse, what) = render_pair(scene, &rs, &p.algorithm, p.refine, ctx)?;
-        let mut results = Vec::with_capacity(rects.len() * 3);
+        let channels = tested_channels(scene.is_grey());
+        let mut results = Vec::with_capacity(rects.len() * channels.len());
         let (mut widest, mut capped) = (0.0f64, 0);
         for (reg, rect) in regions.iter().zip(&rects) {
-            for (c, channel) in CHANNELS.iter().enumerate() {
+            for (c, channel) in channels.iter().map(|&c| (c, CHANNELS[c])) {
                 let (t, dof) = test.region(c, *rect);
                 let (reference, ref_dof) = match (&path, &closed) {
                     (Some(path), _) => (region_mean(path, c, *rect), region_dof(path, c, *rect)),

@@ -7,8 +7,8 @@
 //! its independent runs); the check's p is the Šidák combination.
 
 use crate::harness::compare::{
-    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, whole_image,
-    RegionChoice, RgbImage, CHANNELS,
+    region_dof, region_mean, region_test, regions_measurement, runs_region_mean, tested_channels,
+    whole_image, RegionChoice, RgbImage, CHANNELS,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::region::settings_for;
@@ -118,7 +118,10 @@ impl Kind for BdptStrategies {
                 let runs: Vec<RgbImage> = films.iter().map(RgbImage::from_film).collect();
                 strategies += 1;
                 for (reg, rect) in regions.iter().zip(&rects) {
-                    for (c, channel) in CHANNELS.iter().enumerate() {
+                    for (c, channel) in tested_channels(scene.is_grey())
+                        .iter()
+                        .map(|&c| (c, CHANNELS[c]))
+                    {
                         let (test, test_dof) = runs_region_mean(&runs, c, *rect);
                         let (pm, pse) = region_mean(&path[d as usize], c, *rect);
                         let mut reference = (pm, pse);
