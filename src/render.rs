@@ -363,6 +363,15 @@ pub fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> Resu
 
 /// Checks what [`render`] and [`render_light_paths`] both need: a non-empty image, paths that
 /// end, and 1 or 4 wavelengths.
+/// Refuses, before it is allocated, state of `bytes` for `what` that cannot fit in what this
+/// process may take (with [`crate::limits::BASE_BYTES`] besides): a check's large image under
+/// a cgroup's memory.max ends as an error, not an out-of-memory abort of the whole run.
+pub(crate) fn fits_in_memory(what: &str, bytes: u64) -> Result<(), RenderError> {
+    crate::limits::memory(what, crate::limits::BASE_BYTES.saturating_add(bytes))
+        .map(|_| ())
+        .map_err(|e| RenderError::Settings(e.to_string()))
+}
+
 fn check_common(settings: &RenderSettings) -> Result<(), RenderError> {
     let (w, h) = (settings.width, settings.height);
     if w == 0 || h == 0 {
@@ -538,16 +547,17 @@ fn render_blocks(
     // the finished tiles are copied in as they finish, so the image is held once, not also as
     // a list of every tile's pixels (half the peak memory of a large render); refused by name
     // beforehand where it cannot fit (a check's large image under a cgroup's memory.max)
-    let film_bytes = ((w * h * n_pieces) as u64).saturating_mul(crate::limits::FILM_PIXEL_BYTES);
-    crate::limits::memory(
+    let film_bytes = (w as u64 * h as u64)
+        .saturating_mul(n_pieces as u64)
+        .saturating_mul(crate::limits::FILM_PIXEL_BYTES);
+    fits_in_memory(
         &if n_pieces == 1 {
             format!("a {w}x{h} film")
         } else {
             format!("a {w}x{h} film in {n_pieces} pieces")
         },
-        crate::limits::BASE_BYTES.saturating_add(film_bytes),
-    )
-    .map_err(|e| RenderError::Settings(e.to_string()))?;
+        film_bytes,
+    )?;
     let pieces = Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);

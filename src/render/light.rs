@@ -278,6 +278,10 @@ fn light_blocks<S: Sensor>(
             crate::limits::MAX_LIGHT_TRACER_BYTES >> 30
         )));
     }
+    super::fits_in_memory(
+        &format!("the light tracer's film state for a {w}x{h} image"),
+        pending.saturating_add(in_flight),
+    )?;
     let grey = settings.spectral.grey_mode && scene.is_grey();
     let response = FilmResponse::new(&settings.observer, grey, settings.spectral.wavelengths);
     let tracer = LightTracer::from(&settings.integrator);

@@ -197,6 +197,10 @@ fn sppm_core(
             MAX_BYTES >> 30
         )));
     }
+    super::fits_in_memory(
+        &format!("SPPM's per-pixel state for a {w}x{h} image"),
+        bytes,
+    )?;
     let crop = settings.crop_rect()?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     if let Some(radius) = radii

@@ -633,4 +633,22 @@ fn a_check_too_large_for_the_memory_limit_is_an_error_not_an_abort() {
         stderr_of(&out, &d)
     );
     assert!(!d.join("big.exr").exists());
+    // the other estimators' state likewise (SPPM: about 1.3 KB a pixel, past the limit here
+    // while the render's own pre-flight of its film passes)
+    std::fs::copy(
+        root("tests/manifests/scenes/furnace-box-0.5.toml"),
+        d.join("box.toml"),
+    )
+    .unwrap();
+    for integrator in ["sppm", "light"] {
+        let out = limited(&format!(
+            "render box.toml --integrator {integrator} --width 1024 --height 1024 --spp 1 --out big.exr"
+        ));
+        let e = stderr_of(&out, &d);
+        assert_eq!(out.status.code(), Some(2), "{integrator}: {e}");
+        assert!(
+            e.contains("memory") && e.contains("1024x1024"),
+            "{integrator}: {e}"
+        );
+    }
 }
