@@ -116,6 +116,9 @@ pub fn scene_fingerprint(scene: &Scene) -> String {
         media,
         medium_names,
         shape_media,
+        // where the scene's files were is not what it is: the same scene from another folder
+        // gets the same fingerprint
+        files: _,
     } = scene;
     let mut h = crate::math::Fnv1a::default();
     for shape in aggregate.shapes() {

@@ -1,10 +1,10 @@
 //! `furnace export`: a scene in another renderer's format.
 
-use super::{write_file, Failure};
+use super::Failure;
 use anyhow::Context;
 use clap::Args;
 use furnace::scene::Scene;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 #[derive(Debug, Args)]
 // a negative number is a value (refused by its parser), not an unknown option
@@ -24,19 +24,31 @@ pub struct ExportArgs {
 pub fn run(a: ExportArgs) -> Result<i32, Failure> {
     let scene =
         Scene::load(&a.scene).with_context(|| format!("invalid scene {}", a.scene.display()))?;
-    let written = if a.format == "pbrt-v4" {
-        std::fs::create_dir_all(&a.out)
-            .with_context(|| format!("cannot create {}", a.out.display()))?;
-        let p = a.out.join("scene.pbrt");
-        write_file(&p, &furnace::export::pbrt::export(&scene, "image.exr")?)?;
-        p
-    } else if a.format == "json" {
-        furnace::export::json::write(&scene, &a.out)
-            .with_context(|| format!("cannot export {}", a.scene.display()))?
-    } else {
-        furnace::export::mitsuba::write(&scene, &a.out)
-            .with_context(|| format!("cannot export {}", a.scene.display()))?
+    let exported = match a.format.as_str() {
+        "pbrt-v4" => furnace::export::pbrt::export(&scene, "image.exr")
+            .map(|text| vec![(PathBuf::from("scene.pbrt"), text.into_bytes())]),
+        "json" => furnace::export::json::files(&scene),
+        _ => furnace::export::mitsuba::files(&scene),
     };
+    let files = exported.with_context(|| format!("cannot export {}", a.scene.display()))?;
+    // nothing the export writes may be the scene or a file it reads (an --out in the scene's
+    // own folder could otherwise replace its meshes), and every output must be writable,
+    // before anything is written
+    let outputs: Vec<PathBuf> = files.iter().map(|(rel, _)| a.out.join(rel)).collect();
+    let mut inputs = vec![("the scene", a.scene.as_path())];
+    inputs.extend(
+        scene
+            .files
+            .iter()
+            .map(|f| ("a file the scene reads", f.as_path())),
+    );
+    let outputs: Vec<(&str, &Path)> = outputs
+        .iter()
+        .map(|p| ("an exported file", p.as_path()))
+        .collect();
+    super::distinct_paths(&inputs, &outputs)?;
+    let written = furnace::export::write_files(&a.out, &files)
+        .with_context(|| format!("cannot export {}", a.scene.display()))?;
     super::say!("wrote {}", written.display());
     Ok(0)
 }

@@ -217,8 +217,15 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .into());
     }
     let png_path = super::preview_path(&exr_path, a.png.as_deref(), shard.is_none())?;
+    let mut inputs = vec![("the scene", a.scene.as_path())];
+    inputs.extend(
+        scene
+            .files
+            .iter()
+            .map(|f| ("a file the scene reads", f.as_path())),
+    );
     super::distinct_paths(
-        &[("the scene", &a.scene)],
+        &inputs,
         &[("--out", &exr_path), ("the PNG preview", &png_path)],
     )?;
     furnace::limits::image(settings.width as u64, settings.height as u64)

@@ -247,16 +247,13 @@ pub fn export(scene: &Scene) -> Result<Value, ExportError> {
 
 /// Exports `scene` into `dir` as `scene.json`; returns its path.
 pub fn write(scene: &Scene, dir: &Path) -> Result<PathBuf, ExportError> {
-    let value = export(scene)?;
-    let path = dir.join("scene.json");
-    let io = |source| ExportError::Io {
-        path: path.clone(),
-        source,
-    };
-    std::fs::create_dir_all(dir).map_err(io)?;
-    let text = serde_json::to_string(&value).expect("a JSON value serialises");
-    std::fs::write(&path, text).map_err(io)?;
-    Ok(path)
+    super::write_files(dir, &files(scene)?)
+}
+
+/// The file of [`write`]: `scene.json`.
+pub fn files(scene: &Scene) -> Result<super::Files, ExportError> {
+    let text = serde_json::to_string(&export(scene)?).expect("a JSON value serialises");
+    Ok(vec![(PathBuf::from("scene.json"), text.into_bytes())])
 }
 
 #[cfg(test)]

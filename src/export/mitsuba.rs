@@ -140,20 +140,19 @@ pub fn export(scene: &Scene) -> Result<MitsubaScene, ExportError> {
 
 /// Exports `scene` into `dir` as `scene.xml` plus `meshes/*.ply`; returns the XML's path.
 pub fn write(scene: &Scene, dir: &Path) -> Result<PathBuf, ExportError> {
+    super::write_files(dir, &files(scene)?)
+}
+
+/// The files of [`write`]: `scene.xml`, then `meshes/*.ply`.
+pub fn files(scene: &Scene) -> Result<super::Files, ExportError> {
     let out = export(scene)?;
-    let io = |path: &Path| {
-        let path = path.to_path_buf();
-        move |source| ExportError::Io { path, source }
-    };
-    let mesh_dir = dir.join("meshes");
-    std::fs::create_dir_all(&mesh_dir).map_err(io(&mesh_dir))?;
-    for (rel, bytes) in &out.meshes {
-        let p = dir.join(rel);
-        std::fs::write(&p, bytes).map_err(io(&p))?;
-    }
-    let xml = dir.join("scene.xml");
-    std::fs::write(&xml, &out.xml).map_err(io(&xml))?;
-    Ok(xml)
+    let mut files = vec![(PathBuf::from("scene.xml"), out.xml.into_bytes())];
+    files.extend(
+        out.meshes
+            .into_iter()
+            .map(|(rel, bytes)| (PathBuf::from(rel), bytes)),
+    );
+    Ok(files)
 }
 
 fn sensor(x: &mut String, scene: &Scene) {

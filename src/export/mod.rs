@@ -32,6 +32,31 @@ fn table_pairs(wavelengths: &[f64], values: &[f64], outside: Outside) -> Vec<(f6
     pairs
 }
 
+/// An export's files: (path relative to the output folder, contents), the scene file first.
+pub type Files = Vec<(std::path::PathBuf, Vec<u8>)>;
+
+/// Writes `files` under `dir` (created), each through a temporary file renamed over it
+/// ([`crate::io::write_atomic`]: a failed write leaves the old file whole, and a link or a
+/// pipe under an output's name is refused, not written through); returns the scene file's
+/// path. A failure part way leaves the files before it written and the rest as they were.
+pub fn write_files(
+    dir: &std::path::Path,
+    files: &Files,
+) -> Result<std::path::PathBuf, ExportError> {
+    for (rel, bytes) in files {
+        let path = dir.join(rel);
+        let io = |source| ExportError::Io {
+            path: path.clone(),
+            source,
+        };
+        if let Some(parent) = path.parent() {
+            std::fs::create_dir_all(parent).map_err(io)?;
+        }
+        crate::io::write_atomic(&path, |tmp| std::fs::write(tmp, bytes)).map_err(io)?;
+    }
+    Ok(dir.join(files.first().map_or(std::path::Path::new(""), |f| &f.0)))
+}
+
 /// Why a scene could not be exported.
 #[derive(Debug, thiserror::Error)]
 pub enum ExportError {

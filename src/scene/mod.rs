@@ -109,6 +109,9 @@ pub struct Scene {
     pub medium_names: Vec<String>,
     /// Per shape: the media it separates, if it bounds any.
     pub shape_media: Vec<Option<MediumBoundary>>,
+    /// The files the scene read besides its own text (meshes, CSV tables), as joined to its
+    /// folder: inputs an output must not overwrite.
+    pub files: Vec<PathBuf>,
 }
 
 /// The media on the two sides of a shape that bounds media (None: vacuum on that side).
@@ -224,6 +227,7 @@ impl Scene {
             media,
             medium_names: self.medium_names.clone(),
             shape_media: self.shape_media.clone(),
+            files: self.files.clone(),
         }
     }
 
@@ -259,6 +263,7 @@ impl Scene {
             base: src.path.parent().map(Path::to_path_buf).unwrap_or_default(),
             src,
             whole,
+            read: Default::default(),
         }
         .build(desc)
     }
@@ -272,6 +277,8 @@ struct Builder<'a> {
     base: PathBuf,
     /// Where errors about the whole scene point (0..0: the file's start).
     whole: Range<usize>,
+    /// The files read so far (meshes, CSV tables), for [`Scene::files`].
+    read: std::cell::RefCell<Vec<PathBuf>>,
 }
 
 const SHAPE_COMMON: [&str; 7] = [
@@ -316,7 +323,7 @@ impl Builder<'_> {
                 ))
             }
         };
-        let parser = SpectrumParser::new(self.src, &self.base, &desc.spectra)?;
+        let parser = SpectrumParser::new(self.src, &self.read, &self.base, &desc.spectra)?;
         let mut media = Vec::new();
         let mut medium_names = Vec::new();
         for (name, m) in &desc.media {
@@ -460,6 +467,7 @@ impl Builder<'_> {
             media,
             medium_names,
             shape_media,
+            files: self.read.take(),
         };
         if let (Some(m), Some(span)) = (
             scene.camera.medium,
@@ -1169,6 +1177,7 @@ impl Builder<'_> {
             _ => {
                 let f = self.required(&d.file, s.span(), &format!("{key}.file"), &need("file"))?;
                 let path = self.base.join(f.get_ref());
+                self.read.borrow_mut().push(path.clone());
                 let data = crate::io::mesh::load_mesh(&path)
                     .map_err(|e| self.err(f.span(), format!("{key}.file"), e.to_string()))?;
                 let positions: Vec<Vec3> = data

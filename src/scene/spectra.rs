@@ -4,6 +4,7 @@
 
 use crate::io::located::{SceneError, Source};
 use crate::spectrum::{curve::SpectrumError, Outside, Spectrum, LAMBDA_MAX, LAMBDA_MIN};
+use std::cell::RefCell;
 use std::collections::BTreeMap;
 use std::ops::Range;
 use std::path::{Path, PathBuf};
@@ -39,12 +40,15 @@ pub struct SpectrumParser<'a> {
     src: Source<'a>,
     base: PathBuf,
     named: BTreeMap<String, Spectrum>,
+    /// Where the CSV tables read are noted.
+    read: &'a RefCell<Vec<PathBuf>>,
 }
 
 impl<'a> SpectrumParser<'a> {
     /// Parses the `[spectra]` table (names may not refer to other names).
     pub fn new(
         src: Source<'a>,
+        read: &'a RefCell<Vec<PathBuf>>,
         base: &Path,
         table: &BTreeMap<String, Spanned<Value>>,
     ) -> Result<Self, SceneError> {
@@ -52,6 +56,7 @@ impl<'a> SpectrumParser<'a> {
             src,
             base: base.to_path_buf(),
             named: BTreeMap::new(),
+            read,
         };
         for (name, v) in table {
             let key = format!("spectra.{name}");
@@ -230,6 +235,7 @@ impl<'a> SpectrumParser<'a> {
         key: &str,
     ) -> Result<(Vec<f64>, Vec<f64>), SceneError> {
         let path = self.base.join(file);
+        self.read.borrow_mut().push(path.clone());
         let (line, col) = self.src.line_column(span.start);
         let from = format!(
             "(referenced by {key} at {}:{line}:{col})",

@@ -652,3 +652,122 @@ fn a_check_too_large_for_the_memory_limit_is_an_error_not_an_abort() {
         );
     }
 }
+
+/// `furnace export` and `furnace render` never write over their inputs (the scene, its meshes
+/// and CSV tables) nor through a link someone left under an output's name, and a failed write
+/// leaves the previous export whole.
+#[cfg(unix)]
+#[test]
+fn exports_and_renders_never_overwrite_inputs_links_or_a_whole_file() {
+    let d = tmp("export-inputs");
+    // a scene that reads its mesh from where a Mitsuba export would write meshes/shape-001.ply
+    std::fs::create_dir_all(d.join("meshes")).unwrap();
+    std::fs::copy(
+        root("scenes/meshes/octasphere.obj"),
+        d.join("meshes/shape-001.obj"),
+    )
+    .unwrap();
+    let text = std::fs::read_to_string(root("scenes/mesh-test.toml"))
+        .unwrap()
+        .replace("meshes/octasphere.obj", "meshes/shape-001.ply");
+    std::fs::write(d.join("scene.toml"), &text).unwrap();
+    // (its mesh as PLY: exported once elsewhere, then copied in)
+    let elsewhere = d.join("elsewhere");
+    let ok = furnace(&d, &["export", "scene.toml", "--out", "elsewhere"]);
+    assert_eq!(ok.status.code(), Some(2), "the PLY is not there yet");
+    std::fs::write(
+        d.join("scene-obj.toml"),
+        text.replace("meshes/shape-001.ply", "meshes/shape-001.obj"),
+    )
+    .unwrap();
+    let ok = furnace(&d, &["export", "scene-obj.toml", "--out", "elsewhere"]);
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr_of(&ok, &d));
+    std::fs::copy(
+        elsewhere.join("meshes/shape-001.ply"),
+        d.join("meshes/shape-001.ply"),
+    )
+    .unwrap();
+    let mesh = std::fs::read(d.join("meshes/shape-001.ply")).unwrap();
+    let out = furnace(&d, &["export", "scene.toml", "--out", "."]);
+    let e = stderr_of(&out, &d);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("a file the scene reads"), "{e}");
+    assert_eq!(std::fs::read(d.join("meshes/shape-001.ply")).unwrap(), mesh);
+    assert!(!d.join("scene.xml").exists(), "nothing written");
+    // the scene itself, as scene.json
+    std::fs::copy(d.join("scene-obj.toml"), d.join("scene.json")).unwrap();
+    let out = furnace(
+        &d,
+        &["export", "scene.json", "--format", "json", "--out", "."],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    assert!(stderr_of(&out, &d).contains("the scene"));
+    // render's outputs likewise
+    let out = furnace(
+        &d,
+        &[
+            "render",
+            "scene-obj.toml",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "2",
+            "-q",
+            "-o",
+            "meshes/shape-001.obj",
+            "--png",
+            "p.png",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    assert_eq!(
+        std::fs::read(d.join("meshes/shape-001.obj")).unwrap(),
+        std::fs::read(root("scenes/meshes/octasphere.obj")).unwrap()
+    );
+    // a link under an exported file's name is refused, and what it points to kept
+    for (format, name) in [
+        ("mitsuba3", "scene.xml"),
+        ("json", "scene.json"),
+        ("pbrt-v4", "scene.pbrt"),
+    ] {
+        let dir = d.join(format!("linked-{format}"));
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(d.join("victim.txt"), "precious").unwrap();
+        std::os::unix::fs::symlink(d.join("victim.txt"), dir.join(name)).unwrap();
+        let out = furnace(
+            &d,
+            &[
+                "export",
+                "scene-obj.toml",
+                "--format",
+                format,
+                "--out",
+                dir.to_str().unwrap(),
+            ],
+        );
+        assert_eq!(
+            out.status.code(),
+            Some(2),
+            "{format}: {}",
+            stderr_of(&out, &d)
+        );
+        assert!(stderr_of(&out, &d).contains("symbolic link"), "{format}");
+        assert_eq!(
+            std::fs::read_to_string(d.join("victim.txt")).unwrap(),
+            "precious"
+        );
+    }
+    // a write that fails (file size limit) leaves the previous export whole
+    let before = std::fs::read(elsewhere.join("scene.xml")).unwrap();
+    let out = Command::new("sh")
+        .current_dir(&d)
+        .arg("-c")
+        .arg("trap '' XFSZ; ulimit -f 1 && exec \"$0\" export scene.toml --out elsewhere")
+        .arg(env!("CARGO_BIN_EXE_furnace"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    assert_eq!(std::fs::read(elsewhere.join("scene.xml")).unwrap(), before);
+}
