@@ -32,34 +32,11 @@ struct InlineScenes {
     check: Vec<InlineScene>,
 }
 
-/// A check table seen only for its `scene` (None: a path, or no scene).
-struct InlineScene(Option<SceneDesc>);
-
-impl<'de> Deserialize<'de> for InlineScene {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct CheckTable;
-        impl<'de> serde::de::Visitor<'de> for CheckTable {
-            type Value = InlineScene;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a check table")
-            }
-            fn visit_map<A: serde::de::MapAccess<'de>>(
-                self,
-                mut m: A,
-            ) -> Result<InlineScene, A::Error> {
-                let mut scene = None;
-                while let Some(key) = m.next_key::<String>()? {
-                    if key == "scene" {
-                        scene = m.next_value::<SceneOrPath>()?.0;
-                    } else {
-                        m.next_value::<serde::de::IgnoredAny>()?;
-                    }
-                }
-                Ok(InlineScene(scene))
-            }
-        }
-        d.deserialize_map(CheckTable)
-    }
+/// A check table seen only for its `scene` (its other keys are read elsewhere).
+#[derive(Deserialize)]
+struct InlineScene {
+    #[serde(default)]
+    scene: Option<SceneOrPath>,
 }
 
 /// A check's `scene` value: an inline table's description, or None for a path.
@@ -88,16 +65,45 @@ impl<'de> Deserialize<'de> for SceneOrPath {
     }
 }
 
-/// The inline scene of check `index`, validated with the manifest's text as its source.
-fn inline_scene(src: &Source, index: usize, whole: Range<usize>) -> Result<Scene, ManifestError> {
-    let mut all: InlineScenes = crate::io::parse_toml(src)?;
-    match all.check.get_mut(index).and_then(|c| c.0.take()) {
-        Some(desc) => Scene::from_desc(desc, *src, whole),
-        None => Err(src.error(
-            0..0,
-            "scene",
-            format!("check {index} has no inline scene table"),
-        )),
+/// The inline scene tables of every check (None: a path or no scene), deserialized once from
+/// the manifest's own text so that their errors name its lines, the key prefixed with the
+/// check's (`check[1].scene.camera`). Empty when no check has one.
+fn inline_scenes(
+    src: &Source,
+    checks: &[Spanned<Table>],
+) -> Result<Vec<Option<SceneDesc>>, ManifestError> {
+    let inline = |c: &Spanned<Table>| {
+        matches!(
+            c.get_ref().get("scene").map(|v| v.get_ref()),
+            Some(Value::Table(_))
+        )
+    };
+    if !checks.iter().any(inline) {
+        return Ok(Vec::new());
+    }
+    let all: InlineScenes = crate::io::parse_toml(src).map_err(|mut e| {
+        // the check whose table holds the error: the last one starting on or before its line
+        if let Some(i) = checks
+            .iter()
+            .rposition(|c| src.line_column(c.span().start).0 <= e.line)
+        {
+            e.key = scene_key(i, &e.key);
+        }
+        e
+    })?;
+    Ok(all
+        .check
+        .into_iter()
+        .map(|c| c.scene.and_then(|s| s.0))
+        .collect())
+}
+
+/// The key of `key` inside check `index`'s inline scene.
+fn scene_key(index: usize, key: &str) -> String {
+    if key.is_empty() {
+        format!("check[{index}].scene")
+    } else {
+        format!("check[{index}].scene.{key}")
     }
 }
 
@@ -111,13 +117,15 @@ pub fn load(path: &Path) -> Result<Vec<Check>, ManifestError> {
 pub fn parse(text: &str, path: &Path) -> Result<Vec<Check>, ManifestError> {
     let src = Source { path, text };
     let desc: ManifestDesc = crate::io::parse_toml(&src)?;
+    let mut inline = inline_scenes(&src, &desc.check)?;
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut out: Vec<Check> = Vec::new();
     let mut seen = std::collections::BTreeSet::new();
     // every expanded check holds its own scene: bound their primitives together
     let mut primitives: u64 = 0;
     for (i, c) in desc.check.iter().enumerate() {
-        let expanded = expand_check(&src, &base, i, c)?;
+        let scene = inline.get_mut(i).and_then(Option::take);
+        let expanded = expand_check(&src, &base, i, c, scene)?;
         if out.len() + expanded.len() > crate::limits::MAX_CHECKS {
             return Err(src.error(
                 c.span(),
@@ -205,6 +213,7 @@ fn expand_check(
     base: &Path,
     index: usize,
     c: &Spanned<Table>,
+    mut inline: Option<SceneDesc>,
 ) -> Result<Vec<Check>, ManifestError> {
     let table = c.get_ref();
     let at = format!("check[{index}]");
@@ -396,7 +405,19 @@ fn expand_check(
                     .map_err(|m| err(scene.span(), "scene", format!("{}: {m}", p.display())))?;
                 Scene::parse(&text, &p)?
             }
-            Value::Table(_) => inline_scene(src, index, scene.span())?,
+            Value::Table(_) => {
+                let desc = inline.take().ok_or_else(|| {
+                    err(
+                        scene.span(),
+                        "scene",
+                        "an inline scene is read once per check".into(),
+                    )
+                })?;
+                Scene::from_desc(desc, *src, scene.span()).map_err(|mut e| {
+                    e.key = scene_key(index, &e.key);
+                    e
+                })?
+            }
             other => {
                 return Err(err(
                     scene.span(),
