@@ -364,17 +364,27 @@ pub fn in_pool<R: Send>(threads: usize, work: impl FnOnce() -> R + Send) -> Resu
         .install(work))
 }
 
-/// Checks what [`render`] and [`render_light_paths`] both need: a non-empty image, paths that
-/// end, and 1 or 4 wavelengths.
 /// Refuses, before it is allocated, state of `bytes` for `what` that cannot fit in what this
 /// process may take (with [`crate::limits::BASE_BYTES`] besides): a check's large image under
-/// a cgroup's memory.max ends as an error, not an out-of-memory abort of the whole run.
-pub(crate) fn fits_in_memory(what: &str, bytes: u64) -> Result<(), RenderError> {
+/// a cgroup's memory.max ends as an error, not an out-of-memory abort of the whole run. The
+/// guard holds the process's one allocation lock: keep it until the state is allocated, and
+/// a render side by side (another check) sees that state in the address space and the
+/// cgroup's usage when it looks.
+pub(crate) fn fits_in_memory(
+    what: &str,
+    bytes: u64,
+) -> Result<std::sync::MutexGuard<'static, ()>, RenderError> {
+    static ALLOCATING: Mutex<()> = Mutex::new(());
+    let guard = ALLOCATING
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner);
     crate::limits::memory(what, crate::limits::BASE_BYTES.saturating_add(bytes))
-        .map(|_| ())
-        .map_err(|e| RenderError::Settings(e.to_string()))
+        .map_err(|e| RenderError::Settings(e.to_string()))?;
+    Ok(guard)
 }
 
+/// Checks what [`render`] and [`render_light_paths`] both need: a non-empty image, paths that
+/// end, and 1 or 4 wavelengths.
 fn check_common(settings: &RenderSettings) -> Result<(), RenderError> {
     let (w, h) = (settings.width, settings.height);
     if w == 0 || h == 0 {
@@ -553,7 +563,7 @@ fn render_blocks(
     let film_bytes = (w as u64 * h as u64)
         .saturating_mul(n_pieces as u64)
         .saturating_mul(crate::limits::FILM_PIXEL_BYTES);
-    fits_in_memory(
+    let allocating = fits_in_memory(
         &if n_pieces == 1 {
             format!("a {w}x{h} film")
         } else {
@@ -562,6 +572,7 @@ fn render_blocks(
         film_bytes,
     )?;
     let pieces = Mutex::new(vec![vec![Pixel::default(); w * h]; n_pieces]);
+    drop(allocating);
     let done = AtomicU64::new(0);
     let truncated = AtomicU64::new(0);
     let out_of_time = AtomicBool::new(false);

@@ -50,15 +50,22 @@ pub fn render_bdpt_runs(
         )));
     }
     check_common(settings)?;
-    let bytes = (w as u64 * h as u64).saturating_mul(BYTES_PER_PIXEL);
+    // one run's splat images, and every finished run's film until all are returned
+    let bytes = (w as u64 * h as u64).saturating_mul(
+        BYTES_PER_PIXEL.saturating_add(runs.saturating_mul(crate::limits::FILM_PIXEL_BYTES)),
+    );
     if bytes > MAX_BYTES {
         return Err(RenderError::Settings(format!(
-            "BDPT would hold {:.1} GiB of splat images for a {w}x{h} image; the limit is {} GiB: render a smaller image",
+            "BDPT would hold {:.1} GiB of splat images and run films for a {w}x{h} image; the limit is {} GiB: render a smaller image",
             bytes as f64 / (1u64 << 30) as f64,
             MAX_BYTES >> 30
         )));
     }
-    super::fits_in_memory(&format!("BDPT's splat images for a {w}x{h} image"), bytes)?;
+    // (the state grows during the render: checked against what the process may take now)
+    drop(super::fits_in_memory(
+        &format!("BDPT's splat images and run films for a {w}x{h} image"),
+        bytes,
+    )?);
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let setup = Setup::new(scene, camera, w, h);
     let grey = settings.spectral.grey_mode && scene.is_grey();

@@ -269,19 +269,30 @@ fn light_blocks<S: Sensor>(
     let node = std::mem::size_of::<Pixel>() as u64 * pixels;
     let in_flight = (std::mem::size_of::<[f64; 24]>() as u64 * pixels).saturating_add(node);
     let pending = node.saturating_mul(CHUNKS.trailing_zeros() as u64 + 1);
-    let max_batch =
-        crate::limits::MAX_LIGHT_TRACER_BYTES.saturating_sub(pending) / in_flight.max(1);
+    // as many chunks in flight as fit in the cap, or in what this process may take where
+    // that is less (the batch width never changes the result)
+    let room = crate::limits::memory_room()
+        .hard
+        .map(|h| h.saturating_sub(crate::limits::BASE_BYTES));
+    let cap = room.map_or(crate::limits::MAX_LIGHT_TRACER_BYTES, |r| {
+        r.min(crate::limits::MAX_LIGHT_TRACER_BYTES)
+    });
+    let max_batch = cap.saturating_sub(pending) / in_flight.max(1);
     if max_batch == 0 {
+        let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
+        let over = if cap < crate::limits::MAX_LIGHT_TRACER_BYTES {
+            format!("the {:.1} GiB of memory this process may take (its address-space limit, its cgroup's memory.max, or the machine's memory and swap)", gib(cap))
+        } else {
+            format!(
+                "the light tracer's {} GiB (limits::MAX_LIGHT_TRACER_BYTES)",
+                crate::limits::MAX_LIGHT_TRACER_BYTES >> 30
+            )
+        };
         return Err(RenderError::Settings(format!(
-            "a {w}x{h} light-traced image needs {:.1} GiB of film state, over the light tracer's {} GiB (limits::MAX_LIGHT_TRACER_BYTES): render fewer pixels or use the path tracer",
-            (pending + in_flight) as f64 / (1u64 << 30) as f64,
-            crate::limits::MAX_LIGHT_TRACER_BYTES >> 30
+            "a {w}x{h} light-traced image needs {:.1} GiB of film state, over {over}: render fewer pixels or use the path tracer",
+            gib(pending + in_flight)
         )));
     }
-    super::fits_in_memory(
-        &format!("the light tracer's film state for a {w}x{h} image"),
-        pending.saturating_add(in_flight),
-    )?;
     let grey = settings.spectral.grey_mode && scene.is_grey();
     let response = FilmResponse::new(&settings.observer, grey, settings.spectral.wavelengths);
     let tracer = LightTracer::from(&settings.integrator);

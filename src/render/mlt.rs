@@ -122,7 +122,11 @@ pub fn render_mlt_chains(
             MAX_BYTES >> 30
         )));
     }
-    super::fits_in_memory(&format!("MLT's chain images for a {w}x{h} image"), bytes)?;
+    // (the state grows during the render: checked against what the process may take now)
+    drop(super::fits_in_memory(
+        &format!("MLT's chain images for a {w}x{h} image"),
+        bytes,
+    )?);
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let setup = Setup::new(scene, camera, w, h);
     let grey = settings.spectral.grey_mode && scene.is_grey();

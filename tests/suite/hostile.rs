@@ -640,14 +640,21 @@ fn a_check_too_large_for_the_memory_limit_is_an_error_not_an_abort() {
         d.join("box.toml"),
     )
     .unwrap();
-    for integrator in ["sppm", "light"] {
+    let sizes = [
+        ("sppm", 1024),
+        ("light", 1024),
+        ("bdpt", 2048),
+        ("mlt", 1024),
+    ];
+    for (integrator, width) in sizes {
         let out = limited(&format!(
-            "render box.toml --integrator {integrator} --width 1024 --height 1024 --spp 1 --out big.exr"
+            "render box.toml --integrator {integrator} --width {width} --height 1024 --spp 4 --out big.exr"
         ));
         let e = stderr_of(&out, &d);
         assert_eq!(out.status.code(), Some(2), "{integrator}: {e}");
+        let size = format!("{width}x1024");
         assert!(
-            e.contains("memory") && e.contains("1024x1024"),
+            e.contains("memory") && e.contains(&size),
             "{integrator}: {e}"
         );
     }
