@@ -251,7 +251,14 @@ impl Kind for AlgorithmAgreement {
         // that of a flat spectrum of that radiance: grey-scene furnaces only)
         let (path, closed) = if p.closed_form {
             let (e, what) = expectation(scene, s.integrator.max_depth)?;
-            validate_view(scene, w, h, [0, 0, w, h], ctx.deadline)?;
+            validate_view(
+                scene,
+                w,
+                h,
+                [0, 0, w, h],
+                s.integrator.max_depth,
+                ctx.deadline,
+            )?;
             let white = s.observer.white();
             let rgb = s
                 .observer

@@ -49,7 +49,7 @@ impl Kind for Furnace {
         let (expected, what) = expectation(scene, max_depth)?;
         let s = settings_for(check, scene, ctx, ctx.seed, max_depth, Strategy::Mis);
         let region = region_of(check, &s)?;
-        validate_view(scene, s.width, s.height, region, ctx.deadline)?;
+        validate_view(scene, s.width, s.height, region, max_depth, ctx.deadline)?;
         let what = format!("{what}; path tracer, {} spp", s.spp);
         if scene.is_grey() {
             let r = render_region(ctx, scene, &s, region, None, diagnosis_alpha(ctx, 1))?;

@@ -55,7 +55,7 @@ impl Kind for RadiosityFurnace {
         let (expected, what) = expectation(scene, None)?;
         let s = settings_for(check, scene, ctx, ctx.seed, None, Strategy::Mis);
         let region = region_of(check, &s)?;
-        validate_view(scene, s.width, s.height, region, ctx.deadline)?;
+        validate_view(scene, s.width, s.height, region, None, ctx.deadline)?;
         let rs = RadiositySettings {
             patch_size: p.patch_size,
             ..Default::default()

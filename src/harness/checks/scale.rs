@@ -187,6 +187,7 @@ impl Kind for ScaleInvariance {
                             settings.width,
                             settings.height,
                             region,
+                            max_depth,
                             ctx.deadline,
                         )?;
                         let (e, w) = furnace_expectation(&scene, max_depth)?;

@@ -118,12 +118,14 @@ pub fn expectation(scene: &Scene, max_depth: Option<u32>) -> Result<(f64, String
 
 /// Checks that the region sees what the closed form assumes: in the white-furnace form every
 /// camera ray of the region hits the (single) object, unless every surface is lossless; in the enclosure form every ray hits a
-/// surface whose emission faces the camera (no escaping rays, no back of a one-sided emitter).
+/// surface whose emission faces the camera (no escaping rays, no back of a one-sided emitter),
+/// and the enclosure is closed where light bounces (`max_depth`: the check's cap).
 pub fn validate_view(
     scene: &Scene,
     width: usize,
     height: usize,
     region: [usize; 4],
+    max_depth: Option<u32>,
     deadline: Deadline,
 ) -> Result<(), CheckError> {
     let white = scene
@@ -159,28 +161,44 @@ pub fn validate_view(
     if white {
         return Ok(());
     }
-    enclosed(scene)
+    enclosed(scene, (width, height, region), max_depth, deadline)
 }
 
-/// Directions probed from the camera, and from the middle of each probe ray, by [`enclosed`].
-const PROBES: usize = 256;
-const PROBES_FROM_MIDDLES: usize = 64;
+/// Camera rays per side of the region whose middles [`enclosed`] probes from.
+const MIDDLES: usize = 4;
 
-/// Checks that the enclosure is closed around the camera: rays in [`PROBES`] directions from
-/// the camera, and in [`PROBES_FROM_MIDDLES`] directions from the middle of each (free space
-/// inside), all meet a surface that emits towards them. A gap the camera's own rays miss (an
-/// open wall behind it) lets light leave: the scene reads less than the closed form, and the
-/// check would fail for a reason that is not the renderer's. The probes use the closed forms'
-/// own caster, not the renderer's intersection code.
-fn enclosed(scene: &Scene) -> Result<(), CheckError> {
-    use crate::math::warp::fibonacci_sphere;
+/// Directions probed from each middle by [`enclosed`].
+const PROBES: usize = 512;
+
+/// Checks that the enclosure is closed: from the middle of each of [`MIDDLES`]² camera rays
+/// spread over the region (free space inside, whether or not the camera sits on a wall), rays
+/// in [`PROBES`] directions all meet a surface that emits towards them. A gap the camera's own
+/// rays miss (an open wall behind it) lets light leave: the scene reads less than the closed
+/// form, and the check would fail for a reason that is not the renderer's. Where no light
+/// bounces (`max_depth` 0, albedo 0) the closed form is E either way and nothing is probed.
+/// The probes use the closed forms' own camera and caster, not the renderer's code, and stop
+/// at `deadline`.
+fn enclosed(
+    scene: &Scene,
+    (width, height, region): (usize, usize, [usize; 4]),
+    max_depth: Option<u32>,
+    deadline: Deadline,
+) -> Result<(), CheckError> {
+    use crate::math::{warp::fibonacci_sphere, Vec3};
+    let black = scene
+        .bsdfs
+        .iter()
+        .all(|b| matches!(b, Bsdf::Diffuse(l) if l.reflectance == Spectrum::Constant(0.0)));
+    if max_depth == Some(0) || black {
+        return Ok(());
+    }
+    let eye = super::witness::Eye::new(&scene.camera, width, height).map_err(CheckError::Setup)?;
     let caster = super::witness::Caster::new(scene.aggregate.shapes());
-    let o = scene.camera.position;
-    let probe = |o: crate::math::Vec3, d: crate::math::Vec3| -> Result<f64, CheckError> {
-        let v = |a: crate::math::Vec3| format!("[{:.3}, {:.3}, {:.3}]", a.x, a.y, a.z);
+    let v = |a: Vec3| format!("[{:.3}, {:.3}, {:.3}]", a.x, a.y, a.z);
+    let probe = |o: Vec3, d: Vec3| -> Result<f64, CheckError> {
         let ray = crate::geometry::Ray { o, d };
         let Some(hit) = caster.nearest_hit(&ray) else {
-            return Err(format!("the enclosure is open: the ray from {} towards {} meets no surface, so light leaves and the scene reads less than the closed form; close the enclosure around the camera", v(o), v(d)).into());
+            return Err(format!("the enclosure is open: the ray from {} towards {} meets no surface, so light leaves and the scene reads less than the closed form; close the enclosure", v(o), v(d)).into());
         };
         match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
             Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {
@@ -189,11 +207,18 @@ fn enclosed(scene: &Scene) -> Result<(), CheckError> {
             _ => Err(format!("the ray from {} towards {} meets shape[{}] on a side that does not emit: every surface the enclosure's inside sees must emit towards it (emitting inward, with the camera inside)", v(o), v(d), hit.shape).into()),
         }
     };
-    for i in 0..PROBES {
-        let d = fibonacci_sphere(i, PROBES);
-        let middle = o + d * (0.5 * probe(o, d)?);
-        for j in 0..PROBES_FROM_MIDDLES {
-            probe(middle, fibonacci_sphere(j, PROBES_FROM_MIDDLES))?;
+    let [x0, y0, x1, y1] = region.map(|c| c as f64);
+    for j in 0..MIDDLES {
+        for i in 0..MIDDLES {
+            if deadline.is_some_and(|d| std::time::Instant::now() >= d) {
+                return Err(CheckError::Setup("the check's time limit passed while its scene was probed for a closed enclosure: give it a larger time_limit".into()));
+            }
+            let f = |k: usize| (k as f64 + 0.5) / MIDDLES as f64;
+            let ray = eye.ray(x0 + (x1 - x0) * f(i), y0 + (y1 - y0) * f(j));
+            let middle = ray.o + ray.d * (0.5 * probe(ray.o, ray.d)?);
+            for k in 0..PROBES {
+                probe(middle, fibonacci_sphere(k, PROBES))?;
+            }
         }
     }
     Ok(())
@@ -217,7 +242,7 @@ mod tests {
     #[test]
     fn an_enclosure_open_or_emitting_outward_behind_the_camera_is_refused() {
         let closed = box_scene(str::to_string);
-        validate_view(&closed, 8, 8, [3, 3, 5, 5], None).unwrap();
+        validate_view(&closed, 8, 8, [3, 3, 5, 5], None, None).unwrap();
         // negative controls: the wall behind the camera gone, or turned to emit outward; the
         // camera's own rays see neither
         let open = box_scene(|t| {
@@ -235,7 +260,7 @@ mod tests {
             None,
         );
         assert_eq!(escapes.unwrap(), vec![0.0; 4], "the region sees the gap");
-        let e = validate_view(&open, 8, 8, [3, 3, 5, 5], None)
+        let e = validate_view(&open, 8, 8, [3, 3, 5, 5], None, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("the enclosure is open"), "{e}");
@@ -245,9 +270,23 @@ mod tests {
                 "corner = [0.0, 0.0, 0.0]\nedge_u = [0.0, 1.0, 0.0]\nedge_v = [1.0, 0.0, 0.0]",
             )
         });
-        let e = validate_view(&outward, 8, 8, [3, 3, 5, 5], None)
+        let e = validate_view(&outward, 8, 8, [3, 3, 5, 5], None, None)
             .unwrap_err()
             .to_string();
         assert!(e.contains("does not emit"), "{e}");
+        // an open box where no light bounces reads E all the same; a closed one with the
+        // camera on its back wall is closed
+        validate_view(&open, 8, 8, [3, 3, 5, 5], Some(0), None).unwrap();
+        let on_wall =
+            box_scene(|t| t.replace("position = [0.3, 0.4, 0.2]", "position = [0.3, 0.4, 0.0]"));
+        assert_eq!(on_wall.camera.position.z, 0.0);
+        validate_view(&on_wall, 8, 8, [3, 3, 5, 5], None, None).unwrap();
+        // the probes stop at the deadline
+        let past = Some(std::time::Instant::now());
+        let e = enclosed(&closed, (8, 8, [3, 3, 5, 5]), None, past).unwrap_err();
+        assert!(
+            e.to_string().contains("probed for a closed enclosure"),
+            "{e}"
+        );
     }
 }
