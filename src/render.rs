@@ -183,6 +183,13 @@ pub struct RenderSettings {
 }
 
 impl RenderSettings {
+    /// Whether the render models one radiance for every wavelength (grey mode on and every
+    /// spectrum of `scene` constant): its X, Y, Z and R, G, B are then that radiance times
+    /// the observer's constants.
+    pub fn is_grey(&self, scene: &Scene) -> bool {
+        self.spectral.grey_mode && scene.is_grey()
+    }
+
     /// The pixel rectangle [x0, y0, x1, y1) to render: the crop, or the whole image; an error
     /// for a crop that is empty or does not fit the image.
     pub fn crop_rect(&self) -> Result<[usize; 4], RenderError> {
@@ -535,7 +542,7 @@ fn render_blocks(
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     // Model only what the scene requires: with every spectrum constant, radiance is the same
     // at all wavelengths and XYZ = L·(∫x̄, ∫ȳ, ∫z̄)/∫ȳ exactly, so no wavelength is sampled.
-    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let grey = settings.is_grey(scene);
     let lanes = settings.spectral.wavelengths;
     let observer = &settings.observer;
     let response = FilmResponse::new(observer, grey, lanes);

@@ -958,7 +958,7 @@ fn attributes(
         ("furnace.observer".to_string(), settings.observer.name().to_string()),
         ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
         ("furnace.wavelengths".to_string(), settings.spectral.wavelengths.to_string()),
-        ("furnace.grey_mode".to_string(), (settings.spectral.grey_mode && scene.is_grey()).to_string()),
+        ("furnace.grey_mode".to_string(), settings.is_grey(scene).to_string()),
         ("furnace.media_code".to_string(), (scene.has_media() || settings.integrator.force_media_code).to_string()),
         ("furnace.units".to_string(), "X,Y,Z: CIE 1931 (see furnace.observer), Y~1 for 1 W/(sr m^2 nm) flat; R,G,B: linear sRGB; variance.*: variance of the pixel mean".to_string()),
     ];

@@ -23,16 +23,13 @@ use serde::Deserialize;
 /// Colour channels compared.
 pub const CHANNELS: [&str; 3] = ["R", "G", "B"];
 
-/// The channels (indices into [`CHANNELS`]) to test in furnace's own images of a scene: a
-/// grey scene's R, G and B are one radiance times three constants (every pixel's XYZ is L
-/// times the observer's white), so their tests are one test, G alone, lest a Šidák
-/// combination count it three times.
-pub fn tested_channels(grey: bool) -> &'static [usize] {
-    if grey {
-        &[1]
-    } else {
-        &[0, 1, 2]
-    }
+/// The channels (index into [`CHANNELS`], name) to test in furnace's own images of a scene:
+/// in a grey render (`RenderSettings::is_grey`) R, G and B are one radiance times three
+/// constants (every pixel's XYZ is L times the observer's white), so their tests are one
+/// test, G alone, lest a Šidák combination count it three times.
+pub fn tested_channels(grey: bool) -> impl Iterator<Item = (usize, &'static str)> {
+    let all: &[usize] = if grey { &[1] } else { &[0, 1, 2] };
+    all.iter().map(|&c| (c, CHANNELS[c]))
 }
 
 /// A linear RGB image with optional per-pixel variance of the mean.
@@ -703,6 +700,15 @@ pub fn regions_measurement(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_grey_render_tests_one_channel_a_coloured_one_three() {
+        assert_eq!(tested_channels(true).collect::<Vec<_>>(), [(1, "G")]);
+        assert_eq!(
+            tested_channels(false).collect::<Vec<_>>(),
+            [(0, "R"), (1, "G"), (2, "B")]
+        );
+    }
 
     #[test]
     fn the_grid_tiles_the_image() {

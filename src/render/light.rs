@@ -293,7 +293,7 @@ fn light_blocks<S: Sensor>(
             gib(pending + in_flight)
         )));
     }
-    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let grey = settings.is_grey(scene);
     let response = FilmResponse::new(&settings.observer, grey, settings.spectral.wavelengths);
     let tracer = LightTracer::from(&settings.integrator);
     let seed = mix64(settings.seed ^ LIGHT_STREAM);

@@ -129,7 +129,7 @@ pub fn render_mlt_chains(
     )?);
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let setup = Setup::new(scene, camera, w, h);
-    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let grey = settings.is_grey(scene);
     let lanes = settings.spectral.wavelengths;
     let response = FilmResponse::new(&settings.observer, grey, lanes);
     let n_px = w * h;

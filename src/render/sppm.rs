@@ -212,7 +212,7 @@ fn sppm_core(
             "SPPM's initial radius must be a positive length whose square is a normal f64 (about 1.5e-154 to 1.3e154), got {radius:e}"
         )));
     }
-    let grey = settings.spectral.grey_mode && scene.is_grey();
+    let grey = settings.is_grey(scene);
     let lanes = settings.spectral.wavelengths;
     let response = FilmResponse::new(&settings.observer, grey, lanes);
     let n = w * h;

@@ -4,7 +4,7 @@
 //! al. 1984), its photon mapper (SPPM, Hachisuka & Jensen 2009) or its bidirectional path
 //! tracer (BDPT, Veach 1997 ch. 10; unbiased, so no allowance) or Metropolis light transport
 //! over it (Kelemen et al. 2002; consistent, its chains independent). Each region × channel mean
-//! is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
+//! (G alone in a grey render, `compare::tested_channels`) is compared by the z test of harness::compare; with `refine` (the default) the algorithm's
 //! own bias is estimated by refinement and allowed per region as a tolerance (at most
 //! `max_bias`, since the estimate is the algorithm's own): radiosity at the
 //! patch size h against 2h (the same camera samples; the difference estimates the first-order
@@ -17,7 +17,7 @@
 use crate::harness::closed_form::furnace::{expectation, validate_view};
 use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, runs_region_mean, tested_channels,
-    whole_image, RegionChoice, RgbImage, CHANNELS,
+    whole_image, RegionChoice, RgbImage,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::measurement::fmt_sig;
@@ -277,11 +277,11 @@ impl Kind for AlgorithmAgreement {
         let mut rs = s.clone();
         rs.seed = mix64(ctx.seed ^ 0x5241_4449_4f53_4954);
         let (test, coarse, what) = render_pair(scene, &rs, &p.algorithm, p.refine, ctx)?;
-        let channels = tested_channels(scene.is_grey());
-        let mut results = Vec::with_capacity(rects.len() * channels.len());
+        let grey = rs.is_grey(scene);
+        let mut results = Vec::with_capacity(rects.len() * 3);
         let (mut widest, mut capped) = (0.0f64, 0);
         for (reg, rect) in regions.iter().zip(&rects) {
-            for (c, channel) in channels.iter().map(|&c| (c, CHANNELS[c])) {
+            for (c, channel) in tested_channels(grey) {
                 let (t, dof) = test.region(c, *rect);
                 let (reference, ref_dof) = match (&path, &closed) {
                     (Some(path), _) => (region_mean(path, c, *rect), region_dof(path, c, *rect)),

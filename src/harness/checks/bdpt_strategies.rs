@@ -3,12 +3,12 @@
 //! strategy samples every path (area lights only, no smooth surface) each one alone, unweighted,
 //! must agree with the path tracer restricted to that many bounces: the path tracer at
 //! max_depth d minus the path tracer at d − 1 (independent seeds, their standard errors added
-//! in quadrature). Each region × channel × strategy is a t test (the strategy image's error from
-//! its independent runs); the check's p is the Šidák combination.
+//! in quadrature). Each region × channel × strategy (G alone in a grey render) is a t test (the
+//! strategy image's error from its independent runs); the check's p is the Šidák combination.
 
 use crate::harness::compare::{
     region_dof, region_mean, region_test, regions_measurement, runs_region_mean, tested_channels,
-    whole_image, RegionChoice, RgbImage, CHANNELS,
+    whole_image, RegionChoice, RgbImage,
 };
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::region::settings_for;
@@ -118,10 +118,7 @@ impl Kind for BdptStrategies {
                 let runs: Vec<RgbImage> = films.iter().map(RgbImage::from_film).collect();
                 strategies += 1;
                 for (reg, rect) in regions.iter().zip(&rects) {
-                    for (c, channel) in tested_channels(scene.is_grey())
-                        .iter()
-                        .map(|&c| (c, CHANNELS[c]))
-                    {
+                    for (c, channel) in tested_channels(s.is_grey(scene)) {
                         let (test, test_dof) = runs_region_mean(&runs, c, *rect);
                         let (pm, pse) = region_mean(&path[d as usize], c, *rect);
                         let mut reference = (pm, pse);

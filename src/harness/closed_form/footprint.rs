@@ -168,12 +168,14 @@ mod tests {
         let stopped = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &f, 2, past);
         let e = stopped.unwrap_err().to_string();
         assert!(e.contains("time limit had passed before"), "{e}");
-        // a limit reached on the way says how far it got (each pixel takes 4 rays of 10 ms)
+        // a limit reached on the way says how far it got: the first pixel's rays wait until
+        // the limit has passed (1 s ahead, so that a busy machine still starts before it)
+        let soon = std::time::Instant::now() + std::time::Duration::from_secs(1);
         let slow = |_: Ray| {
-            std::thread::sleep(std::time::Duration::from_millis(10));
+            std::thread::sleep(soon.saturating_duration_since(std::time::Instant::now()));
             Ok(1.0)
         };
-        let soon = Some(std::time::Instant::now() + std::time::Duration::from_millis(20));
+        let soon = Some(soon);
         let stopped = per_pixel_rays(&scene, 4, 4, [0, 0, 4, 4], &slow, 2, soon);
         let e = stopped.unwrap_err().to_string();
         assert!(
