@@ -898,7 +898,11 @@ fn render_shard(
             if light {
                 String::new()
             } else {
-                format!(" (give --spp {} or more, or fewer parts)", 16 * k.count)
+                // ceil(spp / 16) blocks must reach the part count
+                format!(
+                    " (give --spp {} or more, or fewer parts)",
+                    16 * (k.count - 1) + 1
+                )
             }
         )
         .into());

@@ -230,7 +230,11 @@ fn parts_of_different_renders_missing_or_doubled_parts_and_bad_files_are_refused
     let e = merge(&[&p1, &neg, &p3]);
     assert!(e.contains("negative sum of squared deviations"), "{e}");
     // shard specifications the render cannot honour
-    for (shard, msg) in [("5/4", "must be K/N"), ("1/5", "fewer than 5 parts")] {
+    // (SMALL's spp gives fewer than 5 blocks of 16; 65 spp, 16·4 + 1, is the least that does)
+    for (shard, msg) in [
+        ("5/4", "must be K/N"),
+        ("1/5", "fewer than 5 parts (give --spp 65 or more"),
+    ] {
         let x = dir.join("x.film");
         let o = furnace(&[&SMALL[..], &["--shard", shard, "-o", s(&x)]].concat());
         assert_eq!(o.status.code(), Some(2));
