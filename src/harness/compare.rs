@@ -511,10 +511,29 @@ pub fn region_dof(img: &RgbImage, c: usize, r: [usize; 4]) -> f64 {
     )
 }
 
+/// Refuses an image holding a value or variance that is not a finite number: how many pixels,
+/// and where the first is.
+fn non_finite(img: &RgbImage) -> Result<(), String> {
+    let planes = img.rgb.iter().chain(img.variance.iter().flatten());
+    let bad: Vec<usize> = (0..img.width * img.height)
+        .filter(|&i| planes.clone().any(|p| !p[i].is_finite()))
+        .collect();
+    match bad.first() {
+        None => Ok(()),
+        Some(&i) => Err(format!(
+            "has {} pixels whose value or variance is not a finite number (the first at x = {}, y = {}): no statistic can be formed from them; an infinite or NaN radiance is itself a finding about the renderer that made it",
+            bad.len(),
+            i % img.width,
+            i / img.width
+        )),
+    }
+}
+
 /// Compares `test` with `reference` over `regions` (the whole image is always one region) at
 /// family-wise rate `family_alpha` (Šidák over regions × channels) and pixel FDR `q`. A region
 /// differs when |test − reference| exceeds `rel_tolerance`·|reference| by more than noise (a
-/// stated model tolerance, 0 for "equal in expectation").
+/// stated model tolerance, 0 for "equal in expectation"). An image with a pixel value or
+/// variance that is not a finite number is refused by name: no statistic can be formed.
 pub fn compare(
     test: &RgbImage,
     reference: &RgbImage,
@@ -528,6 +547,9 @@ pub fn compare(
             "the images differ in size: {}x{} vs {}x{}",
             test.width, test.height, reference.width, reference.height
         ));
+    }
+    for (name, img) in [("test", test), ("reference", reference)] {
+        non_finite(img).map_err(|m| format!("the {name} image {m}"))?;
     }
     let (w, h) = (test.width, test.height);
     let n = (w * h) as f64;
@@ -700,6 +722,35 @@ pub fn regions_measurement(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn an_image_with_a_non_finite_pixel_is_refused_by_name() {
+        let good = RgbImage {
+            width: 2,
+            height: 2,
+            rgb: std::array::from_fn(|_| vec![1.0; 4]),
+            variance: Some(std::array::from_fn(|_| vec![0.01; 4])),
+            variance_dof: None,
+            variance_variance: None,
+            pixels_correlated: false,
+            runs: Vec::new(),
+        };
+        assert!(compare(&good, &good, &[], 0.01, 0.05, 0.0).is_ok());
+        for (plane, at) in [(0, 3), (1, 1)] {
+            let mut bad = good.clone();
+            bad.rgb[plane][at] = f64::NAN;
+            let e = compare(&bad, &good, &[], 0.01, 0.05, 0.0).unwrap_err();
+            assert!(
+                e.contains("the test image has 1 pixels")
+                    && e.contains(&format!("x = {}, y = {}", at % 2, at / 2)),
+                "{e}"
+            );
+            let mut bad = good.clone();
+            bad.variance.as_mut().unwrap()[plane][at] = f64::INFINITY;
+            let e = compare(&good, &bad, &[], 0.01, 0.05, 0.0).unwrap_err();
+            assert!(e.contains("the reference image has 1 pixels"), "{e}");
+        }
+    }
 
     #[test]
     fn a_grey_render_tests_one_channel_a_coloured_one_three() {
