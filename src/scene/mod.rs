@@ -417,6 +417,8 @@ impl Builder<'_> {
                 "the scene has no light: give a shape an `emission` or add a [[light]] (point or environment)",
             ));
         }
+        // (shapes[i] is the scene file's [[shape]] i)
+        let shape_span = |i: usize| desc.shape.get(i).map_or(self.whole.clone(), |s| s.span());
         if let Some((i, lo, hi)) = shapes.iter().enumerate().find_map(|(i, s)| {
             (0..s.primitive_count())
                 .map(|p| s.primitive_bounds(p))
@@ -428,7 +430,7 @@ impl Builder<'_> {
                 .map(|(lo, hi)| (i, lo, hi))
         }) {
             return Err(self.err(
-                self.whole.clone(),
+                shape_span(i),
                 format!("shape[{i}]"),
                 format!(
                     "its bounds {:?} .. {:?} reach beyond {:e} scene units; coordinates and radii must stay within that",
@@ -448,7 +450,7 @@ impl Builder<'_> {
             (extent < crate::limits::MIN_EXTENT).then_some((i, extent))
         }) {
             return Err(self.err(
-                self.whole.clone(),
+                shape_span(i),
                 format!("shape[{i}]"),
                 format!(
                     "it is {extent:e} scene units across; shapes must be at least {:e} across (choose a larger unit)",
@@ -1300,6 +1302,18 @@ fn with_area(positions: &[Vec3], tris: Vec<[u32; 3]>) -> Result<Vec<[u32; 3]>, S
         return Err(format!(
             "{} triangles; the limit is {limit} per mesh",
             tris.len()
+        ));
+    }
+    // (a corner past the bound would overflow the area and pass for a degenerate triangle)
+    if let Some((k, p)) = positions
+        .iter()
+        .enumerate()
+        .find(|(_, p)| !p.is_finite() || p.abs().max_element() > crate::limits::MAX_COORDINATE)
+    {
+        return Err(format!(
+            "vertex {k} at {:?} lies beyond {:e} scene units; coordinates must stay within that",
+            p.to_array(),
+            crate::limits::MAX_COORDINATE
         ));
     }
     let total = tris.len();

@@ -90,9 +90,23 @@ fn degenerate_meshes_are_refused_by_name() {
     .unwrap();
     let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
     let msg = stderr_of(&out, &d);
-    let _ = std::fs::remove_dir_all(&d);
     assert_eq!(out.status.code(), Some(2));
     insta::assert_snapshot!("degenerate_mesh", msg);
+    // a corner far enough out that the area overflows is named as out of bounds, not as a
+    // degenerate triangle
+    std::fs::write(
+        d.join("flat.obj"),
+        "v 0 0 0\nv 1e200 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
+    let out = furnace(&d, &["render", "s.toml", "-o", "out.exr", "-q"]);
+    let msg = stderr_of(&out, &d);
+    let _ = std::fs::remove_dir_all(&d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        msg.contains("vertex 1 at [1e200, 0.0, 0.0] lies beyond 1e12"),
+        "{msg}"
+    );
 }
 
 #[test]
