@@ -360,6 +360,17 @@ fn expand_check(
                 "an empty list would expand into no checks; give at least one value".into(),
             ));
         }
+        if let Some((k, x)) = v
+            .get_ref()
+            .iter()
+            .find_map(|(k, xs)| xs.iter().find(|x| !x.is_finite()).map(|x| (k, x)))
+        {
+            return Err(err(
+                v.span(),
+                &format!("vary.{k}"),
+                format!("{x} is not a finite number; a scene value must be one"),
+            ));
+        }
     }
     let (line, _) = src.line_column(c.span().start);
     let base_check = Check {

@@ -341,7 +341,10 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
         let span = e.span().unwrap_or(0..0);
         let message = super::suggest::plain_message(e.message().trim_end());
         // a wrong value names its key: the one its line assigns, when the value is on it
-        let key = if message.starts_with("invalid ") || message.starts_with("out of range") {
+        let key = if message.starts_with("invalid ")
+        || message.starts_with("out of range")
+        || message.ends_with("value was too large")
+    {
             super::suggest::key_of_line(src.text, span.start)
         } else {
             String::new()
