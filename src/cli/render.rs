@@ -43,24 +43,24 @@ pub struct RenderArgs {
     /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media), radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is not used).
     #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt", "mlt"])]
     integrator: String,
-    /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each).
-    #[arg(long, default_value_t = 64)]
-    iterations: u64,
-    /// Photons emitted per SPPM iteration.
-    #[arg(long, default_value_t = 100_000)]
-    photons_per_iteration: u64,
+    /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each) [default: 64].
+    #[arg(long)]
+    iterations: Option<u64>,
+    /// Photons emitted per SPPM iteration [default: 100000].
+    #[arg(long)]
+    photons_per_iteration: Option<u64>,
     /// Initial gather radius of SPPM, scene units [default: 1/50 of the scene's bounding radius].
     #[arg(long)]
     radius: Option<f64>,
-    /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them; with --integrator light --keep-runs, the independent light renders that share --light-paths. Not used otherwise.
-    #[arg(long, default_value_t = 4)]
-    runs: u64,
-    /// Mutations per pixel of --integrator mlt, over all chains.
-    #[arg(long, default_value_t = 64)]
-    mutations_per_pixel: u64,
-    /// Independent Markov chains of --integrator mlt, each with its own bootstrap: each pixel's mean and variance come from their spread.
-    #[arg(long, default_value_t = 8)]
-    chains: u64,
+    /// Independent SPPM or BDPT runs: each pixel's mean and variance come from their spread (one run's pixels are correlated: across SPPM iterations, through BDPT's light-tracing splats). BDPT divides --spp among them; with --integrator light --keep-runs, the independent light renders that share --light-paths. Refused otherwise [default: 4].
+    #[arg(long)]
+    runs: Option<u64>,
+    /// Mutations per pixel of --integrator mlt, over all chains [default: 64].
+    #[arg(long)]
+    mutations_per_pixel: Option<u64>,
+    /// Independent Markov chains of --integrator mlt, each with its own bootstrap: each pixel's mean and variance come from their spread [default: 8].
+    #[arg(long)]
+    chains: Option<u64>,
     /// One BDPT strategy alone and unweighted, as "S,T" (S light-subpath vertices, T >= 1 camera-subpath vertices): the debug image of the paths of S+T-2 bounces that strategy samples.
     #[arg(long, value_name = "S,T", value_parser = parse_strategy)]
     bdpt_only: Option<(u32, u32)>,
@@ -123,6 +123,71 @@ pub struct RenderArgs {
     /// render may take; the default is about 5 hours at 1 M samples/s.
     #[arg(long, default_value_t = furnace::limits::DEFAULT_MAX_SAMPLES, help_heading = "Limits")]
     max_samples: u64,
+}
+
+impl RenderArgs {
+    /// SPPM iterations (--iterations, default 64).
+    fn iterations(&self) -> u64 {
+        self.iterations.unwrap_or(64)
+    }
+    /// SPPM photons per iteration (--photons-per-iteration, default 100 000).
+    fn photons_per_iteration(&self) -> u64 {
+        self.photons_per_iteration.unwrap_or(100_000)
+    }
+    /// Independent runs of SPPM, BDPT or kept light renders (--runs, default 4).
+    fn runs(&self) -> u64 {
+        self.runs.unwrap_or(4)
+    }
+    /// MLT mutations per pixel (--mutations-per-pixel, default 64).
+    fn mutations_per_pixel(&self) -> u64 {
+        self.mutations_per_pixel.unwrap_or(64)
+    }
+    /// MLT chains (--chains, default 8).
+    fn chains(&self) -> u64 {
+        self.chains.unwrap_or(8)
+    }
+
+    /// Refuses an estimator's option given to another estimator, which would ignore it.
+    fn options_used(&self, light: bool) -> Result<(), Failure> {
+        let i = self.integrator.as_str();
+        let runs_used = matches!(i, "sppm" | "bdpt") || (light && self.keep_runs);
+        let unused = [
+            (
+                "--iterations",
+                self.iterations.is_some() && i != "sppm",
+                "--integrator sppm",
+            ),
+            (
+                "--photons-per-iteration",
+                self.photons_per_iteration.is_some() && i != "sppm",
+                "--integrator sppm",
+            ),
+            (
+                "--radius",
+                self.radius.is_some() && i != "sppm",
+                "--integrator sppm",
+            ),
+            (
+                "--runs",
+                self.runs.is_some() && !runs_used,
+                "--integrator sppm or bdpt, or light with --keep-runs",
+            ),
+            (
+                "--mutations-per-pixel",
+                self.mutations_per_pixel.is_some() && i != "mlt",
+                "--integrator mlt",
+            ),
+            (
+                "--chains",
+                self.chains.is_some() && i != "mlt",
+                "--integrator mlt",
+            ),
+        ];
+        match unused.iter().find(|u| u.1) {
+            Some((option, _, by)) => Err(anyhow::anyhow!("{option} is only used by {by}").into()),
+            None => Ok(()),
+        }
+    }
 }
 
 /// A bounce limit, or None for "unlimited" (the scene's own limit is then overridden too).
@@ -264,9 +329,9 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     if a.keep_runs {
         // the image's own channels plus R, G, B per run must stay readable
         let runs = if a.integrator == "mlt" {
-            a.chains
+            a.chains()
         } else {
-            a.runs
+            a.runs()
         };
         let own = furnace::film::Film::new(1, 1)
             .to_layers(Vec::new())
@@ -305,6 +370,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .into());
     }
     let attrs = attributes(&a, &settings, &scene, light, total);
+    a.options_used(light)?;
     if a.patch_size.is_some() && a.integrator != "radiosity" {
         return Err(anyhow::anyhow!("--patch-size is only used by --integrator radiosity").into());
     }
@@ -350,7 +416,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     let start = Instant::now();
     let mut runs = Vec::new();
     let film = if light && a.keep_runs {
-        furnace::render::render_light_runs(&scene, &settings, total, a.runs, &|n| {
+        furnace::render::render_light_runs(&scene, &settings, total, a.runs(), &|n| {
             bar.set_position(n)
         })
         .map(|films| {
@@ -495,11 +561,11 @@ fn render_bdpt_image(
     png_path: &Path,
 ) -> Result<i32, Failure> {
     use furnace::integrators::bdpt::{Bdpt, Weighting};
-    if a.runs < 2 || !settings.spp.is_multiple_of(a.runs) {
+    if a.runs() < 2 || !settings.spp.is_multiple_of(a.runs()) {
         return Err(anyhow::anyhow!(
             "--integrator bdpt divides --spp ({}) among --runs ({}) independent runs: give at least 2 runs and an spp that is a multiple of them",
             settings.spp,
-            a.runs
+            a.runs()
         )
         .into());
     }
@@ -515,7 +581,7 @@ fn render_bdpt_image(
         bdpt.weighting = Weighting::Only { s, t };
     }
     let per_run = RenderSettings {
-        spp: settings.spp / a.runs,
+        spp: settings.spp / a.runs(),
         ..settings.clone()
     };
     let total = (settings.width as u64)
@@ -523,16 +589,17 @@ fn render_bdpt_image(
         .saturating_mul(settings.spp);
     let bar = progress_bar(super::quiet(), total)?;
     let start = Instant::now();
-    let films =
-        furnace::render::render_bdpt_runs(scene, &per_run, &bdpt, a.runs, &|n| bar.set_position(n))
-            .context("cannot render")?;
+    let films = furnace::render::render_bdpt_runs(scene, &per_run, &bdpt, a.runs(), &|n| {
+        bar.set_position(n)
+    })
+    .context("cannot render")?;
     let (film, runs) = merged_runs(films, a.keep_runs);
     let secs = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     set_attrs(
         &mut attrs,
         [
-            ("furnace.bdpt_runs", a.runs.to_string()),
+            ("furnace.bdpt_runs", a.runs().to_string()),
             (
                 "furnace.bdpt_strategies",
                 a.bdpt_only
@@ -540,7 +607,7 @@ fn render_bdpt_image(
                         format!("only s={s}, t={t}")
                     }),
             ),
-            ("furnace.variance_dof", (a.runs - 1).to_string()),
+            ("furnace.variance_dof", (a.runs() - 1).to_string()),
             // a run's pixels share its light subpaths' splats
             ("furnace.pixels_correlated", "true".into()),
         ],
@@ -551,14 +618,14 @@ fn render_bdpt_image(
         settings.width,
         settings.height,
         settings.spp,
-        a.runs,
+        a.runs(),
         secs,
         total as f64 / secs / 1e6
     );
     say_noise(
         written.relative_variance,
         secs,
-        &format!(" (from {} runs)", a.runs),
+        &format!(" (from {} runs)", a.runs()),
     );
     Ok(written.code)
 }
@@ -574,7 +641,7 @@ fn render_mlt_image(
 ) -> Result<i32, Failure> {
     use furnace::integrators::bdpt::Bdpt;
     use furnace::integrators::mlt::Mlt;
-    if a.chains < 2 {
+    if a.chains() < 2 {
         return Err(anyhow::anyhow!(
             "--integrator mlt needs at least 2 --chains: their spread is the standard error"
         )
@@ -582,7 +649,7 @@ fn render_mlt_image(
     }
     let mutations = (settings.width as u64)
         .saturating_mul(settings.height as u64)
-        .saturating_mul(a.mutations_per_pixel);
+        .saturating_mul(a.mutations_per_pixel());
     if mutations > a.max_samples {
         return Err(anyhow::anyhow!(
             "the render would make {mutations} mutations (width x height x mutations per pixel); the work budget is {}: raise it with --max-samples",
@@ -591,8 +658,8 @@ fn render_mlt_image(
         .into());
     }
     let mlt = Mlt {
-        mutations_per_pixel: a.mutations_per_pixel,
-        chains: a.chains,
+        mutations_per_pixel: a.mutations_per_pixel(),
+        chains: a.chains(),
         ..Default::default()
     };
     let bdpt = Bdpt::from(&settings.integrator);
@@ -604,12 +671,12 @@ fn render_mlt_image(
     set_attrs(
         &mut attrs,
         [
-            ("furnace.mlt_chains", a.chains.to_string()),
+            ("furnace.mlt_chains", a.chains().to_string()),
             (
                 "furnace.mlt_mutations_per_pixel",
-                a.mutations_per_pixel.to_string(),
+                a.mutations_per_pixel().to_string(),
             ),
-            ("furnace.variance_dof", (a.chains - 1).to_string()),
+            ("furnace.variance_dof", (a.chains() - 1).to_string()),
             // a chain's pixels share its normalisation and its wandering state
             ("furnace.pixels_correlated", "true".into()),
         ],
@@ -619,15 +686,15 @@ fn render_mlt_image(
         "mlt: {}x{} px, {} mutations per pixel in {} chains, {:.2} s wall, {:.3} M mutations/s",
         settings.width,
         settings.height,
-        a.mutations_per_pixel,
-        a.chains,
+        a.mutations_per_pixel(),
+        a.chains(),
         secs,
         mutations as f64 / secs / 1e6
     );
     say_noise(
         written.relative_variance,
         secs,
-        &format!(" (from {} chains)", a.chains),
+        &format!(" (from {} chains)", a.chains()),
     );
     Ok(written.code)
 }
@@ -641,25 +708,25 @@ fn render_sppm_image(
     exr_path: &Path,
     png_path: &Path,
 ) -> Result<i32, Failure> {
-    if a.runs < 2 {
+    if a.runs() < 2 {
         return Err(anyhow::anyhow!(
             "--integrator sppm takes each pixel's variance from the spread of --runs independent runs (one run's pixels are correlated across its iterations): give at least 2 runs, not {}",
-            a.runs
+            a.runs()
         )
         .into());
     }
     let sppm = furnace::integrators::sppm::Sppm {
-        iterations: a.iterations,
-        photons_per_iteration: a.photons_per_iteration,
+        iterations: a.iterations(),
+        photons_per_iteration: a.photons_per_iteration(),
         initial_radius: a.radius,
         // --rr-depth off: photons end only by absorption (or the path-length guard)
         rr_depth: settings.integrator.rr_depth.unwrap_or(u32::MAX),
         ..Default::default()
     };
     let photons = a
-        .runs
-        .saturating_mul(a.iterations)
-        .saturating_mul(a.photons_per_iteration);
+        .runs()
+        .saturating_mul(a.iterations())
+        .saturating_mul(a.photons_per_iteration());
     if photons > a.max_samples {
         return Err(anyhow::anyhow!(
             "the render would trace {photons} photons (runs x iterations x photons per iteration); the work budget is {}: raise it with --max-samples",
@@ -667,14 +734,14 @@ fn render_sppm_image(
         )
         .into());
     }
-    let bar = progress_bar(super::quiet(), a.runs.saturating_mul(a.iterations))?;
+    let bar = progress_bar(super::quiet(), a.runs().saturating_mul(a.iterations()))?;
     let start = Instant::now();
     let mut runs = Vec::new();
     let film = furnace::render::render_sppm_each(
         scene,
         settings,
         &sppm,
-        a.runs,
+        a.runs(),
         &|n| bar.set_position(n),
         &mut |f| {
             if a.keep_runs {
@@ -688,13 +755,16 @@ fn render_sppm_image(
     set_attrs(
         &mut attrs,
         [
-            ("furnace.sppm_iterations", a.iterations.to_string()),
+            ("furnace.sppm_iterations", a.iterations().to_string()),
             (
                 "furnace.sppm_photons_per_iteration",
-                a.photons_per_iteration.to_string(),
+                a.photons_per_iteration().to_string(),
             ),
-            ("furnace.sppm_runs", a.runs.to_string()),
-            ("furnace.variance_dof", a.runs.saturating_sub(1).to_string()),
+            ("furnace.sppm_runs", a.runs().to_string()),
+            (
+                "furnace.variance_dof",
+                a.runs().saturating_sub(1).to_string(),
+            ),
             // a run's pixels share its photons
             ("furnace.pixels_correlated", "true".into()),
         ],
@@ -702,9 +772,9 @@ fn render_sppm_image(
     let written = write_film(film, attrs, runs, exr_path, png_path, a.exposure)?;
     super::say!(
         "sppm: {} runs x {} iterations x {} photons, {}x{} px, {:.2} s wall, {:.3} M photons/s",
-        a.runs,
-        a.iterations,
-        a.photons_per_iteration,
+        a.runs(),
+        a.iterations(),
+        a.photons_per_iteration(),
         settings.width,
         settings.height,
         secs,

@@ -342,9 +342,9 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
         let message = super::suggest::plain_message(e.message().trim_end());
         // a wrong value names its key: the one its line assigns, when the value is on it
         let key = if message.starts_with("invalid ")
-        || message.starts_with("out of range")
-        || message.ends_with("value was too large")
-    {
+            || message.starts_with("out of range")
+            || message.ends_with("value was too large")
+        {
             super::suggest::key_of_line(src.text, span.start)
         } else {
             String::new()

@@ -640,6 +640,33 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
         .unwrap();
     assert!(!out.status.success());
     assert!(String::from_utf8_lossy(&out.stderr).contains("only used by --integrator radiosity"));
+    // every estimator's own options likewise, never silently ignored
+    for (option, by) in [
+        ("--iterations", "sppm"),
+        ("--photons-per-iteration", "sppm"),
+        ("--radius", "sppm"),
+        ("--runs", "sppm or bdpt"),
+        ("--mutations-per-pixel", "mlt"),
+        ("--chains", "mlt"),
+    ] {
+        let out = furnace()
+            .args([
+                "render",
+                "scenes/cornell-box.toml",
+                option,
+                "3",
+                "-o",
+                "/nonexistent/x.exr",
+            ])
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{option}: {err}");
+        assert!(
+            err.contains(&format!("{option} is only used by --integrator {by}")),
+            "{err}"
+        );
+    }
 }
 
 #[test]
