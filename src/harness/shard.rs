@@ -136,6 +136,20 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
         if r.seed != first.seed {
             return differs("seed", r.seed.to_string(), first.seed.to_string());
         }
+        if s.suite != info.suite {
+            // (before the correction, whose test count differs too when the suites do)
+            let only = |a: &[String], b: &[String]| a.iter().find(|n| !b.contains(n)).cloned();
+            let which = match (only(&s.suite, &info.suite), only(&info.suite, &s.suite)) {
+                (Some(n), _) => format!("{n:?} is in {file}'s suite and not in {first_file}'s"),
+                (None, Some(n)) => format!("{n:?} is in {first_file}'s suite and not in {file}'s"),
+                (None, None) => "the same checks in another order".into(),
+            };
+            return mismatch(format!(
+                "{file} and {first_file} are not shards of one run: they split different suites ({} and {} checks; {which}): run every shard with the same manifests and --filter",
+                s.suite.len(),
+                info.suite.len()
+            ));
+        }
         if r.family_alpha.to_bits() != first.family_alpha.to_bits()
             || r.correction != first.correction
             || r.stochastic_tests != first.stochastic_tests
@@ -161,13 +175,6 @@ pub fn merge(parts: &[(String, RunReport)]) -> Result<RunReport, ShardError> {
         }
         if s.count != info.count {
             return differs("shard count", s.count.to_string(), info.count.to_string());
-        }
-        if s.suite != info.suite {
-            return differs(
-                "suite",
-                format!("{} checks", s.suite.len()),
-                format!("{} checks (or other names)", info.suite.len()),
-            );
         }
         if let Some(other) = seen.insert(s.index, file) {
             return mismatch(format!(

@@ -138,6 +138,18 @@ fn merges_that_are_not_one_run_are_refused_by_name() {
         "{}",
         stderr(&mixed)
     );
+    // shards of another --filter split another suite, and the refusal says so
+    let narrow = dir.join("narrow");
+    std::fs::create_dir(&narrow).unwrap();
+    let m4 = ["tests/manifests/bsdf.toml", "--filter", "*y/all-bsdfs"];
+    let n = shard_run(&narrow, &m4, 2, 3);
+    let mixed = merge(&[&p[0], &n, &p[2]]);
+    assert!(
+        stderr(&mixed).contains("they split different suites")
+            && stderr(&mixed).contains("same manifests and --filter"),
+        "{}",
+        stderr(&mixed)
+    );
     // a plain run is not a shard
     let plain = dir.join("plain.json");
     let o = furnace(&[
