@@ -98,9 +98,11 @@ pub struct CheckArgs {
 /// Runs `furnace check`; returns the exit code.
 pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     if !(a.time_limit > 0.0 && a.time_limit <= 1e6) {
-        return Err(
-            anyhow::anyhow!("--time-limit {} must be seconds in (0, 1e6]", a.time_limit).into(),
-        );
+        return Err(anyhow::anyhow!(
+            "--time-limit {:?} must be seconds in (0, 1e6]",
+            a.time_limit
+        )
+        .into());
     }
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
         return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());

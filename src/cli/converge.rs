@@ -41,9 +41,11 @@ pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
         return Err(anyhow::anyhow!("--target {} must lie in (0, 1)", a.target).into());
     }
     if !(a.time_limit > 0.0 && a.time_limit <= 1e6) {
-        return Err(
-            anyhow::anyhow!("--time-limit {} must be seconds in (0, 1e6]", a.time_limit).into(),
-        );
+        return Err(anyhow::anyhow!(
+            "--time-limit {:?} must be seconds in (0, 1e6]",
+            a.time_limit
+        )
+        .into());
     }
     if a.manifests.is_empty() {
         return Err(anyhow::anyhow!(
