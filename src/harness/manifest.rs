@@ -421,7 +421,7 @@ fn expand_check(
                     err(
                         scene.span(),
                         "scene",
-                        "an inline scene is read once per check".into(),
+                        "an inline scene table cannot be expanded by `vary`".into(),
                     )
                 })?;
                 Scene::from_desc(desc, *src, scene.span()).map_err(|mut e| {
