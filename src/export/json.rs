@@ -250,7 +250,7 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<PathBuf, ExportError> {
     super::write_files(dir, &files(scene)?)
 }
 
-/// The file of [`write`]: `scene.json`.
+/// The file of [`write()`]: `scene.json`.
 pub fn files(scene: &Scene) -> Result<super::Files, ExportError> {
     let text = serde_json::to_string(&export(scene)?).expect("a JSON value serialises");
     Ok(vec![(PathBuf::from("scene.json"), text.into_bytes())])

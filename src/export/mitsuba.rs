@@ -143,7 +143,7 @@ pub fn write(scene: &Scene, dir: &Path) -> Result<PathBuf, ExportError> {
     super::write_files(dir, &files(scene)?)
 }
 
-/// The files of [`write`]: `scene.xml`, then `meshes/*.ply`.
+/// The files of [`write()`]: `scene.xml`, then `meshes/*.ply`.
 pub fn files(scene: &Scene) -> Result<super::Files, ExportError> {
     let out = export(scene)?;
     let mut files = vec![(PathBuf::from("scene.xml"), out.xml.into_bytes())];
