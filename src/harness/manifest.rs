@@ -438,12 +438,26 @@ fn expand_check(
             }
         });
         if !combo.is_empty() {
-            let label: Vec<String> = combo.iter().map(|(k, v)| format!("{k}={v}")).collect();
+            let label: Vec<String> = combo
+                .iter()
+                .map(|(k, v)| format!("{k}={}", short(*v)))
+                .collect();
             check.name = format!("{}[{}]", check.name, label.join(","));
         }
         out.push(check);
     }
     Ok(out)
+}
+
+/// A `vary` value as a check name shows it: as written for ordinary numbers (`0.5`, `1`),
+/// in exponent form past 16 characters (`1e308`, not its 309 digits).
+fn short(v: f64) -> String {
+    let s = v.to_string();
+    if s.len() > 16 {
+        format!("{v:e}")
+    } else {
+        s
+    }
 }
 
 /// Cartesian product of the `vary` lists, in key order.
@@ -511,4 +525,18 @@ pub fn manifests_in(dir: &Path) -> std::io::Result<Vec<PathBuf>> {
         .collect();
     v.sort();
     Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vary_values_keep_their_written_form_in_names_unless_it_runs_long() {
+        assert_eq!(short(0.5), "0.5");
+        assert_eq!(short(1.0), "1");
+        assert_eq!(short(1e-4), "0.0001");
+        assert_eq!(short(1e300), "1e300");
+        assert_eq!(short(-1.5e-200), "-1.5e-200");
+    }
 }

@@ -105,7 +105,7 @@ impl<'a> SpectrumParser<'a> {
             Role::Coefficient if hi > 1e15 => Err(self.src.error(span, key, format!("{hi} at {l_hi} nm is too large; a medium coefficient must be <= 1e15 per scene unit (free paths shorter than 1e-15 units fall below the resolution of positions)"))),
             Role::Reflectance if lo < 0.0 || hi > 1.0 => {
                 let (l, x) = if lo < 0.0 { (l_lo, lo) } else { (l_hi, hi) };
-                Err(self.src.error(span, key, format!("reflectance is {x} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))
+                Err(self.src.error(span, key, format!("reflectance is {x:?} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))
             }
             Role::Index if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; a refractive index (n or k) must be >= 0 at every wavelength"))),
             Role::Coefficient if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; a medium coefficient must be >= 0 at every wavelength"))),
