@@ -281,18 +281,38 @@ pub(crate) fn given<'a>(
         .collect()
 }
 
-/// A path's identity for comparing files: the canonical path of an existing file, else the
-/// canonical folder joined with the file name (an output not yet written); None when neither
+/// A path's identity for comparing files: the canonical path of an existing file, else that of
+/// its nearest existing ancestor with the rest of the path resolved as text (folders still to
+/// be created are no links, so `out/new/../s.toml` is `./s.toml`); None when nothing
 /// resolves (a write there fails with its own error).
 fn identity(p: &Path) -> Option<PathBuf> {
+    use std::path::Component;
     if let Ok(c) = p.canonicalize() {
         return Some(c);
     }
-    let dir = p
-        .parent()
-        .filter(|d| !d.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    Some(dir.canonicalize().ok()?.join(p.file_name()?))
+    let parts: Vec<Component> = p.components().collect();
+    for k in (0..parts.len()).rev() {
+        let head: PathBuf = parts[..k].iter().collect();
+        let head = if head.as_os_str().is_empty() {
+            PathBuf::from(".")
+        } else {
+            head
+        };
+        let Ok(mut id) = head.canonicalize() else {
+            continue;
+        };
+        for part in &parts[k..] {
+            match part {
+                Component::ParentDir => {
+                    id.pop();
+                }
+                Component::Normal(name) => id.push(name),
+                _ => {}
+            }
+        }
+        return Some(id);
+    }
+    None
 }
 
 /// Refuses a run whose outputs would overwrite one of its inputs or each other (the same file

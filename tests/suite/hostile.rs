@@ -715,6 +715,11 @@ fn exports_and_renders_never_overwrite_inputs_links_or_a_whole_file() {
     assert!(e.contains("a file the scene reads"), "{e}");
     assert_eq!(std::fs::read(d.join("meshes/shape-001.ply")).unwrap(), mesh);
     assert!(!d.join("scene.xml").exists(), "nothing written");
+    // however spelled: through a folder that does not exist yet
+    let out = furnace(&d, &["export", "scene.toml", "--out", "not-yet/.."]);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    assert_eq!(std::fs::read(d.join("meshes/shape-001.ply")).unwrap(), mesh);
+    assert!(!d.join("not-yet").exists());
     // the scene itself, as scene.json
     std::fs::copy(d.join("scene-obj.toml"), d.join("scene.json")).unwrap();
     let out = furnace(
@@ -743,6 +748,30 @@ fn exports_and_renders_never_overwrite_inputs_links_or_a_whole_file() {
         ],
     );
     assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    let text_before = std::fs::read(d.join("scene-obj.toml")).unwrap();
+    let out = furnace(
+        &d,
+        &[
+            "render",
+            "scene-obj.toml",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--spp",
+            "2",
+            "-q",
+            "-o",
+            "not-yet/../scene-obj.toml",
+            "--png",
+            "p.png",
+        ],
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
+    assert_eq!(
+        std::fs::read(d.join("scene-obj.toml")).unwrap(),
+        text_before
+    );
     assert_eq!(
         std::fs::read(d.join("meshes/shape-001.obj")).unwrap(),
         std::fs::read(root("scenes/meshes/octasphere.obj")).unwrap()
