@@ -153,6 +153,16 @@ impl RenderArgs {
         let runs_used = matches!(i, "sppm" | "bdpt") || (light && self.keep_runs);
         let unused = [
             (
+                "--patch-size",
+                self.patch_size.is_some() && i != "radiosity",
+                "--integrator radiosity",
+            ),
+            (
+                "--bdpt-only",
+                self.bdpt_only.is_some() && i != "bdpt",
+                "--integrator bdpt",
+            ),
+            (
                 "--iterations",
                 self.iterations.is_some() && i != "sppm",
                 "--integrator sppm",
@@ -282,6 +292,8 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .into());
     }
     let png_path = super::preview_path(&exr_path, a.png.as_deref(), shard.is_none())?;
+    // options refused before the outputs are tested: pure, and what the user needs to hear
+    a.options_used(a.integrator == "light")?;
     let mut inputs = vec![("the scene", a.scene.as_path())];
     inputs.extend(
         scene
@@ -370,10 +382,6 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         .into());
     }
     let attrs = attributes(&a, &settings, &scene, light, total);
-    a.options_used(light)?;
-    if a.patch_size.is_some() && a.integrator != "radiosity" {
-        return Err(anyhow::anyhow!("--patch-size is only used by --integrator radiosity").into());
-    }
     if (a.integrator == "sppm" || a.integrator == "radiosity")
         && settings.integrator.max_depth.is_some()
     {
@@ -382,9 +390,6 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
             a.integrator
         )
         .into());
-    }
-    if a.bdpt_only.is_some() && a.integrator != "bdpt" {
-        return Err(anyhow::anyhow!("--bdpt-only is only used by --integrator bdpt").into());
     }
     if ["sppm", "radiosity", "bdpt", "mlt"].contains(&a.integrator.as_str()) {
         if a.renderer.is_some() || shard.is_some() {

@@ -592,7 +592,7 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
                 "--integrator",
                 "radiosity",
                 "-o",
-                "/nonexistent/x.exr",
+                dir.join("refused.exr").to_str().unwrap(),
             ])
             .args(&args)
             .output()
@@ -656,7 +656,7 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
                 option,
                 "3",
                 "-o",
-                "/nonexistent/x.exr",
+                "out/never-written.exr",
             ])
             .output()
             .unwrap();
