@@ -23,7 +23,7 @@
 
 use crate::harness::closed_form::emission::emitted_along_k;
 use crate::harness::closed_form::footprint::per_pixel_k;
-use crate::harness::closed_form::furnace::expectation as furnace_expectation;
+use crate::harness::closed_form::furnace::{expectation as furnace_expectation, validate_view};
 use crate::harness::closed_form::lambert::reflected;
 use crate::harness::keys::{common, Key, Keys};
 use crate::harness::kind::scope_rule;
@@ -60,8 +60,10 @@ pub fn ladder(check: &Check, p: &Params, ctx: &Context) -> Result<Ladder, CheckE
             let region = region_of(check, &s)?;
             if reference.is_none() {
                 let px = if p.of == Of::Furnace {
-                    // A uniform enclosure: every pixel reads the closed form.
+                    // A uniform enclosure: every pixel reads the closed form (where the
+                    // region sees only the enclosure's inside and the enclosure is closed)
                     let (v, _) = furnace_expectation(scene, depth)?;
+                    validate_view(scene, s.width, s.height, region, depth, ctx.deadline)?;
                     vec![v; (region[2] - region[0]) * (region[3] - region[1])]
                 } else {
                     // the ladders of one scene (one per sampler or estimator) share it
