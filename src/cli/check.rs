@@ -105,7 +105,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         .into());
     }
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
-        return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
+        return Err(anyhow::anyhow!("--alpha {:?} must lie in (0, 1)", a.alpha).into());
     }
     if let Some(d) = a.power.filter(|d| !(*d > 0.0 && *d < 1.0)) {
         return Err(anyhow::anyhow!(

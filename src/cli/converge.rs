@@ -38,7 +38,7 @@ pub struct ConvergeArgs {
 /// Runs `furnace converge`; returns the exit code.
 pub fn run(a: ConvergeArgs) -> Result<i32, Failure> {
     if !(a.target > 0.0 && a.target < 1.0) {
-        return Err(anyhow::anyhow!("--target {} must lie in (0, 1)", a.target).into());
+        return Err(anyhow::anyhow!("--target {:?} must lie in (0, 1)", a.target).into());
     }
     if !(a.time_limit > 0.0 && a.time_limit <= 1e6) {
         return Err(anyhow::anyhow!(

@@ -29,7 +29,7 @@ pub struct MergeFilmsArgs {
 pub fn run(a: MergeFilmsArgs) -> Result<i32, Failure> {
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
-            anyhow::anyhow!("--exposure {} must be a finite number >= 0", a.exposure).into(),
+            anyhow::anyhow!("--exposure {:?} must be a finite number >= 0", a.exposure).into(),
         );
     }
     let png = super::preview_path(&a.out, a.png.as_deref(), true)?;

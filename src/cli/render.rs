@@ -258,7 +258,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     };
     if !(a.exposure.is_finite() && a.exposure >= 0.0) {
         return Err(
-            anyhow::anyhow!("--exposure {} must be a finite number >= 0", a.exposure).into(),
+            anyhow::anyhow!("--exposure {:?} must be a finite number >= 0", a.exposure).into(),
         );
     }
     let stem = a

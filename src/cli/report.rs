@@ -40,7 +40,7 @@ pub struct ReportArgs {
 /// Runs `furnace report`; returns the exit code.
 pub fn run(a: ReportArgs) -> Result<i32, Failure> {
     if !(a.alpha > 0.0 && a.alpha < 1.0) {
-        return Err(anyhow::anyhow!("--alpha {} must lie in (0, 1)", a.alpha).into());
+        return Err(anyhow::anyhow!("--alpha {:?} must lie in (0, 1)", a.alpha).into());
     }
     let mut inputs: Vec<(&str, &std::path::Path)> = Vec::new();
     inputs.extend(a.results.iter().map(|p| ("--results", p.as_path())));

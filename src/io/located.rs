@@ -349,6 +349,13 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
         } else {
             String::new()
         };
+        // (toml's own words name u64 where its integers stop at i64::MAX)
+        let message =
+            if message == "u64 value was too large" || message == "i64 value was too large" {
+                format!("the integer is past TOML's range (at most {})", i64::MAX)
+            } else {
+                message
+            };
         src.error(span, key, message)
     })
 }

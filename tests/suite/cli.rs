@@ -891,3 +891,18 @@ fn serve_models_refuses_a_hello_of_another_protocol_and_flags_transmitted_sample
     drop(stdin);
     child.wait().unwrap();
 }
+
+#[test]
+fn out_of_range_numbers_are_quoted_short() {
+    for args in [
+        &["check", "--time-limit", "1e300"][..],
+        &["check", "--alpha", "1e300"],
+        &["converge", "--target", "1e300"],
+        &["render", "scenes/cornell-box.toml", "--exposure", "-1e300"],
+    ] {
+        let out = furnace().args(args).output().unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains("1e300") && err.len() < 200, "{args:?}: {err}");
+    }
+}

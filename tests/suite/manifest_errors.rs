@@ -32,7 +32,7 @@ fn manifest_error_messages() {
         ("unresolved_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\n")),
         ("unknown_placeholder", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [0.5], colour = [1.0] }\n")),
         ("vary_nan", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [0.5, nan] }\n")),
-        ("spp_past_u64", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nspp = 18446744073709551615\n")),
+        ("spp_past_toml_integers", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nspp = 18446744073709551615\n")),
         ("empty_vary", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere.toml\"\nvary = { albedo = [] }\n")),
         ("spp_one", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nspp = 1\n")),
         ("g_out_of_range", error_of("[[check]]\nname = \"x\"\nkind = \"hg\"\ng = [0.5, 1.0]\n")),
