@@ -40,7 +40,7 @@ pub struct RenderArgs {
     /// Bounces before unbiased Russian roulette starts; "off" disables it (then --max-depth is required).
     #[arg(long, default_value = "5", value_parser = parse_rr_depth)]
     rr_depth: RrDepth,
-    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media), radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is not used).
+    /// Estimator: path (camera paths, the default), light (light tracing: paths start on the emitters and connect to the camera; cannot show specular surfaces or the environment seen directly by the camera; refuses participating media), radiosity (deterministic finite elements: diffuse quads and meshes lit by area emitters only; the camera samples only average each pixel's footprint), sppm (stochastic progressive photon mapping), bdpt (bidirectional path tracing, every strategy by MIS; surfaces only: refuses media and environment lights) or mlt (primary-sample-space Metropolis over the BDPT: --mutations-per-pixel, --chains; --spp is refused).
     #[arg(long, default_value = "path", value_parser = ["path", "light", "radiosity", "sppm", "bdpt", "mlt"])]
     integrator: String,
     /// Iterations of --integrator sppm (stochastic progressive photon mapping: a camera pass and a photon pass each) [default: 64].
@@ -70,9 +70,9 @@ pub struct RenderArgs {
     /// Light paths traced by --integrator light [default: spp x width x height].
     #[arg(long)]
     light_paths: Option<u64>,
-    /// How emitters are found by the path tracer: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only).
-    #[arg(long, default_value = "mis", value_parser = ["mis", "bsdf", "light"])]
-    strategy: String,
+    /// How emitters are found by the path tracer: mis (light + BSDF sampling, power heuristic), bsdf (BSDF sampling only), light (light sampling only) [default: mis].
+    #[arg(long, value_parser = ["mis", "bsdf", "light"])]
+    strategy: Option<String>,
     /// Colour pipeline of the film: cie1931 (furnace's: CIE 1931 at 1 nm, Y/106.857, IEC matrix) or mitsuba3 (Mitsuba 3's: the same table at 5 nm, Y/106.750, its matrix), to compare RGB with a Mitsuba render without a colour-conversion difference.
     #[arg(long, default_value = "cie1931", value_parser = ["cie1931", "mitsuba3"])]
     observer: String,
@@ -162,6 +162,12 @@ impl RenderArgs {
                 self.bdpt_only.is_some() && i != "bdpt",
                 "--integrator bdpt",
             ),
+            ("--strategy", self.strategy.is_some() && i != "path", "--integrator path"),
+            (
+                "--spp",
+                self.spp.is_some() && matches!(i, "sppm" | "mlt"),
+                "--integrator path, light, radiosity or bdpt (sppm takes --iterations, mlt --mutations-per-pixel)",
+            ),
             (
                 "--iterations",
                 self.iterations.is_some() && i != "sppm",
@@ -240,7 +246,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         integrator: PathTracer {
             max_depth: a.max_depth.map_or(d.max_depth, |m| m.0),
             rr_depth: a.rr_depth.0,
-            strategy: match a.strategy.as_str() {
+            strategy: match a.strategy.as_deref().unwrap_or("mis") {
                 "bsdf" => Strategy::BsdfOnly,
                 "light" => Strategy::LightOnly,
                 _ => Strategy::Mis,
@@ -1032,7 +1038,7 @@ fn attributes(
         ("furnace.seed".to_string(), settings.seed.to_string()),
         ("furnace.max_depth".to_string(), settings.integrator.max_depth.map_or("unlimited".into(), |d| d.to_string())),
         ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
-        ("furnace.strategy".to_string(), a.strategy.clone()),
+        ("furnace.strategy".to_string(), a.strategy.clone().unwrap_or("mis".into())),
         ("furnace.filter".to_string(), "box".to_string()),
         ("furnace.observer".to_string(), settings.observer.name().to_string()),
         ("furnace.sampler".to_string(), settings.sampler.name().to_string()),

@@ -667,6 +667,34 @@ fn render_by_radiosity_reports_the_solve_and_its_discretisation_estimate() {
             "{err}"
         );
     }
+    for (args, says) in [
+        (
+            ["--integrator", "sppm", "--spp", "8"],
+            "--spp is only used by",
+        ),
+        (
+            ["--integrator", "mlt", "--spp", "8"],
+            "--spp is only used by",
+        ),
+        (
+            ["--integrator", "bdpt", "--strategy", "bsdf"],
+            "--strategy is only used by --integrator path",
+        ),
+    ] {
+        let out = furnace()
+            .args([
+                "render",
+                "scenes/cornell-box.toml",
+                "-o",
+                "out/never-written.exr",
+            ])
+            .args(args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+        assert!(err.contains(says), "{args:?}: {err}");
+    }
 }
 
 #[test]
