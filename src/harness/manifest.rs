@@ -449,14 +449,14 @@ fn expand_check(
     Ok(out)
 }
 
-/// A `vary` value as a check name shows it: as written for ordinary numbers (`0.5`, `1`),
-/// in exponent form past 16 characters (`1e308`, not its 309 digits).
+/// A `vary` value as a check name shows it (the name also seeds the check): as Rust writes it
+/// for ordinary magnitudes (`0.5`, `1`, `1.7320508075688772`), in exponent form at or past
+/// 1e16 and below 1e-6 (`1e308`, not its 309 digits).
 fn short(v: f64) -> String {
-    let s = v.to_string();
-    if s.len() > 16 {
+    if v != 0.0 && !(1e-6..1e16).contains(&v.abs()) {
         format!("{v:e}")
     } else {
-        s
+        v.to_string()
     }
 }
 
@@ -536,6 +536,8 @@ mod tests {
         assert_eq!(short(0.5), "0.5");
         assert_eq!(short(1.0), "1");
         assert_eq!(short(1e-4), "0.0001");
+        assert_eq!(short(1.7320508075688772), "1.7320508075688772");
+        assert_eq!(short(0.34729635533386066), "0.34729635533386066");
         assert_eq!(short(1e300), "1e300");
         assert_eq!(short(-1.5e-200), "-1.5e-200");
     }

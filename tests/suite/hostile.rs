@@ -658,12 +658,11 @@ fn a_check_too_large_for_the_memory_limit_is_an_error_not_an_abort() {
     // alone, 0.45 KB a pixel, would fit)
     let sizes = [
         ("sppm", 1024, ""),
-        ("light", 1024, ""),
+        ("light", 1024, "--spp 4"),
         ("bdpt", 1024, "--spp 8 --runs 8"),
         ("mlt", 1024, ""),
     ];
     for (integrator, width, extra) in sizes {
-        let extra = if extra.is_empty() { "--spp 4" } else { extra };
         let out = limited(&format!(
             "render box.toml --integrator {integrator} --width {width} --height 1024 {extra} --out big.exr"
         ));
