@@ -35,18 +35,11 @@ pub fn run(a: ExportArgs) -> Result<i32, Failure> {
     // own folder could otherwise replace its meshes), and every output must be writable,
     // before anything is written
     let outputs: Vec<PathBuf> = files.iter().map(|(rel, _)| a.out.join(rel)).collect();
-    let mut inputs = vec![("the scene", a.scene.as_path())];
-    inputs.extend(
-        scene
-            .files
-            .iter()
-            .map(|f| ("a file the scene reads", f.as_path())),
-    );
     let outputs: Vec<(&str, &Path)> = outputs
         .iter()
         .map(|p| ("an exported file", p.as_path()))
         .collect();
-    super::distinct_paths(&inputs, &outputs)?;
+    super::distinct_paths(&super::scene_inputs(&a.scene, &scene), &outputs)?;
     let written = furnace::export::write_files(&a.out, &files)
         .with_context(|| format!("cannot export {}", a.scene.display()))?;
     super::say!("wrote {}", written.display());

@@ -281,6 +281,19 @@ pub(crate) fn given<'a>(
         .collect()
 }
 
+/// The files a render or export of `scene` (read from `path`) reads, as [`distinct_paths`]'s
+/// inputs: the scene file and every mesh and CSV table it names.
+pub(crate) fn scene_inputs<'a>(
+    path: &'a Path,
+    scene: &'a furnace::scene::Scene,
+) -> Vec<(&'static str, &'a Path)> {
+    let files = scene
+        .files
+        .iter()
+        .map(|f| ("a file the scene reads", f.as_path()));
+    std::iter::once(("the scene", path)).chain(files).collect()
+}
+
 /// A path's identity for comparing files: the canonical path of an existing file, else that of
 /// its nearest existing ancestor with the rest of the path resolved as text (folders still to
 /// be created are no links, so `out/new/../s.toml` is `./s.toml`); None when nothing

@@ -146,11 +146,15 @@ impl RenderArgs {
     fn chains(&self) -> u64 {
         self.chains.unwrap_or(8)
     }
+    /// The path tracer's emitter strategy (--strategy, default mis).
+    fn strategy(&self) -> &str {
+        self.strategy.as_deref().unwrap_or("mis")
+    }
 
     /// Refuses an estimator's option given to another estimator, which would ignore it.
-    fn options_used(&self, light: bool) -> Result<(), Failure> {
+    fn options_used(&self) -> Result<(), Failure> {
         let i = self.integrator.as_str();
-        let runs_used = matches!(i, "sppm" | "bdpt") || (light && self.keep_runs);
+        let runs_used = matches!(i, "sppm" | "bdpt") || (i == "light" && self.keep_runs);
         let unused = [
             (
                 "--patch-size",
@@ -246,7 +250,7 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
         integrator: PathTracer {
             max_depth: a.max_depth.map_or(d.max_depth, |m| m.0),
             rr_depth: a.rr_depth.0,
-            strategy: match a.strategy.as_deref().unwrap_or("mis") {
+            strategy: match a.strategy() {
                 "bsdf" => Strategy::BsdfOnly,
                 "light" => Strategy::LightOnly,
                 _ => Strategy::Mis,
@@ -299,16 +303,9 @@ pub fn run(a: RenderArgs) -> Result<i32, Failure> {
     }
     let png_path = super::preview_path(&exr_path, a.png.as_deref(), shard.is_none())?;
     // options refused before the outputs are tested: pure, and what the user needs to hear
-    a.options_used(a.integrator == "light")?;
-    let mut inputs = vec![("the scene", a.scene.as_path())];
-    inputs.extend(
-        scene
-            .files
-            .iter()
-            .map(|f| ("a file the scene reads", f.as_path())),
-    );
+    a.options_used()?;
     super::distinct_paths(
-        &inputs,
+        &super::scene_inputs(&a.scene, &scene),
         &[("--out", &exr_path), ("the PNG preview", &png_path)],
     )?;
     furnace::limits::image(settings.width as u64, settings.height as u64)
@@ -1038,7 +1035,7 @@ fn attributes(
         ("furnace.seed".to_string(), settings.seed.to_string()),
         ("furnace.max_depth".to_string(), settings.integrator.max_depth.map_or("unlimited".into(), |d| d.to_string())),
         ("furnace.rr_depth".to_string(), settings.integrator.rr_depth.map_or("off".into(), |d| d.to_string())),
-        ("furnace.strategy".to_string(), a.strategy.clone().unwrap_or("mis".into())),
+        ("furnace.strategy".to_string(), a.strategy().to_string()),
         ("furnace.filter".to_string(), "box".to_string()),
         ("furnace.observer".to_string(), settings.observer.name().to_string()),
         ("furnace.sampler".to_string(), settings.sampler.name().to_string()),
