@@ -149,11 +149,8 @@ pub fn validate_view(
     }
     let view = |hit: Option<&crate::geometry::Hit>, d: crate::math::Vec3| {
         let hit = hit.ok_or("a camera ray of the region escapes: the region must see only the object (white furnace) or the enclosure")?;
-        if !white {
-            match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
-                Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {}
-                _ => return Err("a camera ray of the region meets a surface that does not emit towards the camera: is the enclosure closed, emitting inward, with the camera inside?".to_string().into()),
-            }
+        if !white && !emits_towards(scene, hit, d) {
+            return Err("a camera ray of the region meets a surface that does not emit towards the camera: is the enclosure closed, emitting inward, with the camera inside?".into());
         }
         Ok(0.0)
     };
@@ -162,6 +159,15 @@ pub fn validate_view(
         return Ok(());
     }
     enclosed(scene, (width, height, region), max_depth, deadline)
+}
+
+/// Whether the surface `hit` by a ray along `d` emits back along it: an area light, two-sided
+/// or facing the ray.
+fn emits_towards(scene: &Scene, hit: &crate::geometry::Hit, d: crate::math::Vec3) -> bool {
+    matches!(
+        scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]),
+        Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0
+    )
 }
 
 /// Camera rays per side of the region whose middles [`enclosed`] probes from.
@@ -200,12 +206,10 @@ fn enclosed(
         let Some(hit) = caster.nearest_hit(&ray) else {
             return Err(format!("the enclosure is open: the ray from {} towards {} meets no surface, so light leaves and the scene reads less than the closed form; close the enclosure", v(o), v(d)).into());
         };
-        match scene.shape_light[hit.shape as usize].map(|i| &scene.lights[i as usize]) {
-            Some(Light::Area { two_sided, .. }) if *two_sided || hit.point.n.dot(-d) > 0.0 => {
-                Ok(hit.t)
-            }
-            _ => Err(format!("the ray from {} towards {} meets shape[{}] on a side that does not emit: every surface the enclosure's inside sees must emit towards it (emitting inward, with the camera inside)", v(o), v(d), hit.shape).into()),
+        if !emits_towards(scene, &hit, d) {
+            return Err(format!("the ray from {} towards {} meets shape[{}] on a side that does not emit: every surface the enclosure's inside sees must emit towards it (emitting inward, with the camera inside)", v(o), v(d), hit.shape).into());
         }
+        Ok(hit.t)
     };
     let [x0, y0, x1, y1] = region.map(|c| c as f64);
     for j in 0..MIDDLES {
