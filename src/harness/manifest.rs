@@ -24,8 +24,8 @@ struct ManifestDesc {
     check: Vec<Spanned<Table>>,
 }
 
-/// A manifest read again for one check's inline `[check.scene]` table, deserialized from the
-/// manifest's own text so that the scene's errors name the manifest's lines.
+/// A manifest read again, once, for its checks' inline `[check.scene]` tables, deserialized
+/// from the manifest's own text so that the scenes' errors name the manifest's lines.
 #[derive(Deserialize)]
 struct InlineScenes {
     #[serde(default)]

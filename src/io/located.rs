@@ -340,6 +340,9 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
     toml::from_str(src.text).map_err(|e| {
         let span = e.span().unwrap_or(0..0);
         let message = super::suggest::plain_message(e.message().trim_end());
+        // (toml's own words name u64 where its integers stop at i64::MAX)
+        let past_range =
+            message == "u64 value was too large" || message == "i64 value was too large";
         // a wrong value names its key: the one its line assigns, when the value is on it
         let key = if message.starts_with("invalid ")
             || message.starts_with("out of range")
@@ -349,13 +352,11 @@ pub fn parse_toml<T: DeserializeOwned>(src: &Source) -> Result<T, LocatedError> 
         } else {
             String::new()
         };
-        // (toml's own words name u64 where its integers stop at i64::MAX)
-        let message =
-            if message == "u64 value was too large" || message == "i64 value was too large" {
-                format!("the integer is past TOML's range (at most {})", i64::MAX)
-            } else {
-                message
-            };
+        let message = if past_range {
+            format!("the integer is past TOML's range (at most {})", i64::MAX)
+        } else {
+            message
+        };
         src.error(span, key, message)
     })
 }
