@@ -731,9 +731,8 @@ fn exports_and_renders_never_overwrite_inputs_links_or_a_whole_file() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
     assert!(stderr_of(&out, &d).contains("the scene"));
     // render's outputs likewise
-    let out = furnace(
-        &d,
-        &[
+    let render_to = |out: &str| {
+        let args = [
             "render",
             "scene-obj.toml",
             "--width",
@@ -742,33 +741,16 @@ fn exports_and_renders_never_overwrite_inputs_links_or_a_whole_file() {
             "8",
             "--spp",
             "2",
-            "-q",
-            "-o",
-            "meshes/shape-001.obj",
-            "--png",
-            "p.png",
-        ],
-    );
+        ];
+        furnace(
+            &d,
+            &[&args[..], &["-q", "-o", out, "--png", "p.png"]].concat(),
+        )
+    };
+    let out = render_to("meshes/shape-001.obj");
     assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
     let text_before = std::fs::read(d.join("scene-obj.toml")).unwrap();
-    let out = furnace(
-        &d,
-        &[
-            "render",
-            "scene-obj.toml",
-            "--width",
-            "8",
-            "--height",
-            "8",
-            "--spp",
-            "2",
-            "-q",
-            "-o",
-            "not-yet/../scene-obj.toml",
-            "--png",
-            "p.png",
-        ],
-    );
+    let out = render_to("not-yet/../scene-obj.toml");
     assert_eq!(out.status.code(), Some(2), "{}", stderr_of(&out, &d));
     assert_eq!(
         std::fs::read(d.join("scene-obj.toml")).unwrap(),
