@@ -437,6 +437,17 @@ fn expand_check(
                 ))
             }
         });
+        if let (Some(r), Some(scene)) = (check.render.region, &check.scene) {
+            // the size every region-measuring kind renders at (harness::region::settings_for)
+            let w = check.render.width.unwrap_or(scene.render.width);
+            let h = check.render.height.unwrap_or(scene.render.height);
+            if r[2] > w || r[3] > h {
+                return Err(keys.error_at(
+                    "region",
+                    format!("{r:?} does not fit the {w}x{h} image the check renders (pixels, end exclusive)"),
+                ));
+            }
+        }
         if !combo.is_empty() {
             let label: Vec<String> = combo
                 .iter()

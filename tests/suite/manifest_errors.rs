@@ -39,6 +39,10 @@ fn manifest_error_messages() {
         ("tolerance_too_large", error_of("[[check]]\nname = \"x\"\nkind = \"lambert\"\nscene = \"scenes/lambert-sky.toml\"\nrel_tolerance = 0.5\n")),
         ("roulette_off_without_depth", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nroulette = false\n")),
         ("bad_region", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nregion = [4, 4, 2, 8]\n")),
+        // found when the manifest is loaded, not when the check runs
+        ("region_past_the_image", error_of("[[check]]\nname = \"x\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 16\nregion = [0, 0, 17, 8]\n")),
+        ("image_compare_reference_not_an_exr", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nreference = \"scenes/furnace-sphere-0.5.toml\"\n")),
+        ("measured_file_not_a_measurement", error_of("[[check]]\nname = \"x\"\nkind = \"measured\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nmeasurement = \"../../reference/mitsuba/furnace-sphere.exr\"\n")),
         ("scale_without_of", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),
         ("lambert_scale_with_depth", error_of("[[check]]\nname = \"x\"\nkind = \"scale_invariance\"\nof = \"lambert\"\nscene = \"scenes/lambert-sky.toml\"\nmax_depth = 3\n")),
         ("image_compare_without_reference", error_of("[[check]]\nname = \"x\"\nkind = \"image_compare\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\n")),

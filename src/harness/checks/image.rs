@@ -19,6 +19,7 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 use crate::spectrum::Observer;
 use std::path::PathBuf;
+use std::sync::Arc;
 
 /// Runs an image comparison against `reference` (tests pass a deliberately wrong one).
 pub fn run_against(
@@ -189,6 +190,9 @@ fn render_regions(
 pub struct Params {
     /// Reference image (EXR).
     pub reference: PathBuf,
+    /// The reference as read when the manifest was loaded (an unreadable one is a manifest
+    /// error, exit 2, not a check that errs at run time).
+    pub image: Loaded,
     /// Named regions compared (empty: the whole image).
     pub regions: Vec<Region>,
     /// Colour pipeline the image is rendered with.
@@ -221,21 +225,34 @@ impl Kind for ImageCompare {
     const OWN_LOOKS: bool = true;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let reference = k
+            .existing_file(
+                "reference",
+                Some("missing; an image comparison needs a reference EXR (path relative to the manifest)"),
+            )?
+            .unwrap_or_default();
+        let image = RgbImage::load(&reference).map_err(|e| k.error_at("reference", e))?;
         Ok(Params {
-            reference: k
-                .existing_file(
-                    "reference",
-                    Some("missing; an image comparison needs a reference EXR (path relative to the manifest)"),
-                )?
-                .unwrap_or_default(),
+            reference,
+            image: Loaded(Arc::new(image)),
             regions: regions_key(k, "regions")?,
             observer: k.observer()?,
         })
     }
 
-    /// Runs an image comparison with the reference read from the manifest's path.
+    /// Runs an image comparison with the reference read when the manifest was loaded.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        let reference = RgbImage::load(&p.reference).map_err(CheckError::Setup)?;
-        run_against(check, p, ctx, &reference)
+        run_against(check, p, ctx, &p.image.0)
+    }
+}
+
+/// A reference image held by a check's parameters; its debug form gives the size, not the
+/// pixels.
+#[derive(Clone, PartialEq)]
+pub struct Loaded(pub Arc<RgbImage>);
+
+impl std::fmt::Debug for Loaded {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "RgbImage({}x{})", self.0.width, self.0.height)
     }
 }

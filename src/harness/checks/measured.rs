@@ -373,10 +373,13 @@ pub fn run_against(
 }
 
 /// Parameters of a `measured` check.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Params {
     /// The measurement file.
     pub measurement: PathBuf,
+    /// The measurement as read and validated when the manifest was loaded (a bad one is a
+    /// manifest error, exit 2, not a check that errs at run time).
+    pub images: Arc<MeasuredImages>,
 }
 
 /// The `measured` kind.
@@ -401,22 +404,21 @@ impl Kind for Measured {
     const SCOPE: Scope = Scope::Furnace;
 
     fn parse(k: &mut Keys) -> Result<Params, LocatedError> {
+        let measurement = k
+            .existing_file(
+                "measurement",
+                Some("missing; give the measurement file (path relative to the manifest)"),
+            )?
+            .unwrap_or_default();
+        let images = load(&measurement).map_err(|e| k.error_at("measurement", e))?;
         Ok(Params {
-            measurement: k
-                .existing_file(
-                    "measurement",
-                    Some("missing; give the measurement file (path relative to the manifest)"),
-                )?
-                .unwrap_or_default(),
+            measurement,
+            images: Arc::new(images),
         })
     }
 
-    /// Runs a `measured` check with the measurement file named in the manifest.
+    /// Runs a `measured` check with the measurement read when the manifest was loaded.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        run_against(
-            check,
-            ctx,
-            &load(&p.measurement).map_err(CheckError::Setup)?,
-        )
+        run_against(check, ctx, &p.images)
     }
 }
