@@ -109,7 +109,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     }
     if let Some(d) = a.power.filter(|d| !(*d > 0.0 && *d < 1.0)) {
         return Err(anyhow::anyhow!(
-            "--power {d} must be a relative bias in (0, 1): the smallest bias each check must catch with 95 % probability"
+            "--power {d:?} must be a relative bias in (0, 1): the smallest bias each check must catch with 95 % probability"
         )
         .into());
     }

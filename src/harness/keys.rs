@@ -295,7 +295,7 @@ impl<'a> Keys<'a> {
                     return Err(self.error(
                         s.span(),
                         key,
-                        format!("{x} must be a finite number >= 0"),
+                        format!("{x:?} must be a finite number >= 0"),
                     ));
                 }
                 Ok(Some(x))
@@ -340,7 +340,7 @@ impl<'a> Keys<'a> {
                     return Err(self.error(
                         s.span(),
                         key,
-                        format!("{x} is not allowed; every entry must be {what}"),
+                        format!("{x:?} is not allowed; every entry must be {what}"),
                     ));
                 }
                 Ok(s.into_inner())
@@ -383,7 +383,7 @@ impl<'a> Keys<'a> {
     pub fn theta_max_deg(&self) -> Result<Option<f64>, LocatedError> {
         let t = self.non_negative("theta_max_deg")?;
         if let Some(t) = t.filter(|t| *t >= 90.0) {
-            return Err(self.error_at("theta_max_deg", format!("{t} must be < 90 degrees")));
+            return Err(self.error_at("theta_max_deg", format!("{t:?} must be < 90 degrees")));
         }
         Ok(t)
     }

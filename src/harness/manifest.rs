@@ -269,7 +269,7 @@ fn expand_check(
     let render = render_overrides(&keys)?;
     let rel_tolerance = keys.non_negative("rel_tolerance")?.unwrap_or(0.0);
     if rel_tolerance >= 0.1 {
-        return Err(keys.error_at("rel_tolerance", format!("{rel_tolerance} is too large: a model tolerance of 10 % or more lets real bugs pass; allowed [0, 0.1)")));
+        return Err(keys.error_at("rel_tolerance", format!("{rel_tolerance:?} is too large: a model tolerance of 10 % or more lets real bugs pass; allowed [0, 0.1)")));
     }
     let seed = keys.int("seed", 0, i64::MAX)?;
     let time_limit = match keys.get::<f64>("time_limit")? {

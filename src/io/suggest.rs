@@ -36,12 +36,29 @@ pub fn did_you_mean<'a>(name: &str, known: impl IntoIterator<Item = &'a str>) ->
     nearest(name, known).map_or(String::new(), |k| format!("; did you mean {k:?}?"))
 }
 
+/// serde quotes a float it refuses in full decimals (`1e300` as 301 digits): quote it as Rust's
+/// `{:?}` writes it, in exponent form past 1e16 and below 1e-4.
+fn short_floats(message: &str) -> String {
+    const AT: &str = "floating point `";
+    let Some(start) = message.find(AT).map(|i| i + AT.len()) else {
+        return message.to_string();
+    };
+    let Some(len) = message[start..].find('`') else {
+        return message.to_string();
+    };
+    match message[start..start + len].parse::<f64>() {
+        Ok(v) => format!("{}{v:?}{}", &message[..start], &message[start + len..]),
+        Err(_) => message.to_string(),
+    }
+}
+
 /// serde's message for a TOML value, in a user's words: in a wrong-type message ("invalid
 /// type: …"), Rust's integer and float type names become "an integer" and "a number" (an
 /// out-of-range value's message keeps its type name, which states the range); an unknown
 /// field gets "did you mean" for the nearest of the fields the message lists.
 pub fn plain_message(message: &str) -> String {
-    let mut out = message.to_string();
+    let mut out = short_floats(message);
+    let message = out.as_str();
     let wrong_type = message.starts_with("invalid type:");
     // a whole number beyond its type ("integer `…` as i128, expected i64", "invalid value:
     // integer `…`, expected u32") is out of range, not of the wrong type: say the range
@@ -154,6 +171,16 @@ mod tests {
         assert_eq!(
             plain_message("invalid type: string \"x\", expected f64"),
             "invalid type: string \"x\", expected a number"
+        );
+        // serde writes a refused float in full decimals
+        let huge = format!("invalid type: floating point `{}`, expected i64", 1e300);
+        assert_eq!(
+            plain_message(&huge),
+            "invalid type: floating point `1e300`, expected an integer"
+        );
+        assert_eq!(
+            plain_message("invalid type: floating point `0.5`, expected u32"),
+            "invalid type: floating point `0.5`, expected a whole number ≥ 0"
         );
         assert_eq!(
             plain_message("unknown field `sppp`, expected one of `width`, `height`, `spp`"),

@@ -63,18 +63,32 @@ pub struct CameraSpec {
 }
 
 impl CameraSpec {
+    /// Why a `width`×`height` image does not fit the film's aspect, or None when it does.
+    pub fn aspect_mismatch(&self, width: usize, height: usize) -> Option<String> {
+        let aspect = width as f64 / height as f64;
+        let film = self.film_aspect?;
+        if (film / aspect - 1.0).abs() <= 1e-6 {
+            return None;
+        }
+        // an absurd film size's aspect in exponent form, not in 300 digits
+        let film = if (1e-6..1e6).contains(&film) {
+            format!("{film:.6}")
+        } else {
+            format!("{film:e}")
+        };
+        Some(format!(
+            "the image is {width}x{height} (aspect {aspect:.6}) but camera.film_size has aspect {film}; \
+             choose a resolution with the film's aspect"
+        ))
+    }
+
     /// The camera for a `width`×`height` image, or a message when the image aspect does not
     /// match the film's.
     pub fn build(&self, width: usize, height: usize) -> Result<Camera, String> {
-        let aspect = width as f64 / height as f64;
-        if let Some(film) = self.film_aspect {
-            if (film / aspect - 1.0).abs() > 1e-6 {
-                return Err(format!(
-                    "the image is {width}x{height} (aspect {aspect:.6}) but camera.film_size has aspect {film:.6}; \
-                     choose a resolution with the film's aspect"
-                ));
-            }
+        if let Some(m) = self.aspect_mismatch(width, height) {
+            return Err(m);
         }
+        let aspect = width as f64 / height as f64;
         Ok(Camera::new(
             self.position,
             self.look_at,
@@ -560,7 +574,7 @@ impl Builder<'_> {
             ("hg", Some(g)) => {
                 let v = *g.get_ref();
                 if !(v.is_finite() && v.abs() < 1.0) {
-                    return Err(self.err(g.span(), format!("{key}.g"), format!("{v}: the Henyey-Greenstein asymmetry must satisfy |g| < 1")));
+                    return Err(self.err(g.span(), format!("{key}.g"), format!("{v:?}: the Henyey-Greenstein asymmetry must satisfy |g| < 1")));
                 }
                 PhaseFunction::HenyeyGreenstein(HenyeyGreenstein { g: v })
             }
@@ -715,7 +729,7 @@ impl Builder<'_> {
             (Some(f), None, None) => {
                 let v = *f.get_ref();
                 if !(v > 0.0 && v < 180.0) {
-                    return Err(self.err(f.span(), "camera.fov", format!("{v} degrees is out of range; allowed (0, 180)")));
+                    return Err(self.err(f.span(), "camera.fov", format!("{v:?} degrees is out of range; allowed (0, 180)")));
                 }
                 (v, None)
             }
@@ -723,10 +737,10 @@ impl Builder<'_> {
                 let f = *fl.get_ref();
                 let [w, h] = *fs.get_ref();
                 if !(f.is_finite() && f > 0.0) {
-                    return Err(self.err(fl.span(), "camera.focal_length", format!("{f} must be a finite length > 0 (metres)")));
+                    return Err(self.err(fl.span(), "camera.focal_length", format!("{f:?} must be a finite length > 0 (metres)")));
                 }
                 if !(w.is_finite() && h.is_finite() && w > 0.0 && h > 0.0) {
-                    return Err(self.err(fs.span(), "camera.film_size", format!("[{w}, {h}] must be two finite lengths > 0 (metres)")));
+                    return Err(self.err(fs.span(), "camera.film_size", format!("[{w:?}, {h:?}] must be two finite lengths > 0 (metres)")));
                 }
                 (fov_from_film(f, h), Some(w / h))
             }
@@ -824,7 +838,7 @@ impl Builder<'_> {
                     let k = spectrum(&d.k, "k", Role::Index, what)?;
                     let ((l, lo), _) = eta.extremes();
                     if lo <= 0.0 {
-                        return Err(self.err(d.eta.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.eta"), format!("n = {lo} at {l} nm; the real part of a conductor's index must be > 0")));
+                        return Err(self.err(d.eta.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.eta"), format!("n = {lo:?} at {l} nm; the real part of a conductor's index must be > 0")));
                     }
                     ConductorFresnel::Complex { eta, k }
                 };
@@ -851,7 +865,7 @@ impl Builder<'_> {
                     .map(|l| (l, diffuse.eval(l as f64) + specular.eval(l as f64)))
                     .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
                 if worst.1 > 1.0 + 1e-12 {
-                    return Err(self.err(d.specular.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.specular"), format!("diffuse + specular = {} at {} nm; their sum must be <= 1 at every wavelength (energy conservation)", worst.1, worst.0)));
+                    return Err(self.err(d.specular.as_ref().map_or(m.span(), |v| v.span()), format!("{key}.specular"), format!("diffuse + specular = {:?} at {} nm; their sum must be <= 1 at every wavelength (energy conservation)", worst.1, worst.0)));
                 }
                 Ok(Bsdf::Ward(Ward {
                     diffuse,
@@ -881,7 +895,7 @@ impl Builder<'_> {
                     v.span(),
                     format!("{key}.{k}"),
                     format!(
-                        "{a} is outside the allowed roughness range [1e-4, 1]{}",
+                        "{a:?} is outside the allowed roughness range [1e-4, 1]{}",
                         if smooth_ok {
                             " (or 0 for a smooth surface)"
                         } else {
@@ -931,7 +945,7 @@ impl Builder<'_> {
             Value::Float(_) | Value::Integer(_) => {
                 let n = v.get_ref().as_float().or(v.get_ref().as_integer().map(|i| i as f64)).unwrap_or(f64::NAN);
                 if !(n.is_finite() && n > 0.0) {
-                    return Err(err(format!("{n}: an index must be a finite number > 0")));
+                    return Err(err(format!("{n:?}: an index must be a finite number > 0")));
                 }
                 Ior::Constant(n)
             }
@@ -1076,7 +1090,7 @@ impl Builder<'_> {
                     return Err(self.err(
                         r.span(),
                         format!("{key}.radius"),
-                        format!("{radius} must be a finite length > 0"),
+                        format!("{radius:?} must be a finite length > 0"),
                     ));
                 }
                 Shape::Sphere(Sphere {

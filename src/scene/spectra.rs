@@ -102,14 +102,14 @@ impl<'a> SpectrumParser<'a> {
         }
         let ((l_lo, lo), (l_hi, hi)) = s.extremes();
         match role {
-            Role::Coefficient if hi > 1e15 => Err(self.src.error(span, key, format!("{hi} at {l_hi} nm is too large; a medium coefficient must be <= 1e15 per scene unit (free paths shorter than 1e-15 units fall below the resolution of positions)"))),
+            Role::Coefficient if hi > 1e15 => Err(self.src.error(span, key, format!("{hi:?} at {l_hi} nm is too large; a medium coefficient must be <= 1e15 per scene unit (free paths shorter than 1e-15 units fall below the resolution of positions)"))),
             Role::Reflectance if lo < 0.0 || hi > 1.0 => {
                 let (l, x) = if lo < 0.0 { (l_lo, lo) } else { (l_hi, hi) };
                 Err(self.src.error(span, key, format!("reflectance is {x:?} at {l} nm; a reflectance must lie in [0, 1] at every wavelength in 360-830 nm")))
             }
-            Role::Index if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; a refractive index (n or k) must be >= 0 at every wavelength"))),
-            Role::Coefficient if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; a medium coefficient must be >= 0 at every wavelength"))),
-            Role::Emission if lo < 0.0 => Err(self.src.error(span, key, format!("{lo} at {l_lo} nm is negative; emitted radiance and intensity must be >= 0 at every wavelength"))),
+            Role::Index if lo < 0.0 => Err(self.src.error(span, key, format!("{lo:?} at {l_lo} nm is negative; a refractive index (n or k) must be >= 0 at every wavelength"))),
+            Role::Coefficient if lo < 0.0 => Err(self.src.error(span, key, format!("{lo:?} at {l_lo} nm is negative; a medium coefficient must be >= 0 at every wavelength"))),
+            Role::Emission if lo < 0.0 => Err(self.src.error(span, key, format!("{lo:?} at {l_lo} nm is negative; emitted radiance and intensity must be >= 0 at every wavelength"))),
             _ => Ok(s),
         }
     }
@@ -133,7 +133,9 @@ impl<'a> SpectrumParser<'a> {
                     None => 1.0,
                     Some(s) => match number(s) {
                         Some(x) if x.is_finite() && x >= 0.0 => x,
-                        _ => return Err(err(format!("scale = {s} must be a finite number >= 0"))),
+                        _ => {
+                            return Err(err(format!("scale = {s:?} must be a finite number >= 0")))
+                        }
                     },
                 };
                 let outside = match t.get("outside").map(|o| o.as_str()) {
@@ -166,7 +168,7 @@ impl<'a> SpectrumParser<'a> {
                         .filter(|x| x.is_finite() && x.abs() <= 16.0)
                         .ok_or_else(|| {
                             err(format!(
-                                "power_law = {p} must be a finite exponent in [-16, 16]"
+                                "power_law = {p:?} must be a finite exponent in [-16, 16]"
                             ))
                         })?;
                     let reference = t.get("reference").and_then(number).filter(|x| x.is_finite() && *x > 0.0).ok_or_else(|| err("`power_law` needs `reference`, the wavelength in nm (> 0) at which the value is `scale`".into()))?;
@@ -185,7 +187,7 @@ impl<'a> SpectrumParser<'a> {
                         ));
                     }
                     let kelvin = number(k).ok_or_else(|| {
-                        err(format!("blackbody = {k} must be a temperature in kelvin"))
+                        err(format!("blackbody = {k:?} must be a temperature in kelvin"))
                     })?;
                     return Spectrum::blackbody(kelvin, scale).map_err(spec_err);
                 }

@@ -137,7 +137,7 @@ pub enum SpectrumError {
         values: usize,
     },
     /// Wavelengths not strictly increasing or not finite.
-    #[error("wavelengths must be finite and strictly increasing; entry {index} is {value} nm after {previous} nm")]
+    #[error("wavelengths must be finite and strictly increasing; entry {index} is {value:?} nm after {previous:?} nm")]
     NotIncreasing {
         /// Index of the offending entry.
         index: usize,
@@ -155,7 +155,7 @@ pub enum SpectrumError {
         value: f64,
     },
     /// A non-positive blackbody temperature.
-    #[error("blackbody temperature {0} K must be finite and > 0")]
+    #[error("blackbody temperature {0:?} K must be finite and > 0")]
     Temperature(f64),
 }
 

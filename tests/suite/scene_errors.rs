@@ -106,6 +106,42 @@ fn camera_errors() {
     }
 }
 
+/// A huge or tiny number in a message is written in exponent form, not in the 300 digits
+/// Rust's `{}` gives 1e300 (found by replacing every number of the bundled scenes in turn).
+#[test]
+fn huge_and_tiny_numbers_are_quoted_short() {
+    let cam = "[camera]\nposition = [0,0,0]\nlook_at = [0,0,1]\nup = [0,1,0]\n";
+    let cases = [
+        format!("{cam}fov = 1e300\n{LIGHT}"),
+        format!("{cam}focal_length = -1e300\nfilm_size = [0.025, 0.025]\n{LIGHT}"),
+        format!("{cam}focal_length = 0.035\nfilm_size = [-1e-310, 0.025]\n{LIGHT}"),
+        error_input("[[shape]]\ntype = \"sphere\"\ncenter = [0,0,0]\nradius = -1e300\nmaterial = \"m\"\n"),
+        error_input("[materials.r]\ntype = \"ward\"\nreflectance = 0.5\nalpha = 1e-310\n"),
+        error_input("[materials.r]\ntype = \"diffuse\"\nreflectance = { wavelengths = [400, -1e300], values = [0.5, 0.5] }\n"),
+        error_input("[materials.r]\ntype = \"dielectric\"\nior = -1e300\n"),
+        error_input("[media.fog]\nsigma_a = 0\nsigma_s = { power_law = 1e300, reference = 550, scale = 1 }\nphase = \"rayleigh\"\n"),
+        error_input("[media.fog]\nsigma_a = 0\nsigma_s = 1\nphase = \"hg\"\ng = -1e300\n"),
+        error_input("[[light]]\ntype = \"environment\"\nradiance = { blackbody = -1e300, scale = 1 }\n"),
+        error_input("[[light]]\ntype = \"environment\"\nradiance = -1e300\n"),
+    ];
+    for text in cases {
+        let e = match Scene::parse(&text, Path::new("bad.toml")) {
+            Ok(_) => panic!("accepted:\n{text}"),
+            Err(e) => e.to_string(),
+        };
+        let digits = e
+            .split(|c: char| !c.is_ascii_digit())
+            .map(str::len)
+            .max()
+            .unwrap_or(0);
+        assert!(digits <= 20, "{e}");
+    }
+}
+
+fn error_input(extra: &str) -> String {
+    format!("{BASE}{extra}{LIGHT}")
+}
+
 #[test]
 fn arbitrary_garbage_never_panics() {
     // Every prefix of a valid scene either parses or errors; none panics.

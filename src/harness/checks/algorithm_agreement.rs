@@ -205,7 +205,7 @@ impl Kind for AlgorithmAgreement {
             refine: k.get::<bool>("refine")?.is_none_or(|b| *b.get_ref()),
             max_bias: match k.positive("max_bias")? {
                 Some(m) if m > 1.0 => {
-                    return Err(k.error_at("max_bias", format!("{m} must be at most 1")))
+                    return Err(k.error_at("max_bias", format!("{m:?} must be at most 1")))
                 }
                 m => m.unwrap_or(MAX_BIAS),
             },

@@ -70,7 +70,7 @@ impl Kind for Hg {
         if let Some(bad) = g.iter().find(|g| g.abs() >= 1.0) {
             return Err(k.error_at(
                 "g",
-                format!("g = {bad} is not allowed; Henyey-Greenstein needs |g| < 1"),
+                format!("g = {bad:?} is not allowed; Henyey-Greenstein needs |g| < 1"),
             ));
         }
         Ok(Params {

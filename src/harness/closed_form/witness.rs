@@ -29,14 +29,10 @@ impl Eye {
     /// The eye for a `width`×`height` image of `spec`; an error when the image's aspect is not
     /// the film's.
     pub fn new(spec: &CameraSpec, width: usize, height: usize) -> Result<Eye, String> {
-        let aspect = width as f64 / height as f64;
-        if let Some(film) = spec.film_aspect {
-            if (film / aspect - 1.0).abs() > 1e-6 {
-                return Err(format!(
-                    "the image is {width}x{height} but the camera's film has aspect {film:.6}"
-                ));
-            }
+        if let Some(m) = spec.aspect_mismatch(width, height) {
+            return Err(m);
         }
+        let aspect = width as f64 / height as f64;
         let forward = (spec.look_at - spec.position).normalize();
         let right = forward.cross(spec.up).normalize();
         let up = right.cross(forward);

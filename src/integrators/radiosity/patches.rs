@@ -79,7 +79,7 @@ pub enum MeshError {
     #[error("radiosity meshes quads and triangle meshes; shape {0} is an analytic sphere (tessellate it into a triangle mesh)")]
     Sphere(usize),
     /// Too many patches for the dense O(n²) form-factor matrix.
-    #[error("patch size {size} gives {count} patches, more than the {limit} a dense radiosity solve allows (its form factors cost n² in time and memory); use a patch size of at least {suggested:.3e}")]
+    #[error("patch size {size:?} gives {count} patches, more than the {limit} a dense radiosity solve allows (its form factors cost n² in time and memory); use a patch size of at least {suggested:.3e}")]
     TooMany {
         /// Requested patch size, scene units.
         size: f64,
