@@ -21,9 +21,11 @@ fn main() {
         default_hook(info);
     }));
     let cli = cli::Cli::parse();
-    // Ctrl-C or SIGTERM: remove the temporary files and folders still alive (io::cleanup), then
+    // Ctrl-C or SIGTERM: kill the renderers and model servers still running, with what they
+    // started (io::process), remove the temporary files and folders still alive (io::cleanup), then
     // exit with the conventional 128 + SIGINT. Outputs are renamed into place, so none is torn.
     let _ = ctrlc::set_handler(|| {
+        furnace::io::process::kill_all();
         furnace::io::cleanup::remove_all();
         std::process::exit(130);
     });

@@ -14,6 +14,7 @@ use crate::film::partial::PartialFilm;
 use crate::film::{merge_pixels, Film, Pixel};
 use crate::integrators::Strategy;
 use crate::io::image as io;
+use crate::io::process;
 use crate::render::RenderSettings;
 use crate::scene::{Scene, Source};
 use crate::spectrum::Observer;
@@ -463,69 +464,101 @@ pub struct RunOutput {
 }
 
 /// Runs `cmd` with stdin closed, stdout and stderr read to their ends but only their last
-/// `OUTPUT_KEPT` (64 KiB) bytes kept, and killed after `timeout`.
+/// `OUTPUT_KEPT` (64 KiB) bytes kept, and killed after `timeout`. It runs in a process group of
+/// its own ([`crate::io::process`]): when it exits, what it left running in the background is
+/// killed too, so that no leftover holds its output open and makes the run wait; a process
+/// that left the group and holds the output is waited for until `timeout` at most.
 pub fn run_bounded(mut cmd: Command, timeout: Duration) -> Result<RunOutput, String> {
-    let mut child = cmd
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .map_err(|e| format!("cannot start {:?}: {e}", cmd.get_program()))?;
+    let start = Instant::now();
+    let mut group = process::spawn(
+        cmd.stdin(Stdio::null())
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+    )
+    .map_err(|e| format!("cannot start {:?}: {e}", cmd.get_program()))?;
+    let (done_tx, done) = std::sync::mpsc::channel::<()>();
     let keep = |r: Option<Box<dyn Read + Send>>| {
+        let kept = std::sync::Arc::new(Mutex::new(Vec::<u8>::new()));
+        let sink = std::sync::Arc::clone(&kept);
+        let done_tx = done_tx.clone();
         std::thread::spawn(move || {
-            let mut kept: Vec<u8> = Vec::new();
-            let Some(mut r) = r else { return kept };
-            let mut buf = [0u8; 8192];
-            while let Ok(n) = r.read(&mut buf) {
-                if n == 0 {
-                    break;
-                }
-                kept.extend_from_slice(&buf[..n]);
-                if kept.len() > 2 * OUTPUT_KEPT {
-                    kept.drain(..kept.len() - OUTPUT_KEPT);
+            if let Some(mut r) = r {
+                let mut buf = [0u8; 8192];
+                while let Ok(n) = r.read(&mut buf) {
+                    if n == 0 {
+                        break;
+                    }
+                    let mut k = sink.lock().unwrap_or_else(|e| e.into_inner());
+                    k.extend_from_slice(&buf[..n]);
+                    if k.len() > 2 * OUTPUT_KEPT {
+                        let excess = k.len() - OUTPUT_KEPT;
+                        k.drain(..excess);
+                    }
                 }
             }
-            let excess = kept.len().saturating_sub(OUTPUT_KEPT);
-            kept.drain(..excess);
-            kept
-        })
+            let _ = done_tx.send(());
+        });
+        kept
     };
     let out = keep(
-        child
+        group
+            .child
             .stdout
             .take()
             .map(|r| Box::new(r) as Box<dyn Read + Send>),
     );
     let err = keep(
-        child
+        group
+            .child
             .stderr
             .take()
             .map(|r| Box::new(r) as Box<dyn Read + Send>),
     );
-    let start = Instant::now();
-    let status = loop {
-        match child.try_wait() {
-            Ok(Some(status)) => break status,
-            Ok(None) if start.elapsed() > timeout => {
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(format!(
-                    "did not finish within {:.0} s (renderers table `timeout`); killed",
-                    timeout.as_secs_f64()
-                ));
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(20)),
-            Err(e) => return Err(format!("cannot wait for the process: {e}")),
-        }
+    drop(done_tx);
+    let killed = || {
+        format!(
+            "did not finish within {:.0} s (renderers table `timeout`); killed with what it started",
+            timeout.as_secs_f64()
+        )
     };
-    let stdout = out.join().unwrap_or_default();
-    let stderr = err.join().unwrap_or_default();
+    loop {
+        match group.exited() {
+            Ok(true) => break,
+            Ok(false) if start.elapsed() > timeout => {
+                let _ = group.kill_and_wait();
+                return Err(killed());
+            }
+            Ok(false) => std::thread::sleep(Duration::from_millis(20)),
+            Err(e) => {
+                let _ = group.kill_and_wait();
+                return Err(format!("cannot wait for the process: {e}"));
+            }
+        }
+    }
+    let status = group
+        .kill_and_wait()
+        .map_err(|e| format!("cannot wait for the process: {e}"))?;
+    // both readers end once every holder of the pipes has ended
+    for _ in 0..2 {
+        let left = timeout.saturating_sub(start.elapsed());
+        if done.recv_timeout(left).is_err() {
+            return Err(format!(
+                "exited ({status}) but a process it started outside its process group still held its output open after {:.0} s (renderers table `timeout`)",
+                timeout.as_secs_f64()
+            ));
+        }
+    }
+    let text = |k: &Mutex<Vec<u8>>| {
+        let k = k.lock().unwrap_or_else(|e| e.into_inner());
+        let excess = k.len().saturating_sub(OUTPUT_KEPT);
+        String::from_utf8_lossy(&k[excess..]).into_owned()
+    };
     Ok(RunOutput {
         success: status.success(),
         status: status.to_string(),
         status_code: status.code(),
-        stderr: String::from_utf8_lossy(&stderr).into_owned(),
-        stdout: String::from_utf8_lossy(&stdout).into_owned(),
+        stderr: text(&err),
+        stdout: text(&out),
     })
 }
 

@@ -8,6 +8,7 @@ pub mod csv;
 pub mod image;
 pub mod located;
 pub mod mesh;
+pub mod process;
 pub mod suggest;
 
 pub use located::{

@@ -465,6 +465,28 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
     c.args(["-c", "yes 0123456789 | head -c 300000000 1>&2"]);
     let out = run_bounded(c, Duration::from_secs(60)).unwrap();
     assert!(out.stderr.len() <= 64 * 1024, "{}", out.stderr.len());
+    // a command that exits but leaves a process holding its output does not hold up the run:
+    // what it started is killed with it
+    let mut c = Command::new("sh");
+    c.args(["-c", "sleep 100 & echo done"]);
+    let t0 = Instant::now();
+    let out = run_bounded(c, Duration::from_secs(60)).unwrap();
+    assert_eq!(out.stdout, "done\n");
+    assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", t0.elapsed());
+    // a command killed at its timeout takes what it started along
+    let d = tmp("group");
+    let pid_file = d.join("pid");
+    let mut c = Command::new("sh");
+    c.arg("-c").arg(format!(
+        "sleep 100 & echo $! > {}; wait",
+        pid_file.display()
+    ));
+    assert!(run_bounded(c, Duration::from_secs(1)).is_err());
+    let pid = std::fs::read_to_string(&pid_file).unwrap();
+    let stat = std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
+    // gone, or a zombie waiting for a reaper (state Z)
+    assert!(stat.is_empty() || stat.contains(") Z "), "{stat}");
+    let _ = std::fs::remove_dir_all(&d);
     // a failed render leaves no temporary folder behind
     let scene = furnace::scene::Scene::parse(&scene("4", ""), &root("scenes/x.toml")).unwrap();
     let before = temp_folders("slow");

@@ -7,6 +7,7 @@ use crate::harness::under_test::{
     BsdfFlags, BsdfModel, EmitterModel, EmitterSample, ModelError, ModelSource, Named, PhaseModel,
     Precision, ServerCommand,
 };
+use crate::io::process;
 use crate::math::Vec3;
 use crate::media::PhaseSample;
 use crate::scattering::BsdfSample;
@@ -14,7 +15,7 @@ use crate::spectrum::{SampledSpectrum, Wavelengths};
 use serde_json::{json, Value};
 use std::collections::VecDeque;
 use std::io::{BufReader, Read, Write};
-use std::process::{Child, ChildStdin, Command, Stdio};
+use std::process::{ChildStdin, Command, Stdio};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::sync::{Arc, Mutex};
@@ -24,7 +25,8 @@ use std::time::{Duration, Instant};
 const STDERR_KEPT: usize = 4096;
 
 struct Connection {
-    child: Child,
+    /// The server, in a process group of its own (killed with what it started).
+    server: process::Group,
     /// Messages for the writer thread, which owns the server's stdin (a server that stops
     /// reading blocks that thread, never the caller, who times out waiting for the reply).
     stdin: Option<std::sync::mpsc::Sender<Vec<u8>>>,
@@ -53,8 +55,7 @@ impl Connection {
 
     /// Ends the connection with `why` (the server is killed) and returns the error.
     fn fail(&mut self, why: String) -> ModelError {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
+        let _ = self.server.kill_and_wait();
         self.stdin = None;
         // give the stderr reader a moment to collect the last lines
         std::thread::sleep(Duration::from_millis(50));
@@ -89,8 +90,14 @@ impl Connection {
         });
         if let Err(e) = sent {
             std::thread::sleep(Duration::from_millis(50));
-            let why = match self.child.try_wait() {
-                Ok(Some(status)) => format!("exited ({status}) before answering {what}"),
+            let why = match self.server.exited() {
+                Ok(true) => {
+                    let status = self.server.kill_and_wait().map(|s| s.to_string());
+                    format!(
+                        "exited ({}) before answering {what}",
+                        status.unwrap_or_default()
+                    )
+                }
                 _ => format!("cannot send {what}: {e}"),
             };
             return Err(self.fail(why));
@@ -103,7 +110,12 @@ impl Connection {
                 self.timeout.as_secs_f64()
             ))),
             Err(RecvTimeoutError::Disconnected) => {
-                let status = self.child.wait().map(|s| s.to_string()).unwrap_or_default();
+                // its output closed: it has ended, or will at the kill
+                let status = self
+                    .server
+                    .kill_and_wait()
+                    .map(|s| s.to_string())
+                    .unwrap_or_default();
                 Err(self.fail(format!("exited ({status}) before answering {what}")))
             }
         }
@@ -117,15 +129,14 @@ impl Drop for Connection {
             let _ = write_message(&mut bye, json!({"op": "bye"}), 0, &[]);
             let _ = tx.send(bye);
         }
-        // a server that does not end on bye/end of input within a second is killed
+        // a server that does not end on bye/end of input within a second is killed; what it
+        // started is killed either way (process::Group's drop)
         for _ in 0..20 {
-            if matches!(self.child.try_wait(), Ok(Some(_))) {
+            if matches!(self.server.exited(), Ok(true)) {
                 return;
             }
             std::thread::sleep(Duration::from_millis(50));
         }
-        let _ = self.child.kill();
-        let _ = self.child.wait();
     }
 }
 
@@ -161,10 +172,9 @@ impl RemoteModels {
         for (k, v) in &cmd.env {
             c.env(k, v);
         }
-        let mut child = c
-            .spawn()
+        let mut server = process::spawn(&mut c)
             .map_err(|e| ModelError(format!("cannot start model server {program:?}: {e}")))?;
-        let stdin = child.stdin.take().map(|mut w: ChildStdin| {
+        let stdin = server.child.stdin.take().map(|mut w: ChildStdin| {
             let (tx, rx) = std::sync::mpsc::channel::<Vec<u8>>();
             std::thread::spawn(move || {
                 for bytes in rx {
@@ -175,8 +185,8 @@ impl RemoteModels {
             });
             tx
         });
-        let stdout = child.stdout.take().expect("piped");
-        let stderr_pipe = child.stderr.take().expect("piped");
+        let stdout = server.child.stdout.take().expect("piped");
+        let stderr_pipe = server.child.stderr.take().expect("piped");
         let stderr = Arc::new(Mutex::new(VecDeque::new()));
         let sink = Arc::clone(&stderr);
         std::thread::spawn(move || {
@@ -209,7 +219,7 @@ impl RemoteModels {
             }
         });
         let mut conn = Connection {
-            child,
+            server,
             stdin,
             replies: rx,
             stderr,
