@@ -143,6 +143,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         ("--shard-costs", &a.shard_costs),
     ]));
     super::distinct_paths(&inputs, &outputs.roles())?;
+    super::distinct_renderers(&a.renderers)?;
     let mut specs = Vec::new();
     for f in &files {
         specs.extend(
@@ -219,6 +220,12 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         None
     };
     let bundles = bundle_root(&a);
+    // the bundles' folder holds an external renderer's renders while its checks run: one that
+    // cannot be written fails now (every such check would end as ERROR), not during the run
+    if let Some(root) = bundles.as_ref().filter(|_| externals.is_some()) {
+        furnace::io::check_writable(&root.join("README.md"))
+            .map_err(|e| anyhow::anyhow!("--bundles {} cannot be written: {e}", root.display()))?;
+    }
     // each check's line (or JSON object); JSON lines are the output, so --quiet keeps them
     let print_outcomes = a.format == "json" || !super::quiet();
     let mut reports = Vec::new();

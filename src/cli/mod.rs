@@ -419,6 +419,41 @@ impl Outputs {
     }
 }
 
+/// A renderer's label as it goes into its results files' names (`x.LABEL.json`).
+fn file_label(renderer: &str) -> String {
+    renderer
+        .chars()
+        .map(|c| {
+            if c.is_alphanumeric() || c == '-' || c == '_' {
+                c
+            } else {
+                '_'
+            }
+        })
+        .collect()
+}
+
+/// Refuses renderers given twice, or whose labels give their results files one name (`good:v`
+/// and `good_v` both write `x.good_v.json`): one renderer's results would replace the other's.
+pub fn distinct_renderers(labels: &[String]) -> Result<(), Failure> {
+    for (i, a) in labels.iter().enumerate() {
+        for b in &labels[..i] {
+            if a == b {
+                return Err(anyhow::anyhow!("--renderer {a:?} is given twice").into());
+            }
+            if file_label(a) == file_label(b) {
+                return Err(anyhow::anyhow!(
+                    "--renderer {b:?} and --renderer {a:?} would write their results to files of one name (*.{}.json): \
+                     their results would replace each other; judge them in two runs",
+                    file_label(a)
+                )
+                .into());
+            }
+        }
+    }
+    Ok(())
+}
+
 /// Writes one JSON / JUnit / Markdown file per renderer (the first at the given path, the
 /// others with the renderer's label before the extension) and one HTML page for all.
 pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Result<(), Failure> {
@@ -427,22 +462,11 @@ pub fn write_results(reports: &[RunReport], out: &Outputs, title: &str) -> Resul
         if i == 0 || is_device(p) {
             return p.to_path_buf();
         }
-        let label: String = r
-            .renderer
-            .chars()
-            .map(|c| {
-                if c.is_alphanumeric() || c == '-' || c == '_' {
-                    c
-                } else {
-                    '_'
-                }
-            })
-            .collect();
         let ext = p
             .extension()
             .map(|e| e.to_string_lossy().to_string())
             .unwrap_or_default();
-        p.with_extension(format!("{label}.{ext}"))
+        p.with_extension(format!("{}.{ext}", file_label(&r.renderer)))
     };
     let mut values = Vec::new();
     for (i, report) in reports.iter().enumerate() {

@@ -211,7 +211,21 @@ pub fn row_id(renderer: &str, check: &str) -> String {
             })
             .collect()
     };
-    format!("{}--{}", clean(renderer), clean(check))
+    let id = format!("{}--{}", clean(renderer), clean(check));
+    let plain = |s: &str| s.chars().all(|c| c.is_ascii_alphanumeric());
+    if plain(renderer) && plain(check) {
+        return id;
+    }
+    // Cleaning maps `x/y` and `x_y` to one id, and "--" may also occur inside a name: a hash of
+    // the exact pair keeps two checks' bundle folders and rows apart (FNV-1a, 64 bits).
+    let hash = renderer
+        .bytes()
+        .chain([0])
+        .chain(check.bytes())
+        .fold(0xcbf2_9ce4_8422_2325_u64, |h, b| {
+            (h ^ u64::from(b)).wrapping_mul(0x0000_0100_0000_01b3)
+        });
+    format!("{id}-{hash:016x}")
 }
 
 fn renderer_of(run: &Value) -> &str {
@@ -719,6 +733,26 @@ pub fn markdown(runs: &[Value], comparisons: &[ComparisonSection]) -> String {
 mod tests {
     use super::*;
     use crate::harness::compare::{compare, Region};
+
+    /// Names that clean to one id (`x/y`, `x_y`; "--" inside a name) keep distinct row ids
+    /// and bundle folders; plain names keep theirs as written.
+    #[test]
+    fn row_ids_keep_every_pair_apart() {
+        assert_eq!(row_id("mitsuba3", "lambert"), "mitsuba3--lambert");
+        let ids = [
+            row_id("good", "x/y"),
+            row_id("good", "x_y"),
+            row_id("good", "x--y"),
+            row_id("good--x", "y"),
+            row_id("good-", "-x--y"),
+        ];
+        for (i, a) in ids.iter().enumerate() {
+            assert!(a.starts_with("good"), "{a}");
+            for b in &ids[..i] {
+                assert_ne!(a, b);
+            }
+        }
+    }
 
     #[test]
     fn base64_matches_rfc4648_vectors() {

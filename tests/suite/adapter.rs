@@ -310,7 +310,13 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
     };
     let out = run("furnace/sphere[albedo=0.5]");
     assert_eq!(out.status.code(), Some(1), "{out:?}");
-    let bundle = dir.join("r-bundles/stand-in_v1--furnace_sphere_albedo_0_5_");
+    // the folder's name is the report row's id: the cleaned names and a hash of the exact pair
+    let id = furnace::report::html::row_id("stand-in:v1", "furnace/sphere[albedo=0.5]");
+    assert!(
+        id.starts_with("stand-in_v1--furnace_sphere_albedo_0_5_-"),
+        "{id}"
+    );
+    let bundle = dir.join("r-bundles").join(&id);
     let readme = std::fs::read_to_string(bundle.join("README.md")).unwrap();
     for part in [
         "# furnace/sphere[albedo=0.5]: FAIL against stand-in:v1",
@@ -339,9 +345,9 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
     assert_eq!(folders.len(), 1, "{folders:?}");
     let html = std::fs::read_to_string(&report).unwrap();
     assert!(
-        html.contains(
-            "href=\"r-bundles/stand-in_v1--furnace_sphere_albedo_0_5_/README.md\">reproducer bundle"
-        ),
+        html.contains(&format!(
+            "href=\"r-bundles/{id}/README.md\">reproducer bundle"
+        )),
         "the report links the bundle"
     );
     // command.sh re-runs the renderer alone: its independent runs write their images again

@@ -94,6 +94,60 @@ fn render_writes_exr_and_png_and_reports_speed() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
+/// Two renderers whose results files would have one name, or one renderer given twice, are
+/// refused before anything runs (one's results replaced the other's without a word).
+#[test]
+fn renderers_whose_results_files_collide_are_refused() {
+    for (a, b, says) in [
+        ("good:v", "good_v", "files of one name"),
+        ("furnace", "furnace", "given twice"),
+    ] {
+        let out = furnace()
+            .args([
+                "check",
+                "tests/manifests/lambert.toml",
+                "--renderer",
+                a,
+                "--renderer",
+                b,
+            ])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{out:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(says), "{err}");
+    }
+}
+
+/// `--bundles` where no folder can be made is refused before the run (each external
+/// renderer's check ended as ERROR: its renders are kept there while it runs).
+#[test]
+fn bundles_that_cannot_be_written_are_refused_before_the_run() {
+    let dir = crate::scratch_dir().join(format!("furnace-cli-bundles-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let file = dir.join("keep.txt");
+    std::fs::write(&file, "keep").unwrap();
+    let out = furnace()
+        .args([
+            "check",
+            "tests/manifests/lambert.toml",
+            "--renderer",
+            "mitsuba3",
+            "--bundles",
+        ])
+        .arg(&file)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--bundles") && err.contains("not a folder"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
 #[test]
 fn invalid_scene_exits_2_with_location() {
     let dir = crate::scratch_dir().join(format!("furnace-cli-bad-{}", std::process::id()));
