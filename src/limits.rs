@@ -55,6 +55,9 @@ pub const MAX_CHANNELS: usize = 64;
 /// Longest piece of user input quoted in a message, characters.
 pub const MAX_QUOTED: usize = 120;
 
+/// Longest model name a model server may declare, bytes (every check line names its model).
+pub const MAX_MODEL_NAME: usize = 200;
+
 /// A limit that input exceeded.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 #[error("{what} is {value}; the limit is {limit}{how}")]

@@ -15,7 +15,7 @@ pub struct ServeModelsArgs {
     /// Also serve two deliberately wrong BSDFs ("control/…"), which the model kinds must reject.
     #[arg(long)]
     controls: bool,
-    /// Misbehave on purpose, to test clients: none, crash, hang, nan, short, version.
+    /// Misbehave on purpose, to test clients: none, crash, hang, nan, inf, short, version.
     #[arg(long, default_value = "none", hide = true)]
     fault: String,
 }
@@ -24,7 +24,7 @@ pub struct ServeModelsArgs {
 pub fn run(a: ServeModelsArgs) -> Result<i32, Failure> {
     let fault = Fault::from_name(&a.fault).ok_or_else(|| {
         anyhow::anyhow!(
-            "--fault {:?}: allowed none, crash, hang, nan, short, version",
+            "--fault {:?}: allowed none, crash, hang, nan, inf, short, version",
             a.fault
         )
     })?;

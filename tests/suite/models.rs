@@ -160,6 +160,8 @@ fn a_misbehaving_server_makes_the_check_an_error_with_its_words() {
         ("crash", "exited"),
         ("hang", "no reply"),
         ("nan", "answered NaN"),
+        // +∞ in a weight read as a FAIL with an estimate of 0
+        ("inf", "answered inf"),
         ("short", "payload shorter"),
     ] {
         let remote = RemoteModels::start(&server(&["--fault", fault], 2.0)).unwrap();

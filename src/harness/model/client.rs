@@ -1,5 +1,5 @@
 //! The model protocol's client: starts a model server, reads its hello, and turns its models
-//! into the batched interface of `under_test.rs`. Every reply is checked (shape, NaN, timeout);
+//! into the batched interface of `under_test.rs`. Every reply is checked (shape, NaN and ±∞, timeout);
 //! a failure names the op and model and quotes the server's stderr tail.
 
 use super::protocol::{self, preview, read_message, write_message, Message, Op};
@@ -343,6 +343,13 @@ fn validate_models(models: &[Value]) -> Result<(), String> {
         if name.is_empty() || name.contains('\n') {
             return Err(format!("a model's name {quoted} is empty or has a newline"));
         }
+        if name.len() > crate::limits::MAX_MODEL_NAME {
+            return Err(format!(
+                "a model's name {quoted} is {} bytes; the limit is {} (check lines and reports name the model)",
+                name.len(),
+                crate::limits::MAX_MODEL_NAME
+            ));
+        }
         if !names.insert(name) {
             return Err(format!(
                 "the model name {quoted} is served twice; names are unique"
@@ -514,10 +521,14 @@ impl Remote {
             }
             for (i, row) in reply.payload.chunks_exact(op.reply).enumerate() {
                 let empty = flags_col.is_some_and(|c| row[c] == 0.0);
-                if !empty && row.iter().any(|v| v.is_nan()) {
+                // NaN anywhere, ±∞ but where the protocol allows +∞ (a distance)
+                let bad = row.iter().enumerate().find(|&(c, v)| {
+                    v.is_nan() || (v.is_infinite() && !(op.infinite == Some(c) && *v > 0.0))
+                });
+                if let (false, Some((_, v))) = (empty, bad) {
                     // the model's answer, not a broken connection: the server stays up
                     return Err(ModelError(format!(
-                        "model server answered NaN to {} on {:?} (reply row {}: {row:?})",
+                        "model server answered {v:?} to {} on {:?} (reply row {}: {row:?}); a value must be a finite number",
                         op.name,
                         self.name,
                         out.len() / op.reply + i
@@ -761,6 +772,9 @@ mod tests {
             validate_models(&[json!({"name": "p", "kind": "phase", "flags": {"mean_cosine": 2}})])
                 .unwrap_err();
         assert!(e.contains("mean_cosine"), "{e}");
+        let long = "d".repeat(900_000);
+        let e = validate_models(&[json!({"name": long, "kind": "bsdf"})]).unwrap_err();
+        assert!(e.len() < 400 && e.contains("900000 bytes"), "{e}");
         let e = validate_models(&[json!({"name": "x", "kind": "light"})]).unwrap_err();
         assert!(e.contains("not one of bsdf, phase, emitter"), "{e}");
     }

@@ -20,6 +20,8 @@ pub enum Fault {
     Hang,
     /// Answer NaN in every reply row.
     Nan,
+    /// Answer +∞ in every reply row.
+    Inf,
     /// Announce one row more than is sent.
     Short,
     /// Claim another protocol version.
@@ -27,13 +29,14 @@ pub enum Fault {
 }
 
 impl Fault {
-    /// The fault named `s` (none, crash, hang, nan, short, version).
+    /// The fault named `s` (none, crash, hang, nan, inf, short, version).
     pub fn from_name(s: &str) -> Option<Fault> {
         Some(match s {
             "none" => Fault::None,
             "crash" => Fault::Crash,
             "hang" => Fault::Hang,
             "nan" => Fault::Nan,
+            "inf" => Fault::Inf,
             "short" => Fault::Short,
             "version" => Fault::Version,
             _ => return None,
@@ -135,6 +138,9 @@ pub fn serve(
             Ok((width, mut rows)) => {
                 if fault == Fault::Nan {
                     rows.iter_mut().for_each(|v| *v = f64::NAN);
+                }
+                if fault == Fault::Inf {
+                    rows.iter_mut().for_each(|v| *v = f64::INFINITY);
                 }
                 let mut header = json!({"ok": true});
                 if fault == Fault::Short {
