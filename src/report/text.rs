@@ -61,10 +61,15 @@ pub fn line(o: &Outcome) -> String {
     if o.seconds != 0.0 {
         let _ = write!(s, "  {}", seconds(o.seconds));
     }
-    let shows_message = matches!(
-        o.verdict,
-        Verdict::Unstable | Verdict::Error | Verdict::Skipped
-    );
+    // a FAIL whose numbers do not show the rejection (p at or above α, or no numbers: an
+    // identity such as pdf = sample pdf was violated) needs its message to say why
+    let unexplained_fail = o.verdict == Verdict::Fail
+        && (nums.is_empty() || matches!((o.p_value, o.alpha), (Some(p), Some(a)) if p >= a));
+    let shows_message = unexplained_fail
+        || matches!(
+            o.verdict,
+            Verdict::Unstable | Verdict::Error | Verdict::Skipped
+        );
     let message = one_line(o.message.trim());
     if shows_message && !message.is_empty() {
         s.push_str("  — ");
@@ -593,6 +598,21 @@ mod tests {
             ..fixture::pass_tolerance()
         };
         insta::assert_snapshot!("line_fail_tolerance", line(&o));
+    }
+
+    /// A FAIL whose test did not reject (the verdict came from a violated identity) says why.
+    #[test]
+    fn line_fail_that_the_numbers_do_not_explain_gives_its_reason() {
+        let o = Outcome {
+            verdict: Verdict::Fail,
+            message: "identity violated: pdf -0.195 vs sample pdf 0.195".into(),
+            ..fixture::pass_z()
+        };
+        assert!(o.p_value.unwrap() >= o.alpha.unwrap());
+        assert!(line(&o).ends_with("— identity violated: pdf -0.195 vs sample pdf 0.195"));
+        // a FAIL its test explains keeps the line to its numbers
+        let f = fixture::fail_chi_square();
+        assert!(!line(&f).contains(" — "), "{}", line(&f));
     }
 
     #[test]
