@@ -302,9 +302,10 @@ impl External {
             Ok(())
         } else {
             Err(format!(
-                "{:?} failed: {}{help}",
+                "{:?} failed ({}): {}{help}",
                 p.join(" "),
-                tail(&out.stderr)
+                out.status,
+                said(&out)
             ))
         }
     }
@@ -391,7 +392,12 @@ impl External {
         let argv = self.expand(v, &|_| None);
         match run_bounded(self.command(&argv), self.timeout()) {
             Ok(out) if out.success => out.stdout.lines().next().unwrap_or("").trim().to_string(),
-            Ok(out) => format!("{:?} failed: {}", argv.join(" "), tail(&out.stderr)),
+            Ok(out) => format!(
+                "{:?} failed ({}): {}",
+                argv.join(" "),
+                out.status,
+                said(&out)
+            ),
             Err(e) => format!("{:?}: {e}", argv.join(" ")),
         }
     }
@@ -434,6 +440,16 @@ pub fn shell_quote(s: &str) -> String {
         s.to_string()
     } else {
         format!("'{}'", s.replace('\'', "'\\''"))
+    }
+}
+
+/// What a failed run said: its stderr's last lines, else its stdout's, else that it printed
+/// nothing (a message ending in a bare colon said nothing).
+fn said(out: &RunOutput) -> String {
+    match (tail(&out.stderr), tail(&out.stdout)) {
+        (e, _) if !e.is_empty() => e,
+        (_, o) if !o.is_empty() => format!("(nothing on stderr) stdout: {o}"),
+        _ => "it printed nothing on stdout or stderr".into(),
     }
 }
 
@@ -800,7 +816,7 @@ impl External {
                     "{} exited with {}: {}",
                     self.label,
                     run.status,
-                    tail(&run.stderr)
+                    said(&run)
                 ));
             }
             let layers = io::read_exr(&out).map_err(|e| e.to_string())?;
@@ -821,6 +837,20 @@ impl External {
                 plane(&channels[1])?,
                 plane(&channels[2])?,
             ];
+            // a NaN or infinite pixel is a finding about the renderer, and no statistic can
+            // be formed from it: the render ends here, naming it
+            let bad = (0..s.width * s.height).filter(|&i| rgb.iter().any(|c| !c[i].is_finite()));
+            if let Some(first) = bad.clone().next() {
+                return Err(format!(
+                    "{} wrote {} pixels whose {} is NaN or infinite in {} (the first at x = {}, y = {}): no statistic can be formed from them; a NaN or infinite radiance is itself a finding about the renderer",
+                    self.label,
+                    bad.count(),
+                    channels.join("/"),
+                    out.file_name().map_or(String::new(), |n| n.to_string_lossy().into_owned()),
+                    first % s.width,
+                    first / s.width
+                ));
+            }
             let mut batch = vec![Pixel::default(); s.width * s.height];
             for (i, px) in batch.iter_mut().enumerate() {
                 let native_rgb = [rgb[0][i] as f64, rgb[1][i] as f64, rgb[2][i] as f64];

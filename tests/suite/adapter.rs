@@ -534,3 +534,58 @@ fn rgb_renderers_are_not_judged_against_spectral_products() {
     let e = load_renderers(&path).unwrap_err();
     assert!(e.contains("renderer.stand-in.colour"), "{e}");
 }
+
+/// A renderer whose image holds NaN or infinite pixels gets an ERROR that says so, not a
+/// message about a non-finite estimate and an exact image.
+#[test]
+fn a_renderer_that_writes_nan_pixels_is_named_for_them() {
+    use furnace::io::image::{write_exr, Layers};
+    let dir = crate::scratch_dir().join(format!("furnace-adapter-nan-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let exr = dir.join("nan.exr");
+    let mut r = vec![0.5f32; 64];
+    r[9] = f32::NAN;
+    r[10] = f32::INFINITY;
+    let channels = ["R", "G", "B"]
+        .iter()
+        .map(|c| {
+            (
+                c.to_string(),
+                if *c == "R" { r.clone() } else { vec![0.5; 64] },
+            )
+        })
+        .collect();
+    write_exr(
+        &exr,
+        &Layers {
+            width: 8,
+            height: 8,
+            channels,
+            attributes: vec![],
+        },
+    )
+    .unwrap();
+    let table = dir.join("renderers.toml");
+    std::fs::write(
+        &table,
+        format!(
+            "[renderer.nan]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"cp\", {:?}, \"{{out}}\"]\n",
+            exr.display().to_string()
+        ),
+    )
+    .unwrap();
+    let ext = External::from_spec("nan", &load_renderers(&table).unwrap(), &root("")).unwrap();
+    let text = "[[check]]\nname = \"s\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 8\nheight = 8\nspp = 4\n";
+    let specs = manifest::parse(text, &root("tests/manifests/x.toml")).unwrap();
+    let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+    let o = &report.outcomes[0];
+    assert_eq!(o.verdict, Verdict::Error, "{}", o.message);
+    assert!(
+        o.message
+            .contains("nan wrote 2 pixels whose R/G/B is NaN or infinite")
+            && o.message.contains("x = 1, y = 1"),
+        "{}",
+        o.message
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
