@@ -199,8 +199,16 @@ pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, Rende
             ));
         }
         for (key, limit) in [("timeout", d.timeout), ("model_timeout", d.model_timeout)] {
-            if limit.is_some_and(|t| !(t.is_finite() && t > 0.0 && t <= 86_400.0)) {
-                return Err(at(key, format!("{limit:?}: give seconds in (0, 86400]")));
+            if let Some(t) = limit.filter(|t| !(t.is_finite() && *t > 0.0 && *t <= 86_400.0)) {
+                return Err(at(key, format!("{t:?}: give seconds in (0, 86400]")));
+            }
+        }
+        if let Some(c) = &d.channels {
+            if c.iter().any(String::is_empty) || c[0] == c[1] || c[1] == c[2] || c[0] == c[2] {
+                return Err(at(
+                    "channels",
+                    format!("{c:?}: give the names of three distinct channels (R, G, B)"),
+                ));
             }
         }
         for (key, argv) in [("command", &d.command), ("models", &d.models)] {
@@ -227,6 +235,15 @@ pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, Rende
                     }
                     rest = &rest[j + 1..];
                 }
+            }
+        }
+        // the image command must be told where to write: its EXR is read from {out}
+        if let Some(argv) = &d.command {
+            if !argv.iter().any(|a| a.contains("{out}")) {
+                return Err(at(
+                    "command",
+                    "has no {out}: furnace reads the image the command writes there".into(),
+                ));
             }
         }
     }
@@ -270,6 +287,11 @@ impl External {
                     .collect::<String>()
             )
         })?;
+        if variant.as_ref().is_some_and(String::is_empty) {
+            return Err(format!(
+                "--renderer {spec:?}: the variant after ':' is empty; give NAME or NAME:VARIANT"
+            ));
+        }
         let variant = variant.or(desc.variant.clone()).unwrap_or_default();
         Ok(External {
             label: if variant.is_empty() {
@@ -1001,6 +1023,15 @@ mod tests {
             ),
             (format!("{ok}batches = 1\n"), "renderer.x.batches: 1"),
             (format!("{ok}gamma = 1\n"), "unknown field `gamma`"),
+            (
+                format!("{ok}timeout = 0\n"),
+                "renderer.x.timeout: 0.0: give seconds",
+            ),
+            (
+                format!("{ok}channels = [\"R\", \"R\", \"B\"]\n"),
+                "three distinct channels",
+            ),
+            (ok.replace(", \"{out}\"", ""), "has no {out}"),
         ] {
             let e = load_renderers(&write(&text)).unwrap_err();
             assert!(e.contains(want), "{e}");
@@ -1011,6 +1042,8 @@ mod tests {
             e.contains("unknown renderer \"y\"; known: furnace, x"),
             "{e}"
         );
+        let e = External::from_spec("x:", &r, Path::new(".")).unwrap_err();
+        assert!(e.contains("variant after ':' is empty"), "{e}");
         let x = External::from_spec("x:fast", &r, Path::new(".")).unwrap();
         assert_eq!(
             (x.label.as_str(), x.variant.as_str(), x.batches()),

@@ -397,7 +397,7 @@ fn a_failing_check_leaves_a_reproducer_bundle_the_report_links() {
 fn a_renderer_that_cannot_express_a_scene_skips_the_check_by_name() {
     let table = |script: &str| {
         let text = format!(
-            "[renderer.refuser]\nexporter = \"json\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", {script:?}, \"{{scene}}\"]\n"
+            "[renderer.refuser]\nexporter = \"json\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", {script:?}, \"{{scene}}\", \"{{out}}\"]\n"
         );
         let p = crate::scratch_dir().join(format!(
             "furnace-refuser-{}-{}.toml",

@@ -104,7 +104,7 @@ fn an_external_renderer_that_never_returns_is_stopped_at_the_time_limit() {
 exporter = "mitsuba3"
 observer = "cie1931"
 batches = 2
-command = ["sleep", "1000"]
+command = ["sh", "-c", "sleep 1000", "{out}"]
 "#;
     let r = parse_renderers(table, Path::new("sleeper.toml")).unwrap();
     let ext = External::from_spec("sleeper", &r, &root("")).unwrap();

@@ -452,7 +452,7 @@ exporter = "mitsuba3"
 observer = "cie1931"
 timeout = 1
 probe = ["sleep", "100"]
-command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
+command = ["sh", "-c", "yes 0123456789 | head -c 300000000", "{out}"]
 "#;
     let r = parse_renderers(table, Path::new("t.toml")).unwrap();
     let ext = External::from_spec("slow", &r, &root("")).unwrap();
@@ -483,8 +483,16 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000"]
     ));
     assert!(run_bounded(c, Duration::from_secs(1)).is_err());
     let pid = std::fs::read_to_string(&pid_file).unwrap();
-    let stat = std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
-    // gone, or a zombie waiting for a reaper (state Z)
+    // gone, or a zombie waiting for a reaper (state Z), once the kill has been delivered
+    let t0 = Instant::now();
+    let stat = loop {
+        let stat =
+            std::fs::read_to_string(format!("/proc/{}/stat", pid.trim())).unwrap_or_default();
+        if stat.is_empty() || stat.contains(") Z ") || t0.elapsed() > Duration::from_secs(10) {
+            break stat;
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    };
     assert!(stat.is_empty() || stat.contains(") Z "), "{stat}");
     let _ = std::fs::remove_dir_all(&d);
     // a failed render leaves no temporary folder behind
@@ -546,7 +554,7 @@ fn an_interrupted_run_removes_its_temporary_folders() {
     let table = d.join("renderers.toml");
     std::fs::write(
         &table,
-        "[renderer.sleepy]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nprobe = [\"true\"]\ncommand = [\"sleep\", \"5\"]\n",
+        "[renderer.sleepy]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nprobe = [\"true\"]\ncommand = [\"sh\", \"-c\", \"sleep 5\", \"{out}\"]\n",
     )
     .unwrap();
     let mut child = Command::new(env!("CARGO_BIN_EXE_furnace"))
