@@ -278,6 +278,17 @@ fn run_one(
         inner,
         globs: &check.models,
     });
+    // another renderer that serves none of the models a check names is not judged by it (a
+    // SKIP with the reason); for furnace itself such a check is a manifest error and stays one
+    if let (Some(f), false, false) = (&filtered, check.models.is_empty(), renderer.is_reference()) {
+        if let Some(why) = serves_none(f, &check.models, renderer.name()) {
+            let mut o = Outcome::new(&check.name, check.kind_name());
+            o.verdict = Verdict::Skipped;
+            o.message = why;
+            progress(Progress::Finished(&o));
+            return (o, None);
+        }
+    }
     let limit = check.time_limit.unwrap_or(opts.time_limit);
     let ctx = Context {
         deadline: Some(Instant::now() + std::time::Duration::from_secs_f64(limit)),
@@ -400,4 +411,16 @@ fn isolate_failures(
             .and_then(|(e, x)| isolation::relative(e, x));
         o.isolation = isolation::isolate(&ladder, &ctx, opts.seed, budget, deviation);
     }
+}
+
+/// Why `models` holds none of the models `globs` names, or None when it holds one (or cannot
+/// be asked: the check's own run then reports the server's error).
+fn serves_none(models: &Filtered, globs: &[String], renderer: String) -> Option<String> {
+    let (b, p, e) = (
+        models.bsdfs().ok()?,
+        models.phases().ok()?,
+        models.emitters().ok()?,
+    );
+    (b.is_empty() && p.is_empty() && e.is_empty())
+        .then(|| format!("{renderer} serves no model matching this check's `models` {globs:?}"))
 }

@@ -301,8 +301,14 @@ pub fn summary(r: &RunReport) -> String {
         ));
     }
     if b != Tally::default() {
+        // another renderer is measured against furnace's earlier output, not its own
+        let whose = if r.renderer == "furnace" {
+            "furnace against its own earlier output"
+        } else {
+            "measured against furnace's own earlier output"
+        };
         lines.push(format!(
-            "(regression baselines, furnace against its own earlier output, not validation: {} passed, {} failed{})",
+            "(regression baselines, {whose}, not validation: {} passed, {} failed{})",
             b.passed,
             b.failing(),
             if b.skipped > 0 {

@@ -220,6 +220,38 @@ fn the_c_example_server_answers_furnace() {
     let text = "[[check]]\nname = \"hg\"\nkind = \"hg\"\ng = [0.5]\nsamples = 20000\n";
     let hg = &run(text, &remote).outcomes[0];
     assert_eq!(hg.verdict, Verdict::Pass, "{}", hg.message);
+    // the README's example: the default suite against the example server gives one FAIL (its
+    // deliberately wrong model) and no ERROR; checks naming models it does not serve are SKIPs
+    let table = out.with_extension("toml");
+    std::fs::write(
+        &table,
+        format!(
+            "[renderer.mine]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nmodels = [{:?}]\n",
+            out.display().to_string()
+        ),
+    )
+    .unwrap();
+    let suite = std::process::Command::new(env!("CARGO_BIN_EXE_furnace"))
+        .current_dir(root(""))
+        .args(["check", "--renderer", "mine", "--renderers"])
+        .arg(&table)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&suite.stdout);
+    assert_eq!(suite.status.code(), Some(1), "{text}");
+    let fails: Vec<&str> = text
+        .lines()
+        .filter(|l| l.starts_with("FAIL") || l.starts_with("ERROR"))
+        .collect();
+    assert!(
+        fails.len() == 1 && fails[0].contains("energy/all-bsdfs"),
+        "{text}"
+    );
+    assert!(
+        text.contains("mine serves no model matching this check's `models`"),
+        "{text}"
+    );
+    let _ = std::fs::remove_file(table);
     let _ = std::fs::remove_file(out);
 }
 
