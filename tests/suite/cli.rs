@@ -970,6 +970,64 @@ fn serve_models_refuses_a_hello_of_another_protocol_and_flags_transmitted_sample
         .collect();
     assert!(v[2] < 0.0, "refracted down: {v:?}");
     assert_eq!(v[8], 7.0, "flags {v:?}");
+    // invalid queries get errors, not plausible answers (a NaN direction's eval read 1/(2π))
+    let mut ask = |op: &str, model: &str, row: &[f64]| {
+        let header = format!(
+            "{{\"op\":\"{op}\",\"model\":\"{model}\",\"n\":1,\"width\":{}}}\n",
+            row.len()
+        );
+        stdin.write_all(header.as_bytes()).unwrap();
+        for v in row {
+            stdin.write_all(&v.to_le_bytes()).unwrap();
+        }
+        stdin.flush().unwrap();
+        let mut line = String::new();
+        out.read_line(&mut line).unwrap();
+        line
+    };
+    let l = [550.0; 4];
+    for (op, model, row, says) in [
+        (
+            "bsdf.eval",
+            "diffuse/0.5",
+            [&[0.0, f64::NAN, 1.0, 0.0, 0.0, 1.0][..], &l].concat(),
+            "NaN is not a finite number",
+        ),
+        (
+            "bsdf.eval",
+            "diffuse/0.5",
+            [&[0.0, 0.0, 2.0, 0.0, 0.0, 1.0][..], &l].concat(),
+            "wo (0.0, 0.0, 2.0) is not a unit vector",
+        ),
+        (
+            "bsdf.sample",
+            name,
+            [&[0.0, 0.0, 1.0, 5.0, -3.0, 0.5][..], &l].concat(),
+            "outside [0, 1)",
+        ),
+        (
+            "bsdf.eval",
+            "diffuse/0.5",
+            [
+                &[0.0, 0.0, 1.0, 0.0, 0.0, 1.0][..],
+                &[-5.0, 550.0, 550.0, 550.0],
+            ]
+            .concat(),
+            "wavelength -5.0 nm",
+        ),
+        (
+            "bsdf.eval",
+            "hg g=0.9",
+            [&[0.0, 0.0, 1.0, 0.0, 0.0, 1.0][..], &l].concat(),
+            "it is a phase function",
+        ),
+    ] {
+        let line = ask(op, model, &row);
+        assert!(
+            line.contains("\"ok\":false") && line.contains(says),
+            "{op} {row:?}: {line}"
+        );
+    }
     drop(stdin);
     child.wait().unwrap();
 }

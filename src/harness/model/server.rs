@@ -2,7 +2,7 @@
 //! serves its own catalogue this way (`furnace serve-models`), the stand-in through which CI
 //! checks that the protocol carries every model-level verdict unchanged.
 
-use super::protocol::{self, read_message, write_message, Message, Op};
+use super::protocol::{self, preview, read_message, write_message, Message, Op};
 use crate::harness::under_test::{BsdfModel, EmitterModel, ModelSource, Named, PhaseModel};
 use crate::math::Vec3;
 use crate::spectrum::Wavelengths;
@@ -101,19 +101,22 @@ pub fn serve(
     let emitters = source.emitters().map_err(io_err)?;
     let mut said_hello = false;
     while let Some(msg) = read_message(input)? {
-        let op = msg.header.get("op").and_then(Value::as_str).unwrap_or("");
+        let Some(op) = msg.header.get("op").and_then(Value::as_str) else {
+            error(output, "the header has no \"op\" string")?;
+            continue;
+        };
         if op == "bye" {
             return Ok(());
         }
         if op == "hello" {
-            let asked = msg.header.get("protocol").and_then(Value::as_u64);
-            if asked != Some(protocol::VERSION) {
+            let asked = msg.header.get("protocol");
+            if asked.and_then(Value::as_u64) != Some(protocol::VERSION) {
                 error(
                     output,
                     &format!(
                         "this server speaks protocol {}; the hello asked for {}",
                         protocol::VERSION,
-                        asked.map_or("none".to_string(), |v| v.to_string())
+                        asked.map_or("none".to_string(), |v| preview(v.to_string().as_bytes()))
                     ),
                 )?;
                 continue;
@@ -180,7 +183,49 @@ fn rows<'a>(msg: &'a Message, op: Op) -> Result<std::slice::ChunksExact<'a, f64>
             op.name, op.request
         ));
     }
+    let (directions, numbers, lambda) = layout(op.name);
+    for (i, r) in msg.payload.chunks_exact(op.request).enumerate() {
+        let refuse = |what: String| Err(format!("{} row {i}: {what}", op.name));
+        if let Some(v) = r.iter().find(|v| !v.is_finite()) {
+            return refuse(format!("{v:?} is not a finite number"));
+        }
+        for &(at, name) in directions {
+            let w = v3(&r[at..at + 3]);
+            if (w.length() - 1.0).abs() > 1e-6 {
+                return refuse(format!(
+                    "{name} ({:?}, {:?}, {:?}) is not a unit vector",
+                    w.x, w.y, w.z
+                ));
+            }
+        }
+        for &at in numbers {
+            if !(0.0..1.0).contains(&r[at]) {
+                return refuse(format!(
+                    "the random number {:?} (column {at}) is outside [0, 1)",
+                    r[at]
+                ));
+            }
+        }
+        if let Some(l) = r[lambda..].iter().find(|l| !(360.0..=830.0).contains(*l)) {
+            return refuse(format!("the wavelength {l:?} nm is outside 360-830 nm"));
+        }
+    }
     Ok(msg.payload.chunks_exact(op.request))
+}
+
+/// Where an op's request row holds unit directions (column, name) and random numbers in
+/// [0, 1) (columns), and where its four wavelengths start (docs/model-protocol.md's table).
+fn layout(op: &str) -> (&'static [(usize, &'static str)], &'static [usize], usize) {
+    const WO_WI: &[(usize, &str)] = &[(0, "wo"), (3, "wi")];
+    match op {
+        "bsdf.sample" => (&[(0, "wo")], &[3, 4, 5], 6),
+        "bsdf.eta" => (&[(0, "w")], &[], 3),
+        "phase.sample" => (&[(0, "wo")], &[3, 4], 5),
+        "emitter.sample_direction" => (&[], &[3, 4, 5], 6),
+        "emitter.pdf_direction" => (&[(3, "wi")], &[], 6),
+        // bsdf.eval, bsdf.pdf, phase.eval, phase.pdf
+        _ => (WO_WI, &[], 6),
+    }
 }
 
 fn v3(r: &[f64]) -> Vec3 {
@@ -212,11 +257,11 @@ fn by_wavelengths<T>(
     Ok(out)
 }
 
-fn find<'a, M: ?Sized>(list: &'a [Named<M>], name: &str) -> Result<&'a M, String> {
+fn find<'a, M: ?Sized>(list: &'a [Named<M>], name: &str, kind: &str) -> Result<&'a M, String> {
     list.iter()
         .find(|m| m.name == name)
         .map(|m| m.model.as_ref())
-        .ok_or_else(|| format!("no model named {name:?}"))
+        .ok_or_else(|| format!("no {kind} named {:?}", crate::limits::quote(name)))
 }
 
 /// The reply rows of a request: (width, values).
@@ -234,6 +279,20 @@ fn answer(
         .and_then(Value::as_str)
         .unwrap_or("");
     let e = |x: crate::harness::under_test::ModelError| x.0;
+    // an op on a model of another kind says what the model is
+    let served_as = |why: String| {
+        let kind = [
+            (bsdfs.iter().any(|m| m.name == model), "a BSDF"),
+            (phases.iter().any(|m| m.name == model), "a phase function"),
+            (emitters.iter().any(|m| m.name == model), "an emitter"),
+        ]
+        .into_iter()
+        .find_map(|(is, kind)| is.then_some(kind));
+        match kind {
+            Some(kind) => format!("{why}: it is {kind}"),
+            None => why,
+        }
+    };
     let the_op = OPS
         .iter()
         .find(|o| o.name == op)
@@ -242,7 +301,7 @@ fn answer(
     let mut out = Vec::with_capacity(rs.len() * the_op.reply);
     match op {
         "bsdf.eval" | "bsdf.pdf" => {
-            let b = find(bsdfs, model)?;
+            let b = find(bsdfs, model, "BSDF").map_err(served_as)?;
             let eval = op == "bsdf.eval";
             for v in by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| (v3(r), v3(&r[3..]))).collect();
@@ -260,7 +319,7 @@ fn answer(
             }
         }
         "bsdf.sample" => {
-            let b = find(bsdfs, model)?;
+            let b = find(bsdfs, model, "BSDF").map_err(served_as)?;
             let dispersive = b.flags().dispersive;
             let samples = by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| (v3(r), [r[3], r[4]], r[5])).collect();
@@ -289,7 +348,7 @@ fn answer(
             }
         }
         "bsdf.eta" => {
-            let b = find(bsdfs, model)?;
+            let b = find(bsdfs, model, "BSDF").map_err(served_as)?;
             for v in by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| v3(r)).collect();
                 b.eta(&q, wl).map_err(e)
@@ -298,7 +357,7 @@ fn answer(
             }
         }
         "phase.eval" | "phase.pdf" => {
-            let p = find(phases, model)?;
+            let p = find(phases, model, "phase function").map_err(served_as)?;
             let q: Vec<_> = rs.iter().map(|r| (v3(r), v3(&r[3..]))).collect();
             let v = if op == "phase.eval" {
                 p.eval(&q)
@@ -309,14 +368,14 @@ fn answer(
             out.extend(v);
         }
         "phase.sample" => {
-            let p = find(phases, model)?;
+            let p = find(phases, model, "phase function").map_err(served_as)?;
             let q: Vec<_> = rs.iter().map(|r| (v3(r), [r[3], r[4]])).collect();
             for s in p.sample(&q).map_err(e)? {
                 out.extend([s.wi.x, s.wi.y, s.wi.z, s.weight, s.pdf]);
             }
         }
         "emitter.sample_direction" => {
-            let m = find(emitters, model)?;
+            let m = find(emitters, model, "emitter").map_err(served_as)?;
             for s in by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| ([r[3], r[4]], r[5])).collect();
                 m.sample(&q, wl).map_err(e)
@@ -333,7 +392,7 @@ fn answer(
             }
         }
         "emitter.pdf_direction" => {
-            let m = find(emitters, model)?;
+            let m = find(emitters, model, "emitter").map_err(served_as)?;
             for v in by_wavelengths(&rs, |rs, wl| {
                 let q: Vec<_> = rs.iter().map(|r| v3(&r[3..])).collect();
                 m.pdf(&q, wl).map_err(e)
