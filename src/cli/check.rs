@@ -453,8 +453,12 @@ fn write_bundles(
             .find(|s| s.name == o.name)
             .map_or(String::new(), |s| s.origin.clone());
         let manifest = origin.rsplit_once(':').map_or(origin.as_str(), |(f, _)| f);
+        // its paths are relative to the folder furnace ran from
+        let here = std::env::current_dir()
+            .map(|d| format!("cd {} && ", adapter::shell_quote(&d.display().to_string())))
+            .unwrap_or_default();
         let mut rerun = format!(
-            "furnace check {} --filter {} --renderer {} --seed {}",
+            "{here}furnace check {} --filter {} --renderer {} --seed {}",
             adapter::shell_quote(manifest),
             adapter::shell_quote(&o.name),
             adapter::shell_quote(&e.label),
