@@ -308,7 +308,7 @@ fn power_values_fixed_spp_and_kinds_without_a_budget_are_refused() {
     let out = run_furnace(&["check", "tests/manifests/furnace.toml", "--power", "0"]);
     assert_eq!(out.status.code(), Some(2), "{out:?}");
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("--power 0 must be a relative bias"), "{err}");
+    assert!(err.contains("--power 0.0 must be a relative bias"), "{err}");
     std::fs::remove_dir_all(&dir).ok();
 }
 
