@@ -263,21 +263,16 @@ fn light_blocks<S: Sensor>(
             "region {r:?} is empty or does not fit the {w}x{h} image"
         )));
     }
-    // Memory: pending tree nodes (at most log2(CHUNKS) + 1 images) plus each chunk in flight
-    // (its power sums and their conversion to a state).
     let pixels = (w * h + regions.len()) as u64;
-    let node = std::mem::size_of::<Pixel>() as u64 * pixels;
-    let in_flight = (std::mem::size_of::<[f64; 24]>() as u64 * pixels).saturating_add(node);
-    let pending = node.saturating_mul(CHUNKS.trailing_zeros() as u64 + 1);
-    // as many chunks in flight as fit in the cap, or in what this process may take where
-    // that is less (the batch width never changes the result)
     let room = crate::limits::memory_room()
         .hard
         .map(|h| h.saturating_sub(crate::limits::BASE_BYTES));
-    let cap = room.map_or(crate::limits::MAX_LIGHT_TRACER_BYTES, |r| {
-        r.min(crate::limits::MAX_LIGHT_TRACER_BYTES)
-    });
-    let max_batch = cap.saturating_sub(pending) / in_flight.max(1);
+    let Batch {
+        max_batch,
+        pending,
+        in_flight,
+        cap,
+    } = batch(pixels, room);
     if max_batch == 0 {
         let gib = |b: u64| b as f64 / (1u64 << 30) as f64;
         let over = if cap < crate::limits::MAX_LIGHT_TRACER_BYTES {
@@ -451,8 +446,55 @@ fn span_all() -> Span {
     }
 }
 
+/// How many chunks may be in flight at once, and the memory behind that number (bytes).
+struct Batch {
+    /// Chunks in flight at most (0: not even one fits).
+    max_batch: u64,
+    /// The merge tree's pending nodes: at most log2(CHUNKS) + 1 images.
+    pending: u64,
+    /// One chunk in flight: its power sums and their conversion to a state.
+    in_flight: u64,
+    /// What the light tracer may take: its own cap, or the process's `room` where less.
+    cap: u64,
+}
+
+/// The batch for an image of `pixels` (regions included) in `room` bytes (None: no limit
+/// known). The batch width never changes the result, only the memory in use.
+fn batch(pixels: u64, room: Option<u64>) -> Batch {
+    let node = std::mem::size_of::<Pixel>() as u64 * pixels;
+    let in_flight = (std::mem::size_of::<[f64; 24]>() as u64 * pixels).saturating_add(node);
+    let pending = node.saturating_mul(CHUNKS.trailing_zeros() as u64 + 1);
+    let cap = room.map_or(crate::limits::MAX_LIGHT_TRACER_BYTES, |r| {
+        r.min(crate::limits::MAX_LIGHT_TRACER_BYTES)
+    });
+    Batch {
+        max_batch: cap.saturating_sub(pending) / in_flight.max(1),
+        pending,
+        in_flight,
+        cap,
+    }
+}
+
 #[cfg(test)]
 mod tests {
+    /// Chunks in flight fill what the process may take, never more, and none fits below one.
+    #[test]
+    fn chunks_in_flight_fit_in_the_memory_the_process_may_take() {
+        let b = batch(256 * 256, None);
+        let cap = crate::limits::MAX_LIGHT_TRACER_BYTES;
+        assert_eq!(b.cap, cap);
+        assert!(b.pending + b.max_batch * b.in_flight <= cap);
+        assert!(b.pending + (b.max_batch + 1) * b.in_flight > cap);
+        // room for the pending nodes and two and a half chunks: two in flight
+        let room = b.pending + 5 * b.in_flight / 2;
+        let two = batch(256 * 256, Some(room));
+        assert_eq!((two.cap, two.max_batch), (room, 2));
+        // below the pending nodes and one chunk: none, which the render refuses by name
+        assert_eq!(batch(256 * 256, Some(b.pending + b.in_flight - 1)).max_batch, 0);
+        // a process limit above the light tracer's own cap does not raise it
+        assert_eq!(batch(256 * 256, Some(u64::MAX)).cap, cap);
+    }
+
     use super::*;
     use crate::integrators::PathTracer;
     use crate::spectrum::N_WAVELENGTHS;
