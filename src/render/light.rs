@@ -490,7 +490,10 @@ mod tests {
         let two = batch(256 * 256, Some(room));
         assert_eq!((two.cap, two.max_batch), (room, 2));
         // below the pending nodes and one chunk: none, which the render refuses by name
-        assert_eq!(batch(256 * 256, Some(b.pending + b.in_flight - 1)).max_batch, 0);
+        assert_eq!(
+            batch(256 * 256, Some(b.pending + b.in_flight - 1)).max_batch,
+            0
+        );
         // a process limit above the light tracer's own cap does not raise it
         assert_eq!(batch(256 * 256, Some(u64::MAX)).cap, cap);
     }
