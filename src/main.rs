@@ -16,6 +16,8 @@ fn main() {
             .or_else(|| payload.downcast_ref::<&str>().copied())
             .unwrap_or("");
         if message.contains("failed printing to stdout") && message.contains("Broken pipe") {
+            furnace::io::process::kill_all();
+            furnace::io::cleanup::remove_all();
             std::process::exit(141);
         }
         default_hook(info);

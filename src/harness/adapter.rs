@@ -204,10 +204,15 @@ pub fn parse_renderers(text: &str, path: &Path) -> Result<BTreeMap<String, Rende
             }
         }
         if let Some(c) = &d.channels {
-            if c.iter().any(String::is_empty) || c[0] == c[1] || c[1] == c[2] || c[0] == c[2] {
+            // one channel three times is a grey renderer's; two of one and a third a slip
+            let all_one = c[0] == c[1] && c[1] == c[2];
+            let distinct = c[0] != c[1] && c[1] != c[2] && c[0] != c[2];
+            if c.iter().any(String::is_empty) || !(all_one || distinct) {
                 return Err(at(
                     "channels",
-                    format!("{c:?}: give the names of three distinct channels (R, G, B)"),
+                    format!(
+                        "{c:?}: give three distinct channels (R, G, B), or one three times for a grey renderer"
+                    ),
                 ));
             }
         }
@@ -576,9 +581,12 @@ pub fn run_bounded(mut cmd: Command, timeout: Duration) -> Result<RunOutput, Str
     let status = group
         .kill_and_wait()
         .map_err(|e| format!("cannot wait for the process: {e}"))?;
-    // both readers end once every holder of the pipes has ended
+    // both readers end once every holder of the pipes has ended (the killed group's members
+    // within moments: a second at least, even at the timeout)
     for _ in 0..2 {
-        let left = timeout.saturating_sub(start.elapsed());
+        let left = timeout
+            .saturating_sub(start.elapsed())
+            .max(Duration::from_secs(1));
         if done.recv_timeout(left).is_err() {
             return Err(format!(
                 "exited ({status}) but a process it started outside its process group still held its output open after {:.0} s (renderers table `timeout`)",
@@ -1029,7 +1037,7 @@ mod tests {
             ),
             (
                 format!("{ok}channels = [\"R\", \"R\", \"B\"]\n"),
-                "three distinct channels",
+                "give three distinct channels",
             ),
             (ok.replace(", \"{out}\"", ""), "has no {out}"),
         ] {

@@ -1,45 +1,62 @@
 //! Child processes (renderers, probes, model servers) that never outlive their use: each starts
 //! in a process group of its own, and the whole group is killed when the child ends, times out
-//! or the run is interrupted, so that what a renderer started in the background goes with it.
-//! libc is used for what std does not offer: killing a group, and seeing an exit without
-//! reaping (a reaped child's id could name another process's group).
+//! or the run is interrupted, so that what a renderer left running in the background goes with
+//! it. A process that leaves the group (`setsid`, a daemon) escapes this, as it escapes a
+//! terminal's Ctrl-C. libc is used for what std does not offer: killing a group, and seeing an
+//! exit without reaping (a reaped child's id could name another process's group).
 
 use std::process::{Child, Command};
 use std::sync::Mutex;
 
-/// Process groups alive now, by their leader's id (killed on interrupt by [`kill_all`]).
-static GROUPS: Mutex<Vec<u32>> = Mutex::new(Vec::new());
+/// Process groups alive now, by their leader's id, and whether the run was interrupted (a
+/// group started after that is killed at once).
+static GROUPS: Mutex<(Vec<u32>, bool)> = Mutex::new((Vec::new(), false));
 
 /// A child in a process group of its own; its group is killed when this guard drops.
 #[derive(Debug)]
 pub struct Group {
-    /// The child, the leader of its group.
+    /// The child, the leader of its group (take its pipes; reap it only through the guard).
     pub child: Child,
     /// The leader was reaped: its id may name another process now, so it is not killed again.
     reaped: bool,
 }
 
-/// Starts `cmd` in a new process group (so a terminal's Ctrl-C reaches furnace, whose handler
-/// kills the group through [`kill_all`]).
+/// Starts `cmd` in a new process group. Outside the terminal's foreground group it no longer
+/// gets the terminal's Ctrl-C: furnace's handler kills the group through [`kill_all`].
 pub fn spawn(cmd: &mut Command) -> std::io::Result<Group> {
     #[cfg(unix)]
     std::os::unix::process::CommandExt::process_group(cmd, 0);
+    // the lock is held from the spawn to the record, so an interrupt sees every group
+    let mut groups = lock();
     let child = cmd.spawn()?;
-    lock().push(child.id());
-    Ok(Group {
+    groups.0.push(child.id());
+    let interrupted = groups.1;
+    drop(groups);
+    let mut group = Group {
         child,
         reaped: false,
-    })
+    };
+    if interrupted {
+        let _ = group.kill_and_wait();
+        return Err(std::io::Error::new(
+            std::io::ErrorKind::Interrupted,
+            "the run was interrupted",
+        ));
+    }
+    Ok(group)
 }
 
 impl Group {
-    /// Whether the leader has exited, without reaping it: while it is unreaped its id, the
-    /// group's, cannot be reused.
+    /// Whether the leader has exited, without reaping it where the system allows: while it is
+    /// unreaped its id, the group's, cannot be reused.
     pub fn exited(&mut self) -> std::io::Result<bool> {
+        if self.reaped {
+            return Ok(true);
+        }
         #[cfg(target_os = "linux")]
         {
             // SAFETY: waitid writes only into `info`, a zeroed siginfo_t we own; P_PID with
-            // our own child's id and WNOWAIT leaves the child unreaped.
+            // our own unreaped child's id and WNOWAIT leaves the child unreaped.
             let mut info: libc::siginfo_t = unsafe { std::mem::zeroed() };
             let r = unsafe {
                 libc::waitid(
@@ -57,7 +74,14 @@ impl Group {
         }
         #[cfg(not(target_os = "linux"))]
         {
-            Ok(self.child.try_wait()?.is_some())
+            // elsewhere the exit is seen by reaping: the group is then not killed (its id may
+            // be reused), so what the leader left running is left
+            let done = self.child.try_wait()?.is_some();
+            if done {
+                self.reaped = true;
+                forget(self.child.id());
+            }
+            Ok(done)
         }
     }
 
@@ -65,9 +89,13 @@ impl Group {
     /// leader; returns its exit status.
     pub fn kill_and_wait(&mut self) -> std::io::Result<std::process::ExitStatus> {
         if !self.reaped {
+            // killed and forgotten under one lock, so kill_all never signals a reaped id
+            let mut groups = lock();
             kill_group(self.child.id());
             let _ = self.child.kill();
-            forget(self.child.id());
+            if let Some(i) = groups.0.iter().rposition(|p| *p == self.child.id()) {
+                groups.0.swap_remove(i);
+            }
             self.reaped = true;
         }
         // std keeps the status of a child already waited for
@@ -81,9 +109,12 @@ impl Drop for Group {
     }
 }
 
-/// Kills every group still alive; called on interrupt.
+/// Kills every group still alive, and every group started from now on; called on interrupt
+/// and on any exit that skips the guards' drops.
 pub fn kill_all() {
-    for id in lock().drain(..) {
+    let mut groups = lock();
+    groups.1 = true;
+    for id in groups.0.drain(..) {
         kill_group(id);
     }
 }
@@ -99,25 +130,27 @@ fn kill_group(leader: u32) {
     }
 }
 
+#[cfg(not(target_os = "linux"))]
 fn forget(leader: u32) {
-    let mut list = lock();
-    if let Some(i) = list.iter().rposition(|p| *p == leader) {
-        list.swap_remove(i);
+    let mut groups = lock();
+    if let Some(i) = groups.0.iter().rposition(|p| *p == leader) {
+        groups.0.swap_remove(i);
     }
 }
 
 /// The list, even if a thread panicked while holding it.
-fn lock() -> std::sync::MutexGuard<'static, Vec<u32>> {
+fn lock() -> std::sync::MutexGuard<'static, (Vec<u32>, bool)> {
     GROUPS.lock().unwrap_or_else(|e| e.into_inner())
 }
 
-#[cfg(test)]
+#[cfg(all(test, target_os = "linux"))]
 mod tests {
     use super::*;
     use std::time::{Duration, Instant};
 
     /// A background child of the leader holds the output pipe open; killing the group ends it,
-    /// so reading the pipe to its end returns at once.
+    /// so reading the pipe to its end returns at once (read in a thread: without the group
+    /// kill it would wait for the `sleep`).
     #[test]
     fn killing_the_group_ends_what_the_child_left_in_the_background() {
         let mut cmd = Command::new("sh");
@@ -131,10 +164,16 @@ mod tests {
             std::thread::sleep(Duration::from_millis(10));
         }
         assert!(g.kill_and_wait().unwrap().success());
-        let mut text = String::new();
-        std::io::Read::read_to_string(&mut out, &mut text).unwrap();
+        let (tx, rx) = std::sync::mpsc::channel();
+        std::thread::spawn(move || {
+            let mut text = String::new();
+            let _ = std::io::Read::read_to_string(&mut out, &mut text);
+            let _ = tx.send(text);
+        });
+        let text = rx.recv_timeout(Duration::from_secs(10)).unwrap();
         assert_eq!(text, "started\n");
-        assert!(start.elapsed() < Duration::from_secs(10));
-        assert!(!lock().contains(&g.child.id()));
+        assert!(!lock().0.contains(&g.child.id()));
+        // once reaped, the exit is known without asking the system again
+        assert!(g.exited().unwrap());
     }
 }

@@ -473,7 +473,13 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000", "{out}"]
     let out = run_bounded(c, Duration::from_secs(60)).unwrap();
     assert_eq!(out.stdout, "done\n");
     assert!(t0.elapsed() < Duration::from_secs(10), "{:?}", t0.elapsed());
-    // a command killed at its timeout takes what it started along
+    // one that exits just before its timeout, leaving such a process, still succeeds: the
+    // killed group's members release the output within a moment
+    let mut c = Command::new("sh");
+    c.args(["-c", "sleep 100 & sleep 0.9; echo done"]);
+    let out = run_bounded(c, Duration::from_secs(1)).unwrap();
+    assert_eq!(out.stdout, "done\n");
+    // a command killed at its timeout takes what it started along (seen in /proc)
     let d = tmp("group");
     let pid_file = d.join("pid");
     let mut c = Command::new("sh");
@@ -483,6 +489,10 @@ command = ["sh", "-c", "yes 0123456789 | head -c 300000000", "{out}"]
     ));
     assert!(run_bounded(c, Duration::from_secs(1)).is_err());
     let pid = std::fs::read_to_string(&pid_file).unwrap();
+    assert!(
+        Path::new("/proc/self/stat").exists(),
+        "this test reads /proc (Linux)"
+    );
     // gone, or a zombie waiting for a reaper (state Z), once the kill has been delivered
     let t0 = Instant::now();
     let stat = loop {
