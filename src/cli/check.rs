@@ -143,7 +143,6 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
         ("--shard-costs", &a.shard_costs),
     ]));
     super::distinct_paths(&inputs, &outputs.roles())?;
-    super::distinct_renderers(&a.renderers)?;
     let mut specs = Vec::new();
     for f in &files {
         specs.extend(
@@ -219,6 +218,18 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     } else {
         None
     };
+    // renderers as their labels (a table's default variant resolved): two that share one, or
+    // whose results files would share a name, are refused before anything runs
+    let labels: Vec<String> = a
+        .renderers
+        .iter()
+        .map(|r| match &externals {
+            Some(map) if r != "furnace" => adapter::External::from_spec(r, map, Path::new("."))
+                .map_or_else(|_| r.clone(), |e| e.label),
+            _ => r.clone(),
+        })
+        .collect();
+    super::distinct_renderers(&labels)?;
     let bundles = bundle_root(&a);
     // the bundles' folder holds an external renderer's renders while its checks run: one that
     // cannot be written fails now (every such check would end as ERROR), not during the run

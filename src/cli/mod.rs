@@ -439,7 +439,10 @@ pub fn distinct_renderers(labels: &[String]) -> Result<(), Failure> {
     for (i, a) in labels.iter().enumerate() {
         for b in &labels[..i] {
             if a == b {
-                return Err(anyhow::anyhow!("--renderer {a:?} is given twice").into());
+                return Err(anyhow::anyhow!(
+                    "--renderer {a:?} is given twice (a table's default variant counts)"
+                )
+                .into());
             }
             if file_label(a) == file_label(b) {
                 return Err(anyhow::anyhow!(

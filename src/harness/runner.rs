@@ -278,10 +278,17 @@ fn run_one(
         inner,
         globs: &check.models,
     });
-    // another renderer that serves none of the models a check names is not judged by it (a
-    // SKIP with the reason); for furnace itself such a check is a manifest error and stays one
+    // another renderer that serves none of the models a check names (names from furnace's
+    // catalogue) is not judged by it: a SKIP with the reason. Globs that match nothing in
+    // furnace's catalogue either are a typo, and the check's run reports that it measured
+    // nothing (an ERROR), as it does for furnace itself.
     if let (Some(f), false, false) = (&filtered, check.models.is_empty(), renderer.is_reference()) {
-        if let Some(why) = serves_none(f, &check.models, renderer.name()) {
+        let ours = Filtered {
+            inner: &LocalModels,
+            globs: &check.models,
+        };
+        let named_ours = serves_none(&ours, &check.models, String::new()).is_none();
+        if let Some(why) = serves_none(f, &check.models, renderer.name()).filter(|_| named_ours) {
             let mut o = Outcome::new(&check.name, check.kind_name());
             o.verdict = Verdict::Skipped;
             o.message = why;

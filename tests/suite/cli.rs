@@ -117,6 +117,30 @@ fn renderers_whose_results_files_collide_are_refused() {
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains(says), "{err}");
     }
+    // a table's default variant counts: `x` is `x:v`
+    let table =
+        crate::scratch_dir().join(format!("furnace-cli-variant-{}.toml", std::process::id()));
+    std::fs::write(
+        &table,
+        "[renderer.x]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nvariant = \"v\"\ncommand = [\"true\", \"{out}\", \"{variant}\"]\n",
+    )
+    .unwrap();
+    let out = furnace()
+        .args([
+            "check",
+            "tests/manifests/lambert.toml",
+            "--renderer",
+            "x",
+            "--renderer",
+            "x:v",
+            "--renderers",
+        ])
+        .arg(&table)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2), "{out:?}");
+    assert!(String::from_utf8_lossy(&out.stderr).contains("\"x:v\" is given twice"));
+    let _ = std::fs::remove_file(table);
 }
 
 /// `--bundles` where no folder can be made is refused before the run (each external
