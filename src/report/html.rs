@@ -197,8 +197,9 @@ pub fn page(title: &str, runs: &[Value], comparisons: &[ComparisonSection]) -> S
     page_with_notes(title, runs, comparisons, None)
 }
 
-/// A fragment identifier for a check's row in a renderer's table: letters, digits, `-` and
-/// `_` kept, everything else `_`.
+/// A fragment identifier for a check's row in a renderer's table, and its bundle folder's
+/// name: `RENDERER--CHECK` with everything but ASCII letters, digits and `-` written `_`, and
+/// `-HASH` (16 hex digits of the exact pair) unless both names are letters and digits only.
 pub fn row_id(renderer: &str, check: &str) -> String {
     let clean = |s: &str| -> String {
         s.chars()

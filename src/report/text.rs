@@ -36,7 +36,8 @@ pub fn verdict_label(v: Verdict) -> &'static str {
 /// The verdict column has a fixed width. The numbers are those of [`numbers`]; then the
 /// detection power (smallest relative bias found with 95 % probability), the sample
 /// count and the wall time, each left out when unknown (or zero). UNSTABLE, ERROR and SKIP lines
-/// end with the outcome's message (the evidence, or the reason it was not run).
+/// end with the outcome's message (the evidence, or the reason it was not run), as does a FAIL
+/// whose numbers do not show the rejection.
 pub fn line(o: &Outcome) -> String {
     let mut s = format!(
         "{:<width$}  {}",

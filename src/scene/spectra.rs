@@ -134,7 +134,10 @@ impl<'a> SpectrumParser<'a> {
                     Some(s) => match number(s) {
                         Some(x) if x.is_finite() && x >= 0.0 => x,
                         _ => {
-                            return Err(err(format!("scale = {s:?} must be a finite number >= 0")))
+                            return Err(err(format!(
+                                "scale = {} must be a finite number >= 0",
+                                value_text(s)
+                            )))
                         }
                     },
                 };
@@ -168,7 +171,8 @@ impl<'a> SpectrumParser<'a> {
                         .filter(|x| x.is_finite() && x.abs() <= 16.0)
                         .ok_or_else(|| {
                             err(format!(
-                                "power_law = {p:?} must be a finite exponent in [-16, 16]"
+                                "power_law = {} must be a finite exponent in [-16, 16]",
+                                value_text(p)
                             ))
                         })?;
                     let reference = t.get("reference").and_then(number).filter(|x| x.is_finite() && *x > 0.0).ok_or_else(|| err("`power_law` needs `reference`, the wavelength in nm (> 0) at which the value is `scale`".into()))?;
@@ -284,4 +288,13 @@ fn number(v: &Value) -> Option<f64> {
 
 fn numbers(v: &Value) -> Option<Vec<f64>> {
     v.as_array()?.iter().map(number).collect()
+}
+
+/// A TOML value as a message quotes it: a number as Rust's `{:?}` writes it (`1e300`, not its
+/// 301 digits), anything else as TOML writes it (`"big"`).
+fn value_text(v: &toml::Value) -> String {
+    match number(v) {
+        Some(x) => format!("{x:?}"),
+        None => crate::limits::quote(&v.to_string()),
+    }
 }

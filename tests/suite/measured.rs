@@ -124,7 +124,7 @@ fn measured_accepts_a_synthetic_measurement_and_rejects_a_three_percent_band_err
         *v *= 1.03;
     }
     write_exr(&band, &l).unwrap();
-    // the measurement is read when the manifest is loaded
+    // parsed again, as a new run would (the manifest check reads the file too)
     let s = spec(&dir.join("measurement.toml"));
     let m = s.kind.run(&s, &ctx).unwrap();
     eprintln!("control: {}", m.message);

@@ -136,6 +136,20 @@ fn huge_and_tiny_numbers_are_quoted_short() {
             .unwrap_or(0);
         assert!(digits <= 20, "{e}");
     }
+    // a value of another type is quoted as TOML writes it, not as Rust's debug form
+    let e = Scene::parse(
+        &error_input(
+            "[[light]]\ntype = \"environment\"\nradiance = { blackbody = 3000, scale = \"big\" }\n",
+        ),
+        Path::new("bad.toml"),
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        e.contains("scale = \"big\" must be") && !e.contains("String("),
+        "{e}"
+    );
 }
 
 fn error_input(extra: &str) -> String {

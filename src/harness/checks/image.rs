@@ -19,7 +19,6 @@ use crate::render::RenderSettings;
 use crate::scene::Scene;
 use crate::spectrum::Observer;
 use std::path::PathBuf;
-use std::sync::Arc;
 
 /// Runs an image comparison against `reference` (tests pass a deliberately wrong one).
 pub fn run_against(
@@ -190,9 +189,6 @@ fn render_regions(
 pub struct Params {
     /// Reference image (EXR).
     pub reference: PathBuf,
-    /// The reference as read when the manifest was loaded (an unreadable one is a manifest
-    /// error, exit 2, not a check that errs at run time).
-    pub image: Loaded,
     /// Named regions compared (empty: the whole image).
     pub regions: Vec<Region>,
     /// Colour pipeline the image is rendered with.
@@ -231,28 +227,20 @@ impl Kind for ImageCompare {
                 Some("missing; an image comparison needs a reference EXR (path relative to the manifest)"),
             )?
             .unwrap_or_default();
-        let image = RgbImage::load(&reference).map_err(|e| k.error_at("reference", e))?;
+        // read once to refuse an unreadable reference with the manifest (exit 2, at the key),
+        // not when the check runs; not kept, so that a run holds only the references of the
+        // checks running
+        RgbImage::load(&reference).map_err(|e| k.error_at("reference", e))?;
         Ok(Params {
             reference,
-            image: Loaded(Arc::new(image)),
             regions: regions_key(k, "regions")?,
             observer: k.observer()?,
         })
     }
 
-    /// Runs an image comparison with the reference read when the manifest was loaded.
+    /// Runs an image comparison with the reference read from the manifest's path.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        run_against(check, p, ctx, &p.image.0)
-    }
-}
-
-/// A reference image held by a check's parameters; its debug form gives the size, not the
-/// pixels.
-#[derive(Clone, PartialEq)]
-pub struct Loaded(pub Arc<RgbImage>);
-
-impl std::fmt::Debug for Loaded {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "RgbImage({}x{})", self.0.width, self.0.height)
+        let reference = RgbImage::load(&p.reference).map_err(CheckError::Setup)?;
+        run_against(check, p, ctx, &reference)
     }
 }

@@ -373,13 +373,10 @@ pub fn run_against(
 }
 
 /// Parameters of a `measured` check.
-#[derive(Debug, Clone)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Params {
     /// The measurement file.
     pub measurement: PathBuf,
-    /// The measurement as read and validated when the manifest was loaded (a bad one is a
-    /// manifest error, exit 2, not a check that errs at run time).
-    pub images: Arc<MeasuredImages>,
 }
 
 /// The `measured` kind.
@@ -410,15 +407,18 @@ impl Kind for Measured {
                 Some("missing; give the measurement file (path relative to the manifest)"),
             )?
             .unwrap_or_default();
-        let images = load(&measurement).map_err(|e| k.error_at("measurement", e))?;
-        Ok(Params {
-            measurement,
-            images: Arc::new(images),
-        })
+        // read once to refuse a bad measurement with the manifest (exit 2, at the key), not
+        // when the check runs; not kept, so that a run holds only what its running checks read
+        load(&measurement).map_err(|e| k.error_at("measurement", e))?;
+        Ok(Params { measurement })
     }
 
-    /// Runs a `measured` check with the measurement read when the manifest was loaded.
+    /// Runs a `measured` check with the measurement file named in the manifest.
     fn run(check: &Check, p: &Params, ctx: &Context) -> Result<Measurement, CheckError> {
-        run_against(check, ctx, &p.images)
+        run_against(
+            check,
+            ctx,
+            &load(&p.measurement).map_err(CheckError::Setup)?,
+        )
     }
 }
