@@ -631,7 +631,22 @@ impl Renderer for External {
     }
 
     fn render(&self, scene: &Scene, s: &RenderSettings) -> Result<Film, RendererError> {
-        self.render_batches(scene, s).map_err(RendererError)
+        let kept = self
+            .keep
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some();
+        self.render_batches(scene, s).map_err(|e| {
+            // a file named in the message is gone by the time it is read, unless kept
+            let temporary = std::env::temp_dir().join("furnace-");
+            if !kept && e.contains(&*temporary.to_string_lossy()) {
+                RendererError(format!(
+                    "{e} [the files named were temporary and are removed with the run; --report or --bundles keeps a failing check's renders]"
+                ))
+            } else {
+                RendererError(e)
+            }
+        })
     }
 
     fn sampler(&self) -> String {

@@ -589,3 +589,29 @@ fn a_renderer_that_writes_nan_pixels_is_named_for_them() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// An error that names a render's temporary file says the file is gone by the time it is read.
+#[test]
+fn an_error_naming_a_temporary_file_says_it_is_removed() {
+    let table = crate::scratch_dir().join(format!(
+        "furnace-adapter-corrupt-{}.toml",
+        std::process::id()
+    ));
+    std::fs::write(
+        &table,
+        "[renderer.corrupt]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", \"echo x > \\\"$0\\\"\", \"{out}\"]\n",
+    )
+    .unwrap();
+    let ext = External::from_spec("corrupt", &load_renderers(&table).unwrap(), &root("")).unwrap();
+    let text = "[[check]]\nname = \"s\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 8\nheight = 8\nspp = 4\n";
+    let specs = manifest::parse(text, &root("tests/manifests/x.toml")).unwrap();
+    let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+    let o = &report.outcomes[0];
+    assert_eq!(o.verdict, Verdict::Error, "{}", o.message);
+    assert!(
+        o.message.contains("batch-0.exr") && o.message.contains("were temporary"),
+        "{}",
+        o.message
+    );
+    let _ = std::fs::remove_file(table);
+}
