@@ -381,13 +381,52 @@ pub(crate) fn fits_in_memory(
     what: &str,
     bytes: u64,
 ) -> Result<std::sync::MutexGuard<'static, ()>, RenderError> {
-    static ALLOCATING: Mutex<()> = Mutex::new(());
     let guard = ALLOCATING
         .lock()
         .unwrap_or_else(std::sync::PoisonError::into_inner);
-    crate::limits::memory(what, crate::limits::BASE_BYTES.saturating_add(bytes))
-        .map_err(|e| RenderError::Settings(e.to_string()))?;
+    // what the estimators running beside may still grow into counts as taken
+    let reserved = RESERVED.load(std::sync::atomic::Ordering::Relaxed);
+    crate::limits::memory(
+        what,
+        crate::limits::BASE_BYTES
+            .saturating_add(reserved)
+            .saturating_add(bytes),
+    )
+    .map_err(|e| RenderError::Settings(e.to_string()))?;
     Ok(guard)
+}
+
+/// The process's one allocation lock ([`fits_in_memory`], [`reserve`]).
+static ALLOCATING: Mutex<()> = Mutex::new(());
+
+/// Bytes reserved by estimators running now whose state grows during the render (SPPM, BDPT,
+/// MLT, the light tracer): each later pre-flight counts them as taken.
+static RESERVED: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+
+/// Bytes reserved now by running estimators ([`reserve`]).
+pub(crate) fn reserved() -> u64 {
+    RESERVED.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// Memory reserved for the whole of a render whose state grows as it runs; released on drop.
+#[derive(Debug)]
+pub(crate) struct Reservation(u64);
+
+impl Drop for Reservation {
+    fn drop(&mut self) {
+        RESERVED.fetch_sub(self.0, std::sync::atomic::Ordering::Relaxed);
+    }
+}
+
+/// Refuses state of `bytes` for `what` as [`fits_in_memory`] does, counting every reservation
+/// alive, and reserves it until the returned guard drops: two such estimators side by side
+/// (checks in parallel) are bounded together, even though their state grows only later. Their
+/// allocated part is then counted twice (in the process's usage and in its reservation), which
+/// errs towards refusing, never towards an abort.
+pub(crate) fn reserve(what: &str, bytes: u64) -> Result<Reservation, RenderError> {
+    let _guard = fits_in_memory(what, bytes)?;
+    RESERVED.fetch_add(bytes, std::sync::atomic::Ordering::Relaxed);
+    Ok(Reservation(bytes))
 }
 
 /// Checks what [`render`] and [`render_light_paths`] both need: a non-empty image, paths that
@@ -703,6 +742,19 @@ mod tests {
     use super::*;
     use crate::film::blocks::{merge_parts, Piece};
     use std::path::Path;
+
+    /// A reservation is counted while it lives (other tests may hold their own beside it), and
+    /// one past what the process may take is refused by name without being counted.
+    #[test]
+    fn reservations_count_while_they_live() {
+        let r = reserve("a test", 1 << 20).unwrap();
+        assert!(reserved() >= 1 << 20);
+        drop(r);
+        if crate::limits::memory_room().hard.is_some() {
+            let e = reserve("a test", u64::MAX / 2).unwrap_err().to_string();
+            assert!(e.contains("a test"), "{e}");
+        }
+    }
 
     fn settings(spp: u64, threads: usize) -> RenderSettings {
         RenderSettings {

@@ -61,11 +61,11 @@ pub fn render_bdpt_runs(
             MAX_BYTES >> 30
         )));
     }
-    // (the state grows during the render: checked against what the process may take now)
-    drop(super::fits_in_memory(
+    // the state grows during the render: reserved for the whole of it
+    let _reservation = super::reserve(
         &format!("BDPT's splat images and run films for a {w}x{h} image"),
         bytes,
-    )?);
+    )?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let setup = Setup::new(scene, camera, w, h);
     let grey = settings.is_grey(scene);

@@ -264,9 +264,11 @@ fn light_blocks<S: Sensor>(
         )));
     }
     let pixels = (w * h + regions.len()) as u64;
-    let room = crate::limits::memory_room()
-        .hard
-        .map(|h| h.saturating_sub(crate::limits::BASE_BYTES));
+    // (what other estimators running beside have reserved is not room)
+    let room = crate::limits::memory_room().hard.map(|h| {
+        h.saturating_sub(crate::limits::BASE_BYTES)
+            .saturating_sub(super::reserved())
+    });
     let Batch {
         max_batch,
         pending,
@@ -288,6 +290,16 @@ fn light_blocks<S: Sensor>(
             gib(pending + in_flight)
         )));
     }
+    // the chunks in flight are as many as the threads, within the batch: reserved for the
+    // whole render, so that estimators beside count them
+    let threads = match settings.threads {
+        0 => std::thread::available_parallelism().map_or(1, |n| n.get()),
+        t => t,
+    } as u64;
+    let _reservation = super::reserve(
+        &format!("the light tracer's film state for a {w}x{h} image"),
+        pending.saturating_add(in_flight.saturating_mul(threads.clamp(1, max_batch))),
+    )?;
     let grey = settings.is_grey(scene);
     let response = FilmResponse::new(&settings.observer, grey, settings.spectral.wavelengths);
     let tracer = LightTracer::from(&settings.integrator);

@@ -197,11 +197,11 @@ fn sppm_core(
             MAX_BYTES >> 30
         )));
     }
-    // (the state grows during the render: checked against what the process may take now)
-    drop(super::fits_in_memory(
+    // the state grows during the render: reserved for the whole of it
+    let _reservation = super::reserve(
         &format!("SPPM's per-pixel state for a {w}x{h} image"),
         bytes,
-    )?);
+    )?;
     let crop = settings.crop_rect()?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     if let Some(radius) = radii
