@@ -1,5 +1,5 @@
 //! The model protocol's client: starts a model server, reads its hello, and turns its models
-//! into the batched interface of `under_test.rs`. Every reply is checked (shape, NaN, ±∞ in a direction or flags, timeout);
+//! into the batched interface of `under_test.rs`. Every reply is checked (shape, NaN and ±∞, timeout);
 //! a failure names the op and model and quotes the server's stderr tail.
 
 use super::protocol::{self, preview, read_message, write_message, Message, Op};
@@ -521,12 +521,10 @@ impl Remote {
             }
             for (i, row) in reply.payload.chunks_exact(op.reply).enumerate() {
                 let empty = flags_col.is_some_and(|c| row[c] == 0.0);
-                // NaN anywhere; ±∞ in a direction, the flags or an index (a model's infinite
-                // value goes on to the check, which judges it as it judges furnace's own)
-                let bad = row
-                    .iter()
-                    .enumerate()
-                    .find(|&(c, v)| v.is_nan() || (v.is_infinite() && op.finite.contains(&c)));
+                // NaN anywhere, ±∞ but where the protocol allows +∞ (a distance)
+                let bad = row.iter().enumerate().find(|&(c, v)| {
+                    v.is_nan() || (v.is_infinite() && !(op.infinite == Some(c) && *v > 0.0))
+                });
                 if let (false, Some((_, v))) = (empty, bad) {
                     // the model's answer, not a broken connection: the server stays up
                     return Err(ModelError(format!(

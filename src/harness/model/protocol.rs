@@ -25,10 +25,9 @@ pub struct Op {
     pub request: usize,
     /// f64 per reply row.
     pub reply: usize,
-    /// The reply columns that must be finite: a sampled direction, the flags, an index. The
-    /// others are the model's values (f, pdf, weight, radiance, distance), whose infinities
-    /// the checks judge as they judge furnace's own (a FAIL, not a refused reply).
-    pub finite: &'static [usize],
+    /// The reply column that may hold +∞ (the distance to a light at infinity); every other
+    /// value of a sample must be finite.
+    pub infinite: Option<usize>,
 }
 
 /// f(wo, wi) per wavelength: wo, wi, λ\[4\] → f\[4\].
@@ -36,63 +35,63 @@ pub const BSDF_EVAL: Op = Op {
     name: "bsdf.eval",
     request: 10,
     reply: 4,
-    finite: &[],
+    infinite: None,
 };
 /// pdf(wo, wi): wo, wi, λ\[4\] → pdf.
 pub const BSDF_PDF: Op = Op {
     name: "bsdf.pdf",
     request: 10,
     reply: 1,
-    finite: &[],
+    infinite: None,
 };
 /// A sample: wo, u1, u2, uc, λ\[4\] → wi, weight\[4\], pdf, flags.
 pub const BSDF_SAMPLE: Op = Op {
     name: "bsdf.sample",
     request: 10,
     reply: 9,
-    finite: &[0, 1, 2, 8],
+    infinite: None,
 };
 /// η on the side of w: w, λ\[4\] → η\[4\].
 pub const BSDF_ETA: Op = Op {
     name: "bsdf.eta",
     request: 7,
     reply: 4,
-    finite: &[0, 1, 2, 3],
+    infinite: None,
 };
 /// p(wo, wi): wo, wi, λ\[4\] → p.
 pub const PHASE_EVAL: Op = Op {
     name: "phase.eval",
     request: 10,
     reply: 1,
-    finite: &[],
+    infinite: None,
 };
 /// pdf(wo, wi): wo, wi, λ\[4\] → pdf.
 pub const PHASE_PDF: Op = Op {
     name: "phase.pdf",
     request: 10,
     reply: 1,
-    finite: &[],
+    infinite: None,
 };
 /// A sample: wo, u1, u2, λ\[4\] → wi, weight, pdf.
 pub const PHASE_SAMPLE: Op = Op {
     name: "phase.sample",
     request: 9,
     reply: 5,
-    finite: &[0, 1, 2],
+    infinite: None,
 };
 /// A direction towards the emitter: p, u1, u2, uc, λ\[4\] → wi, radiance\[4\], pdf, dist, flags.
 pub const EMITTER_SAMPLE: Op = Op {
     name: "emitter.sample_direction",
     request: 10,
     reply: 10,
-    finite: &[0, 1, 2, 9],
+    infinite: Some(8),
 };
 /// The density of a direction: p, wi, λ\[4\] → pdf.
 pub const EMITTER_PDF: Op = Op {
     name: "emitter.pdf_direction",
     request: 10,
     reply: 1,
-    finite: &[],
+    infinite: None,
 };
 
 /// Every op of this version.
