@@ -123,10 +123,7 @@ pub fn render_mlt_chains(
         )));
     }
     // the state grows during the render: reserved for the whole of it
-    let _reservation = super::reserve(
-        &format!("MLT's chain images for a {w}x{h} image"),
-        bytes,
-    )?;
+    let _reservation = super::reserve(&format!("MLT's chain images for a {w}x{h} image"), bytes)?;
     let camera = scene.camera.build(w, h).map_err(RenderError::Settings)?;
     let setup = Setup::new(scene, camera, w, h);
     let grey = settings.is_grey(scene);

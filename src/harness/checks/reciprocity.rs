@@ -73,7 +73,7 @@ pub fn measure(
                             c.to_array()
                         )
                     };
-                    if err.is_nan() || err > allowed {
+                    if !err.is_finite() || err > allowed {
                         over.push((i, k, err, allowed, f1, f2));
                     } else {
                         if allowed > 0.0 {

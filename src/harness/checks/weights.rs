@@ -21,6 +21,10 @@ use crate::stats::z_with_tolerance;
 use crate::stats::MeanVar;
 
 fn rel_err(a: f64, b: f64) -> f64 {
+    // a value that is not finite is as wrong as can be (f64::max would drop its NaN)
+    if !(a.is_finite() && b.is_finite()) {
+        return f64::INFINITY;
+    }
     let scale = a.abs().max(b.abs());
     if scale == 0.0 {
         0.0

@@ -52,7 +52,8 @@ pub const SPREADS: f64 = 4.0;
 /// An identity's two sides differ by `err`; the inputs' rounding alone moves them by `spread`:
 /// excused when err ≤ SPREADS·spread + tolerance.
 pub fn excused(err: f64, spread: f64, tolerance: f64) -> bool {
-    err <= SPREADS * spread + tolerance
+    // an infinite error, or an infinite allowance, excuses nothing
+    err.is_finite() && tolerance.is_finite() && err <= SPREADS * spread + tolerance
 }
 
 #[cfg(test)]
@@ -71,5 +72,9 @@ mod tests {
         assert_eq!(spread(1.0, [1.5, 0.75]), 0.5);
         assert!(spread(1.0, [f64::NAN, 2.0]).is_nan());
         assert!(!excused(0.1, spread(1.0, [f64::NAN]), 1.0));
+        // an infinite error or allowance excuses nothing (an infinite weight was excused)
+        assert!(!excused(f64::INFINITY, 0.0, f64::INFINITY));
+        assert!(!excused(0.1, 0.0, f64::INFINITY));
+        assert!(excused(0.1, 0.0, 0.2));
     }
 }

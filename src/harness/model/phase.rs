@@ -317,6 +317,9 @@ pub fn reciprocity_error(
         worst_pdf = worst_pdf.max((p - s.pdf).abs() / p.max(f64::MIN_POSITIVE));
         if !(a.is_finite()
             && b.is_finite()
+            && p.is_finite()
+            && s.pdf.is_finite()
+            && s.weight.is_finite()
             && s.wi.is_finite()
             && (s.wi.length() - 1.0).abs() < unit_tol)
         {
