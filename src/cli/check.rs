@@ -220,15 +220,17 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     };
     // renderers as their labels (a table's default variant resolved): two that share one, or
     // whose results files would share a name, are refused before anything runs
-    let labels: Vec<String> = a
+    // (an unknown renderer is refused here, before the others have run)
+    let labels = a
         .renderers
         .iter()
         .map(|r| match &externals {
             Some(map) if r != "furnace" => adapter::External::from_spec(r, map, Path::new("."))
-                .map_or_else(|_| r.clone(), |e| e.label),
-            _ => r.clone(),
+                .map(|e| e.label)
+                .map_err(|e| anyhow::anyhow!(e)),
+            _ => Ok(r.clone()),
         })
-        .collect();
+        .collect::<Result<Vec<String>, _>>()?;
     super::distinct_renderers(&labels)?;
     let bundles = bundle_root(&a);
     // the bundles' folder holds an external renderer's renders while its checks run: one that

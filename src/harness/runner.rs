@@ -278,24 +278,6 @@ fn run_one(
         inner,
         globs: &check.models,
     });
-    // another renderer that serves none of the models a check names (names from furnace's
-    // catalogue) is not judged by it: a SKIP with the reason. Globs that match nothing in
-    // furnace's catalogue either are a typo, and the check's run reports that it measured
-    // nothing (an ERROR), as it does for furnace itself.
-    if let (Some(f), false, false) = (&filtered, check.models.is_empty(), renderer.is_reference()) {
-        let ours = Filtered {
-            inner: &LocalModels,
-            globs: &check.models,
-        };
-        let named_ours = serves_none(&ours, &check.models, String::new()).is_none();
-        if let Some(why) = serves_none(f, &check.models, renderer.name()).filter(|_| named_ours) {
-            let mut o = Outcome::new(&check.name, check.kind_name());
-            o.verdict = Verdict::Skipped;
-            o.message = why;
-            progress(Progress::Finished(&o));
-            return (o, None);
-        }
-    }
     let limit = check.time_limit.unwrap_or(opts.time_limit);
     let ctx = Context {
         deadline: Some(Instant::now() + std::time::Duration::from_secs_f64(limit)),
@@ -355,6 +337,21 @@ fn run_one(
                 o.message = format!(
                     "non-finite estimate, standard error or p-value; {}",
                     o.message
+                );
+                None
+            } else if ms.samples == 0
+                && !renderer.is_reference()
+                && !check.models.is_empty()
+                && names_furnace_models(&check.models)
+            {
+                // another renderer that serves no model of this kind among those the check
+                // names is not judged by it; for furnace, or globs naming none of furnace's
+                // models (a typo), measuring nothing stays an ERROR below
+                o.verdict = Verdict::Skipped;
+                o.message = format!(
+                    "{} serves no model this check can measure among those its `models` {:?} name (nothing was measured)",
+                    renderer.name(),
+                    check.models
                 );
                 None
             } else if ms.samples == 0 {
@@ -420,14 +417,18 @@ fn isolate_failures(
     }
 }
 
-/// Why `models` holds none of the models `globs` names, or None when it holds one (or cannot
-/// be asked: the check's own run then reports the server's error).
-fn serves_none(models: &Filtered, globs: &[String], renderer: String) -> Option<String> {
-    let (b, p, e) = (
-        models.bsdfs().ok()?,
-        models.phases().ok()?,
-        models.emitters().ok()?,
-    );
-    (b.is_empty() && p.is_empty() && e.is_empty())
-        .then(|| format!("{renderer} serves no model matching this check's `models` {globs:?}"))
+/// Whether `globs` name one of furnace's own models (a manifest written for furnace's names;
+/// globs that name none are a typo).
+fn names_furnace_models(globs: &[String]) -> bool {
+    let ours = Filtered {
+        inner: &LocalModels,
+        globs,
+    };
+    [
+        ours.bsdfs().map_or(0, |m| m.len()),
+        ours.phases().map_or(0, |m| m.len()),
+        ours.emitters().map_or(0, |m| m.len()),
+    ]
+    .iter()
+    .any(|&n| n > 0)
 }

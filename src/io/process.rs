@@ -76,10 +76,14 @@ impl Group {
         {
             // elsewhere the exit is seen by reaping: the group is then not killed (its id may
             // be reused), so what the leader left running is left
+            // (under the lock, so that kill_all never signals the id once it is reaped)
+            let mut groups = lock();
             let done = self.child.try_wait()?.is_some();
             if done {
                 self.reaped = true;
-                forget(self.child.id());
+                if let Some(i) = groups.0.iter().rposition(|p| *p == self.child.id()) {
+                    groups.0.swap_remove(i);
+                }
             }
             Ok(done)
         }
@@ -127,14 +131,6 @@ fn kill_group(leader: u32) {
         unsafe {
             libc::kill(-id, libc::SIGKILL);
         }
-    }
-}
-
-#[cfg(not(target_os = "linux"))]
-fn forget(leader: u32) {
-    let mut groups = lock();
-    if let Some(i) = groups.0.iter().rposition(|p| *p == leader) {
-        groups.0.swap_remove(i);
     }
 }
 

@@ -98,6 +98,12 @@ fn render_writes_exr_and_png_and_reports_speed() {
 /// refused before anything runs (one's results replaced the other's without a word).
 #[test]
 fn renderers_whose_results_files_collide_are_refused() {
+    let entries =
+        crate::scratch_dir().join(format!("furnace-cli-labels-{}.toml", std::process::id()));
+    let entry = |name: &str| {
+        format!("[renderer.{name}]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\ncommand = [\"true\", \"{{out}}\", \"{{variant}}\"]\n")
+    };
+    std::fs::write(&entries, entry("good") + &entry("good_v")).unwrap();
     for (a, b, says) in [
         ("good:v", "good_v", "files of one name"),
         ("furnace", "furnace", "given twice"),
@@ -110,7 +116,9 @@ fn renderers_whose_results_files_collide_are_refused() {
                 a,
                 "--renderer",
                 b,
+                "--renderers",
             ])
+            .arg(&entries)
             .output()
             .unwrap();
         assert_eq!(out.status.code(), Some(2), "{out:?}");

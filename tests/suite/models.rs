@@ -248,7 +248,7 @@ fn the_c_example_server_answers_furnace() {
         "{text}"
     );
     assert!(
-        text.contains("mine serves no model matching this check's `models`"),
+        text.contains("mine serves no model this check can measure among those its `models`"),
         "{text}"
     );
     let _ = std::fs::remove_file(table);
