@@ -2469,3 +2469,84 @@ fn catalogue_wide_albedo_and_smooth_limit_reject_one_broken_model() {
         &Catalogue::with_bsdf(rough, BrokenConductor::of(rough, false, true)),
     );
 }
+
+/// Lambert whose sampling weight is +∞ for one sample in a hundred (its eval and pdf right).
+struct LambertInfiniteWeight(f64);
+impl Bxdf for LambertInfiniteWeight {
+    fn eval(&self, wo: Vec3, wi: Vec3, _wl: &Wavelengths) -> SampledSpectrum {
+        furnace::scattering::lambert::Lambertian::eval_with(wo, wi, &SampledSpectrum::splat(self.0))
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2], _uc: f64, _wl: &Wavelengths) -> Option<BsdfSample> {
+        furnace::scattering::lambert::Lambertian::sample_with(
+            wo,
+            u,
+            &SampledSpectrum::splat(self.0),
+        )
+        .map(|s| BsdfSample {
+            weight: if u[0] < 0.01 {
+                SampledSpectrum::splat(f64::INFINITY)
+            } else {
+                s.weight
+            },
+            ..s
+        })
+    }
+    fn pdf(&self, wo: Vec3, wi: Vec3, wl: &Wavelengths) -> f64 {
+        LambertNoInvPi(self.0).pdf(wo, wi, wl)
+    }
+}
+
+/// An infinite sample weight is a mismatch no ill-conditioning excuses (the excuse's allowance
+/// scaled with the weight, so ∞ ≤ ∞ excused it). The verdict is ERROR rather than FAIL: the
+/// mean-weight tests' estimates are not finite; either rejects, and the message names the
+/// violated identity.
+#[test]
+fn sample_weights_reject_an_infinite_weight() {
+    let m = weights::measure_bsdf(
+        &LocalBsdf::new(LambertInfiniteWeight(0.5)),
+        2_000,
+        89.9,
+        1e-9,
+        1,
+        0.0,
+        Precision::F64,
+    )
+    .unwrap();
+    let v = judge(&m, alpha());
+    assert!(
+        matches!(v, Verdict::Fail | Verdict::Error) && m.message.contains("identity violated"),
+        "{v:?}: {}",
+        m.message
+    );
+}
+
+/// Henyey–Greenstein whose pdf(wo, wi) is +∞ (eval and sampling right).
+struct HgInfinitePdf(f64);
+impl Phase for HgInfinitePdf {
+    fn eval(&self, wo: Vec3, wi: Vec3) -> f64 {
+        HenyeyGreenstein { g: self.0 }.eval(wo, wi)
+    }
+    fn sample(&self, wo: Vec3, u: [f64; 2]) -> PhaseSample {
+        HenyeyGreenstein { g: self.0 }.sample(wo, u)
+    }
+    fn pdf(&self, _wo: Vec3, _wi: Vec3) -> f64 {
+        f64::INFINITY
+    }
+}
+
+/// An infinite phase pdf fails the pdf identity (f64::max dropped the NaN of ∞/∞, so it read
+/// as no mismatch at all).
+#[test]
+fn phase_rejects_an_infinite_pdf() {
+    let (_, pdf_err) = furnace::harness::model::phase::reciprocity_error(
+        &phase(HgInfinitePdf(0.9)),
+        1000,
+        1,
+        1e-9,
+    )
+    .unwrap();
+    assert!(
+        pdf_err > furnace::harness::model::phase::PDF_REL_TOL,
+        "pdf mismatch {pdf_err}"
+    );
+}
