@@ -218,19 +218,25 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     } else {
         None
     };
-    // renderers as their labels (a table's default variant resolved): two that share one, or
-    // whose results files would share a name, are refused before anything runs
-    // (an unknown renderer is refused here, before the others have run)
-    let labels = a
+    // every renderer resolved before any runs (an unknown one is refused now); two whose labels
+    // (a table's default variant applied) are one, or whose results files would share a name,
+    // are refused too
+    let resolved = a
         .renderers
         .iter()
         .map(|r| match &externals {
             Some(map) if r != "furnace" => adapter::External::from_spec(r, map, Path::new("."))
-                .map(|e| e.label)
+                .map(Some)
                 .map_err(|e| anyhow::anyhow!(e)),
-            _ => Ok(r.clone()),
+            _ => Ok(None),
         })
-        .collect::<Result<Vec<String>, _>>()?;
+        .collect::<Result<Vec<Option<adapter::External>>, _>>()?;
+    let labels: Vec<String> = a
+        .renderers
+        .iter()
+        .zip(&resolved)
+        .map(|(r, e)| e.as_ref().map_or_else(|| r.clone(), |e| e.label.clone()))
+        .collect();
     super::distinct_renderers(&labels)?;
     let bundles = bundle_root(&a);
     // the bundles' folder holds an external renderer's renders while its checks run: one that
@@ -243,14 +249,7 @@ pub fn run(a: CheckArgs) -> Result<i32, Failure> {
     let print_outcomes = a.format == "json" || !super::quiet();
     let mut reports = Vec::new();
     let mut traffic = harness::model::client::traffic();
-    for label in &a.renderers {
-        let external = match &externals {
-            Some(map) if label != "furnace" => Some(
-                adapter::External::from_spec(label, map, Path::new("."))
-                    .map_err(|e| anyhow::anyhow!(e))?,
-            ),
-            _ => None,
-        };
+    for (label, external) in a.renderers.iter().zip(resolved) {
         let renderer: &dyn harness::Renderer = match &external {
             Some(e) => e,
             None => &BuiltIn,
