@@ -565,20 +565,10 @@ fn a_renderer_that_writes_nan_pixels_is_named_for_them() {
         },
     )
     .unwrap();
-    let table = dir.join("renderers.toml");
-    std::fs::write(
-        &table,
-        format!(
-            "[renderer.nan]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"cp\", {:?}, \"{{out}}\"]\n",
-            exr.display().to_string()
-        ),
-    )
-    .unwrap();
-    let ext = External::from_spec("nan", &load_renderers(&table).unwrap(), &root("")).unwrap();
-    let text = "[[check]]\nname = \"s\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 8\nheight = 8\nspp = 4\n";
-    let specs = manifest::parse(text, &root("tests/manifests/x.toml")).unwrap();
-    let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
-    let o = &report.outcomes[0];
+    let o = small_check_through(
+        "nan",
+        &format!("[\"cp\", {:?}, \"{{out}}\"]", exr.display().to_string()),
+    );
     assert_eq!(o.verdict, Verdict::Error, "{}", o.message);
     assert!(
         o.message
@@ -593,25 +583,31 @@ fn a_renderer_that_writes_nan_pixels_is_named_for_them() {
 /// An error that names a render's temporary file says the file is gone by the time it is read.
 #[test]
 fn an_error_naming_a_temporary_file_says_it_is_removed() {
-    let table = crate::scratch_dir().join(format!(
-        "furnace-adapter-corrupt-{}.toml",
-        std::process::id()
-    ));
-    std::fs::write(
-        &table,
-        "[renderer.corrupt]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = [\"sh\", \"-c\", \"echo x > \\\"$0\\\"\", \"{out}\"]\n",
-    )
-    .unwrap();
-    let ext = External::from_spec("corrupt", &load_renderers(&table).unwrap(), &root("")).unwrap();
-    let text = "[[check]]\nname = \"s\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 8\nheight = 8\nspp = 4\n";
-    let specs = manifest::parse(text, &root("tests/manifests/x.toml")).unwrap();
-    let report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
-    let o = &report.outcomes[0];
+    let o = small_check_through("corrupt", r#"["sh", "-c", "echo x > \"$0\"", "{out}"]"#);
     assert_eq!(o.verdict, Verdict::Error, "{}", o.message);
     assert!(
         o.message.contains("batch-0.exr") && o.message.contains("were temporary"),
         "{}",
         o.message
     );
+}
+
+/// The outcome of an 8×8 furnace check (2 batches of 2 spp) judged through a renderer table
+/// entry `name` whose command is the TOML array `command`.
+fn small_check_through(name: &str, command: &str) -> furnace::harness::outcome::Outcome {
+    let table = crate::scratch_dir().join(format!(
+        "furnace-adapter-{name}-{}.toml",
+        std::process::id()
+    ));
+    std::fs::write(
+        &table,
+        format!("[renderer.{name}]\nexporter = \"mitsuba3\"\nobserver = \"cie1931\"\nbatches = 2\ncommand = {command}\n"),
+    )
+    .unwrap();
+    let ext = External::from_spec(name, &load_renderers(&table).unwrap(), &root("")).unwrap();
     let _ = std::fs::remove_file(table);
+    let text = "[[check]]\nname = \"s\"\nkind = \"furnace\"\nscene = \"scenes/furnace-sphere-0.5.toml\"\nwidth = 8\nheight = 8\nspp = 4\n";
+    let specs = manifest::parse(text, &root("tests/manifests/x.toml")).unwrap();
+    let mut report = harness::run(&specs, &RunOptions::default(), &ext, vec![], &mut |_| {});
+    report.outcomes.remove(0)
 }
